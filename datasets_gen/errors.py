@@ -1,0 +1,92 @@
+"""Exception hierarchy shared by every parambench package.
+
+Every error a user can provoke with bad input or a failing solver is a subclass of
+:class:`ParambenchError`, so scripts can catch the family at once, and the command line
+turns any of them into one line on stderr and exit code 2. Messages say what to do.
+
+This module lives in ``datasets_gen`` because that package sits at the root of the data
+flow (``Surface`` is defined there); it depends on nothing else in the project.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ParambenchError",
+    "InputFileError",
+    "InvalidInputError",
+    "DuplicatePointsError",
+    "TooFewPointsError",
+    "DegenerateFacesError",
+    "TopologyError",
+    "NotADiskError",
+    "DisconnectedError",
+    "NoBoundaryError",
+    "InconsistentNormalsError",
+    "UnknownNameError",
+    "MissingFacesError",
+    "SolverError",
+    "ConvergenceError",
+]
+
+
+class ParambenchError(ValueError):
+    """Base class of every error parambench raises on purpose."""
+
+
+class InputFileError(ParambenchError):
+    """A file is missing, unreadable, or in a format parambench cannot read or write."""
+
+
+class InvalidInputError(ParambenchError):
+    """Arrays of the wrong shape or dtype, NaN or infinite coordinates, indices out of range."""
+
+
+class DuplicatePointsError(InvalidInputError):
+    """Two or more input points coincide (within tolerance)."""
+
+
+class TooFewPointsError(InvalidInputError):
+    """Fewer points than the method or neighbourhood size needs."""
+
+
+class DegenerateFacesError(InvalidInputError):
+    """Faces with repeated vertices or (numerically) zero area."""
+
+
+class TopologyError(ParambenchError):
+    """The surface is not of the topology a method needs."""
+
+
+class NotADiskError(TopologyError):
+    """The mesh is not a single disk-like component (closed, several components, non-manifold)."""
+
+
+class DisconnectedError(TopologyError):
+    """A mesh or a neighbourhood graph has several connected components."""
+
+
+class NoBoundaryError(TopologyError):
+    """No boundary was found: the surface looks closed."""
+
+
+class InconsistentNormalsError(InvalidInputError):
+    """User-supplied normals are not consistently oriented or not usable."""
+
+
+class UnknownNameError(ParambenchError, KeyError):
+    """Unknown method, dataset, suite or parameter name."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class MissingFacesError(ParambenchError):
+    """A mesh method was given a point set without faces."""
+
+
+class SolverError(ParambenchError):
+    """A numerical solve failed or produced an invalid result; the map is not returned."""
+
+
+class ConvergenceError(SolverError):
+    """An iterative solver or search did not converge."""

@@ -1,0 +1,284 @@
+"""The ``Surface`` hand-off: what every generator and loader produces and every method reads.
+
+Validation lives here, once, at the public boundary (the pattern of scikit-learn and
+robust-laplacian): a ``Surface`` that exists has finite float64 points, in-range int64
+faces without degenerate triangles, and unit normals if any.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import (
+    DegenerateFacesError,
+    DuplicatePointsError,
+    InvalidInputError,
+    TooFewPointsError,
+)
+
+__all__ = ["Surface", "validate_points", "validate_faces", "validate_normals", "MIN_POINTS"]
+
+#: Fewer points than this cannot define a surface patch with an interior.
+MIN_POINTS = 4
+
+#: Points closer than this fraction of the bounding-box diagonal count as duplicates.
+DUPLICATE_TOL = 1e-9
+
+#: Faces whose area is below this fraction of (mean edge length)^2 count as degenerate.
+DEGENERATE_AREA_TOL = 1e-12
+
+
+def validate_points(points: Any, *, name: str = "points", min_points: int = MIN_POINTS) -> np.ndarray:
+    """Check and convert a point array.
+
+    Parameters
+    ----------
+    points : (N, 3) array_like of float
+        Point coordinates.
+    name : str
+        Used in error messages.
+    min_points : int
+        Smallest accepted N.
+
+    Returns
+    -------
+    (N, 3) numpy.ndarray of float64, C-contiguous.
+
+    Raises
+    ------
+    InvalidInputError
+        Wrong shape, non-numeric dtype, NaN or infinite coordinates.
+    TooFewPointsError
+        N < ``min_points``.
+    """
+    arr = np.asarray(points)
+    if arr.dtype.kind not in "fiu":
+        raise InvalidInputError(f"{name} must be a numeric array, got dtype {arr.dtype}; pass float coordinates.")
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InvalidInputError(f"{name} must have shape (N, 3), got {arr.shape}; pass one row x, y, z per point.")
+    arr = np.ascontiguousarray(arr, dtype=np.float64)
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        raise InvalidInputError(
+            f"{name} has {idx.size} row(s) with NaN or infinite coordinates (first: row {idx[0]}); "
+            "remove or repair those points before flattening."
+        )
+    if arr.shape[0] < min_points:
+        raise TooFewPointsError(
+            f"{name} has {arr.shape[0]} point(s); at least {min_points} are needed. Sample the surface more densely."
+        )
+    return arr
+
+
+def find_duplicate_points(points: np.ndarray, rel_tol: float = DUPLICATE_TOL) -> np.ndarray:
+    """Pairs of points closer than ``rel_tol`` times the bounding-box diagonal.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    rel_tol : float
+
+    Returns
+    -------
+    (P, 2) numpy.ndarray of int64, each row ``i < j``.
+    """
+    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    tol = max(rel_tol * diag, np.finfo(float).tiny)
+    return cKDTree(points).query_pairs(tol, output_type="ndarray").astype(np.int64)
+
+
+def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) -> np.ndarray:
+    """Check and convert a triangle array.
+
+    Parameters
+    ----------
+    faces : (M, 3) array_like of int
+        Vertex indices per triangle, 0-based.
+    n_points : int
+        Number of vertices the indices refer to.
+    points : (N, 3) numpy.ndarray of float64, optional
+        When given, zero-area triangles are detected too.
+
+    Returns
+    -------
+    (M, 3) numpy.ndarray of int64, C-contiguous.
+
+    Raises
+    ------
+    InvalidInputError
+        Wrong shape or dtype, indices out of range.
+    DegenerateFacesError
+        Repeated vertex in a face, or zero area.
+    """
+    arr = np.asarray(faces)
+    if arr.size == 0:
+        raise InvalidInputError("faces is empty; pass None for a point set without faces.")
+    if arr.dtype.kind not in "iu":
+        if arr.dtype.kind == "f" and np.all(np.mod(arr, 1) == 0):
+            arr = arr.astype(np.int64)
+        else:
+            raise InvalidInputError(f"faces must be an integer array, got dtype {arr.dtype}.")
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InvalidInputError(f"faces must have shape (M, 3) (triangles only), got {arr.shape}; triangulate first.")
+    arr = np.ascontiguousarray(arr, dtype=np.int64)
+    lo, hi = int(arr.min()), int(arr.max())
+    if lo < 0 or hi >= n_points:
+        raise InvalidInputError(
+            f"face indices must lie in [0, {n_points - 1}], found range [{lo}, {hi}]; indices are 0-based."
+        )
+    repeated = (arr[:, 0] == arr[:, 1]) | (arr[:, 1] == arr[:, 2]) | (arr[:, 0] == arr[:, 2])
+    if repeated.any():
+        raise DegenerateFacesError(
+            f"{int(repeated.sum())} face(s) repeat a vertex (first: face {int(np.flatnonzero(repeated)[0])}); "
+            "remove degenerate faces (e.g. pymeshlab meshing_remove_null_faces) and retry."
+        )
+    if points is not None:
+        e1 = points[arr[:, 1]] - points[arr[:, 0]]
+        e2 = points[arr[:, 2]] - points[arr[:, 0]]
+        area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+        scale = np.mean(np.linalg.norm(e1, axis=1)) ** 2
+        flat = area2 <= DEGENERATE_AREA_TOL * max(scale, np.finfo(float).tiny)
+        if flat.any():
+            raise DegenerateFacesError(
+                f"{int(flat.sum())} face(s) have zero area (first: face {int(np.flatnonzero(flat)[0])}); "
+                "remove null faces or collapse their short edges before flattening."
+            )
+    return arr
+
+
+def validate_normals(normals: Any, n_points: int) -> np.ndarray:
+    """Check normals and return them unit-length.
+
+    Parameters
+    ----------
+    normals : (N, 3) array_like of float
+    n_points : int
+
+    Returns
+    -------
+    (N, 3) numpy.ndarray of float64 with unit rows.
+
+    Raises
+    ------
+    InvalidInputError
+        Wrong shape, non-finite or zero-length normals.
+    """
+    arr = np.asarray(normals, dtype=np.float64)
+    if arr.shape != (n_points, 3):
+        raise InvalidInputError(f"normals must have shape ({n_points}, 3) to match the points, got {arr.shape}.")
+    length = np.linalg.norm(arr, axis=1)
+    if not np.all(np.isfinite(length)) or np.any(length < 1e-12):
+        raise InvalidInputError("normals contain NaN, infinite or zero-length rows; omit them to let parambench estimate normals.")
+    return arr / length[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class Surface:
+    """A sampled surface, with ground truth where it is known.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+        Sample positions.
+    faces : (M, 3) numpy.ndarray of int64 or None
+        Triangles over the points (the ground-truth mesh for generated data); None for a
+        bare point set.
+    normals : (N, 3) numpy.ndarray of float64 or None
+        Unit normals, if known.
+    name : str
+        Dataset name (e.g. ``"saddle"``, ``"real/camelhead"``).
+    params : dict
+        Generator parameters (size, sampling, noise, ...), JSON-serialisable.
+    seed : int or None
+        Seed the generator used.
+    boundary_mask : (N,) numpy.ndarray of bool or None
+        True at points on the true boundary.
+    boundary_loops : list of (L_i,) numpy.ndarray of int64, or None
+        True boundary loops in order, outer loop first and counter-clockwise as seen from
+        the normals' side, holes clockwise.
+    exact_uv : (N, 2) numpy.ndarray of float64 or None
+        The exact map to the plane (conformal or isometric) evaluated at the points.
+    exact_map_kind : str or None
+        ``"conformal"`` or ``"isometric"`` when ``exact_uv`` is given.
+
+    Raises
+    ------
+    InvalidInputError, TooFewPointsError, DegenerateFacesError
+        On invalid arrays (see :func:`validate_points`, :func:`validate_faces`).
+    DuplicatePointsError
+        When two points coincide.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    name: str = "surface"
+    params: dict = field(default_factory=dict)
+    seed: int | None = None
+    boundary_mask: np.ndarray | None = None
+    boundary_loops: list | None = None
+    exact_uv: np.ndarray | None = None
+    exact_map_kind: str | None = None
+
+    def __post_init__(self) -> None:
+        pts = validate_points(self.points)
+        dup = find_duplicate_points(pts)
+        if dup.size:
+            i, j = (int(v) for v in dup[0])
+            raise DuplicatePointsError(
+                f"{self.name}: {len(dup)} pair(s) of duplicate points (first: {i} and {j}); "
+                "merge them first (e.g. pymeshlab meshing_remove_duplicate_vertices) and retry."
+            )
+        object.__setattr__(self, "points", pts)
+        n = pts.shape[0]
+        if self.faces is not None:
+            object.__setattr__(self, "faces", validate_faces(self.faces, n, pts))
+        if self.normals is not None:
+            object.__setattr__(self, "normals", validate_normals(self.normals, n))
+        if self.boundary_mask is not None:
+            mask = np.asarray(self.boundary_mask, dtype=bool)
+            if mask.shape != (n,):
+                raise InvalidInputError(f"boundary_mask must have shape ({n},), got {mask.shape}.")
+            object.__setattr__(self, "boundary_mask", mask)
+        if self.boundary_loops is not None:
+            loops = [np.asarray(loop, dtype=np.int64) for loop in self.boundary_loops]
+            object.__setattr__(self, "boundary_loops", loops)
+        if self.exact_uv is not None:
+            uv = np.asarray(self.exact_uv, dtype=np.float64)
+            if uv.shape != (n, 2):
+                raise InvalidInputError(f"exact_uv must have shape ({n}, 2), got {uv.shape}.")
+            object.__setattr__(self, "exact_uv", uv)
+
+    @property
+    def n_points(self) -> int:
+        """Number of points N."""
+        return int(self.points.shape[0])
+
+    @property
+    def has_faces(self) -> bool:
+        """True when the surface carries a triangle mesh."""
+        return self.faces is not None
+
+    @property
+    def diameter(self) -> float:
+        """Bounding-box diagonal length, the unit for relative errors."""
+        return float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
+
+    def points_only(self) -> "Surface":
+        """The same surface with its faces dropped (ground truth is kept for evaluation)."""
+        return replace(self, faces=None)
+
+    def describe(self) -> dict:
+        """A JSON-serialisable summary (name, sizes, parameters, seed)."""
+        return {
+            "name": self.name,
+            "n_points": self.n_points,
+            "n_faces": 0 if self.faces is None else int(self.faces.shape[0]),
+            "params": dict(self.params),
+            "seed": self.seed,
+        }

@@ -1,0 +1,168 @@
+"""The ``Parameterization`` hand-off and the method plugin contract.
+
+A plugin is a small class (the benchopt pattern): a ``name``, ``defaults``, a
+``param_grid`` for sweeps, ``needs_faces``, and ``run(surface, **params)``. Plugins know
+nothing of sweeps, files or reports.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Iterator
+
+import numpy as np
+
+from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
+from datasets_gen.surface import Surface
+
+__all__ = ["Parameterization", "Method", "StageTimer"]
+
+
+@dataclass(eq=False)
+class Parameterization:
+    """A map of the surface's points to the plane.
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+        One row per input point, in input order.
+    method : str
+        Registered method name.
+    params : dict
+        The parameters the method ran with (defaults filled in).
+    timings : dict of str to float
+        Seconds per stage (e.g. ``{"weights": 0.1, "solve": 0.4}``); ``"total"`` is added
+        by :meth:`Method.__call__`.
+    diagnostics : dict
+        Solver facts: iterations, eigenvalues, ``k_opt``, boundary loops found, ...
+        Values are JSON-serialisable scalars, lists or dicts.
+    faces : (M, 3) numpy.ndarray of int64 or None
+        A triangulation the method built or used (e.g. Delaunay in uv for a point set);
+        None when the method worked on the surface's own faces or on points only.
+    """
+
+    uv: np.ndarray
+    method: str
+    params: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+    faces: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        uv = np.asarray(self.uv, dtype=np.float64)
+        if uv.ndim != 2 or uv.shape[1] != 2:
+            raise InvalidInputError(f"uv must have shape (N, 2), got {uv.shape}.")
+        self.uv = np.ascontiguousarray(uv)
+
+
+class StageTimer:
+    """Collects wall-clock seconds per named stage.
+
+    Examples
+    --------
+    >>> timer = StageTimer()
+    >>> with timer("solve"):
+    ...     pass
+    >>> sorted(timer.timings)
+    ['solve']
+    """
+
+    def __init__(self) -> None:
+        self.timings: dict[str, float] = {}
+
+    @contextmanager
+    def __call__(self, stage: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - start
+
+
+class Method:
+    """Base class of method plugins.
+
+    Subclasses set the class attributes and implement :meth:`run`.
+
+    Attributes
+    ----------
+    name : str
+        Registered name, used on the command line and in result tables.
+    description : str
+        One line shown by ``parambench list``.
+    needs_faces : bool
+        True for mesh methods; they raise :class:`MissingFacesError` on a point set.
+    defaults : dict
+        Every accepted parameter with its default value.
+    param_grid : dict of str to list
+        Values a sweep tries per parameter (a subset of ``defaults`` keys); missing keys
+        use the default.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    needs_faces: ClassVar[bool] = False
+    defaults: ClassVar[dict[str, Any]] = {}
+    param_grid: ClassVar[dict[str, list]] = {}
+
+    def resolve_params(self, params: dict[str, Any]) -> dict[str, Any]:
+        """Fill in defaults and reject unknown parameter names.
+
+        Raises
+        ------
+        UnknownNameError
+            A key that is not in ``defaults``; the message lists the accepted ones.
+        """
+        unknown = sorted(set(params) - set(self.defaults))
+        if unknown:
+            accepted = ", ".join(sorted(self.defaults)) or "(none)"
+            raise UnknownNameError(
+                f"method {self.name!r} has no parameter(s) {', '.join(unknown)}; accepted: {accepted}."
+            )
+        merged = dict(self.defaults)
+        merged.update(params)
+        return merged
+
+    def __call__(self, surface: Surface, **params: Any) -> Parameterization:
+        """Validate, run and time the method.
+
+        Parameters
+        ----------
+        surface : Surface
+        **params
+            Method parameters; see ``defaults``.
+
+        Returns
+        -------
+        Parameterization
+            With ``timings["total"]`` set and ``params`` fully resolved.
+
+        Raises
+        ------
+        MissingFacesError
+            Mesh method given a point set.
+        UnknownNameError
+            Unknown parameter name.
+        """
+        resolved = self.resolve_params(params)
+        if self.needs_faces and not surface.has_faces:
+            raise MissingFacesError(
+                f"method {self.name!r} needs a triangle mesh but {surface.name!r} is a point set without faces; "
+                "use a point-set method (e.g. 'ocp') or give a mesh file."
+            )
+        start = time.perf_counter()
+        result = self.run(surface, **resolved)
+        result.timings["total"] = time.perf_counter() - start
+        result.params = resolved
+        result.method = self.name
+        if result.uv.shape[0] != surface.n_points:
+            raise InvalidInputError(
+                f"method {self.name!r} returned {result.uv.shape[0]} uv rows for {surface.n_points} points (a bug)."
+            )
+        return result
+
+    def run(self, surface: Surface, **params: Any) -> Parameterization:  # pragma: no cover - abstract
+        """Compute the parameterization. Subclasses implement this."""
+        raise NotImplementedError

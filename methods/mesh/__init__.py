@@ -1,0 +1,1 @@
+"""Shared numerics on triangle meshes: topology checks, Laplacian weights, conformal energy."""

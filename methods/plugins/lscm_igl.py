@@ -1,0 +1,38 @@
+"""``lscm-igl``: libigl's least-squares conformal map with two pinned boundary vertices."""
+
+from __future__ import annotations
+
+import igl
+import numpy as np
+
+from datasets_gen.surface import Surface
+
+from ..base import Method, Parameterization, StageTimer
+from ..mesh.pins import farthest_pair
+from ..mesh.topology import require_connected_disk_like
+from ..registry import register
+
+
+@register
+class LscmIgl(Method):
+    """Baseline: ``igl.lscm`` pinning the two boundary vertices farthest apart.
+
+    The pins go to (0, 0) and (d, 0), d their 3D distance, so the map keeps the
+    surface's scale roughly.
+    """
+
+    name = "lscm-igl"
+    description = "libigl LSCM, the two boundary vertices farthest apart pinned (baseline)"
+    needs_faces = True
+
+    def run(self, surface: Surface, **params) -> Parameterization:
+        timer = StageTimer()
+        with timer("topology"):
+            loops = require_connected_disk_like(surface.points, surface.faces)
+            i, j = farthest_pair(surface.points, np.concatenate(loops))
+        d = float(np.linalg.norm(surface.points[i] - surface.points[j]))
+        with timer("solve"):
+            uv, _ = igl.lscm(surface.points, surface.faces, np.array([i, j], dtype=np.int64),
+                             np.array([[0.0, 0.0], [d, 0.0]]))
+        return Parameterization(uv=uv, method=self.name, timings=timer.timings,
+                                diagnostics={"pins": [i, j], "n_boundary_loops": len(loops)})

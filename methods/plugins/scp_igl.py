@@ -1,0 +1,35 @@
+"""``scp-igl``: libigl's spectral conformal parameterization (Mullen et al. 2008)."""
+
+from __future__ import annotations
+
+import igl.spectra
+import numpy as np
+
+from datasets_gen.errors import SolverError
+from datasets_gen.surface import Surface
+
+from ..base import Method, Parameterization, StageTimer
+from ..mesh.topology import require_connected_disk_like
+from ..registry import register
+
+
+@register
+class ScpIgl(Method):
+    """Baseline: ``igl.spectra.lscm`` (SCP with the mass matrix as B)."""
+
+    name = "scp-igl"
+    description = "libigl spectral conformal parameterization, igl.spectra.lscm (baseline)"
+    needs_faces = True
+
+    def run(self, surface: Surface, **params) -> Parameterization:
+        timer = StageTimer()
+        with timer("topology"):
+            loops = require_connected_disk_like(surface.points, surface.faces)
+        with timer("solve"):
+            uv = igl.spectra.lscm(surface.points, surface.faces)
+        uv = np.asarray(uv, dtype=np.float64)
+        if not np.all(np.isfinite(uv)) or np.ptp(uv, axis=0).min() <= 0:
+            raise SolverError(f"igl.spectra.lscm returned a degenerate map on {surface.name!r}; "
+                              "check the mesh for degenerate or duplicated faces.")
+        return Parameterization(uv=uv, method=self.name, timings=timer.timings,
+                                diagnostics={"n_boundary_loops": len(loops)})
