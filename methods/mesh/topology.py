@@ -9,18 +9,7 @@ from scipy.sparse.csgraph import connected_components
 
 from datasets_gen.errors import DisconnectedError, NotADiskError
 
-__all__ = ["boundary_loops", "require_disk", "require_connected_disk_like", "signed_area_2d"]
-
-
-def signed_area_2d(polygon: np.ndarray) -> float:
-    """Signed area of a closed 2D polygon (shoelace formula), positive if counter-clockwise.
-
-    Parameters
-    ----------
-    polygon : (L, 2) numpy.ndarray of float64
-    """
-    x, y = polygon[:, 0], polygon[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+__all__ = ["boundary_loops", "require_disk", "require_connected_disk_like"]
 
 
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
