@@ -1,0 +1,229 @@
+"""The ``parambench`` command line: run, flatten, inspect, report, list."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any, Sequence
+
+from datasets_gen.errors import InputFileError, InvalidInputError, ParambenchError
+
+__all__ = ["main", "parse_param_values"]
+
+DEFAULT_OUT = "parambench-results"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (no usage dump) and exit code 2."""
+
+    def error(self, message: str) -> None:  # noqa: D401 - argparse API
+        self.exit(2, f"parambench: error: {message} (see '{self.prog} --help')\n")
+
+
+def _coerce(key: str, text: str, default: Any) -> Any:
+    if isinstance(default, bool):
+        low = text.strip().lower()
+        if low in ("1", "true", "yes", "on"):
+            return True
+        if low in ("0", "false", "no", "off"):
+            return False
+        raise InvalidInputError(f"parameter {key} expects true or false, got {text!r}.")
+    for kind in (int, float):
+        if isinstance(default, kind):
+            try:
+                return kind(text)
+            except ValueError:
+                raise InvalidInputError(f"parameter {key} expects a {kind.__name__}, got {text!r}.") from None
+    if default is None:
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError:
+            return text
+    return text
+
+
+def parse_param_values(pairs: Sequence[str], defaults: dict) -> dict:
+    """Turn ``["k=1.5", "weights=uniform"]`` into typed parameters, typed like the defaults.
+
+    Raises
+    ------
+    InvalidInputError
+        A pair without ``=`` or a value of the wrong type.
+    """
+    params = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise InvalidInputError(f"--param expects KEY=VALUE, got {pair!r}.")
+        key, value = pair.split("=", 1)
+        key = key.strip()
+        params[key] = _coerce(key, value, defaults.get(key))
+    return params
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .suites import get_suite
+    from .sweep import run_sweep, summary_table
+
+    suite = get_suite(args.suite).with_overrides(
+        methods=args.methods, datasets=args.datasets, sizes=args.sizes, seeds=args.seeds,
+        samplings=args.samplings, noise=args.noise)
+    table = run_sweep(suite, args.out, scheduler=args.scheduler, workers=args.workers,
+                      progress=not args.no_progress)
+    print(summary_table(table))
+    print(f"\nresults: {Path(args.out) / 'results.parquet'} and results.csv")
+    if not args.no_report:
+        from reports.build import build_report
+
+        paths = build_report(args.out, benchmark_json=args.benchmark_json or ())
+        for kind, path in paths.items():
+            print(f"report ({kind}): {path}")
+    return 0
+
+
+def _default_method(surface) -> str:
+    from methods.registry import method_names
+
+    names = method_names()
+    preferred = ("scp", "scp-igl") if surface.has_faces else ("ocp",)
+    for name in preferred:
+        if name in names:
+            return name
+    raise InvalidInputError("no default method for a point set is installed; pass --method.")
+
+
+def _cmd_flatten(args: argparse.Namespace) -> int:
+    from datasets_gen.io import load_surface
+    from methods.registry import get_method
+
+    from .uv_output import write_uv
+
+    out = Path(args.output)
+    if out.suffix.lower() not in (".obj", ".csv"):
+        raise InputFileError(f"cannot write {out.name!r}: output must end in .obj or .csv.")
+    surface = load_surface(args.input, points_only=args.points_only)
+    method = get_method(args.method or _default_method(surface))
+    params = parse_param_values(args.param or [], method.defaults)
+    result = method(surface, **params)
+    write_uv(out, surface.points, result.uv, surface.faces)
+    print(f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s -> {out}")
+    return 0
+
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from datasets_gen.io import load_surface
+    from methods.pointset.frontend import build_frontend
+    from methods.pointset.inspect import inspect_surface
+
+    out = Path(args.output)
+    if not out.parent.exists():
+        raise InputFileError(f"output directory {str(out.parent)!r} does not exist; create it first.")
+    surface = load_surface(args.input, points_only=args.points_only)
+    import inspect as _inspect
+
+    defaults = {k: p.default for k, p in _inspect.signature(build_frontend).parameters.items()
+                if p.kind is _inspect.Parameter.KEYWORD_ONLY}
+    params = parse_param_values(args.param or [], defaults)
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        from datasets_gen.errors import UnknownNameError
+
+        raise UnknownNameError(f"unknown front-end parameter(s) {', '.join(unknown)}; accepted: {', '.join(sorted(defaults))}.")
+    report = inspect_surface(surface, **params)
+    out.write_text(json.dumps(report, indent=2))
+    loops = report.get("boundary_loops", [])
+    print(f"{surface.n_points} points, mean spacing {report['mean_spacing']:.4g}, "
+          f"{len(loops)} boundary loop(s) -> {out}")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from reports.build import build_report
+
+    paths = build_report(args.results_dir, benchmark_json=args.benchmark_json or (), out_dir=args.out)
+    for kind, path in paths.items():
+        print(f"report ({kind}): {path}")
+    return 0
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from datasets_gen.registry import dataset_info
+    from methods.registry import all_methods
+
+    print("methods:")
+    for name, cls in all_methods().items():
+        kind = "mesh" if cls.needs_faces else "points"
+        print(f"  {name:<14} [{kind}] {cls.description}")
+        for key, default in sorted(cls.defaults.items()):
+            grid = cls.param_grid.get(key)
+            extra = f"  (sweep: {', '.join(map(str, grid))})" if grid else ""
+            print(f"      {key}={default!r}{extra}")
+    print("\ndatasets:")
+    for name, text in dataset_info().items():
+        print(f"  {name:<18} {text}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for documentation and tests)."""
+    parser = _Parser(prog="parambench", description="Conformal parameterization of point sets and meshes, benchmarked.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser("run", help="run a sweep and build its report")
+    run.add_argument("--suite", default="quick", help="quick (default, < 3 min) or full")
+    run.add_argument("--methods", nargs="+", help="method names (default: all registered)")
+    run.add_argument("--datasets", nargs="+", help="dataset names (default: the suite's)")
+    run.add_argument("--sizes", nargs="+", type=int, help="point counts of procedural datasets")
+    run.add_argument("--seeds", nargs="+", type=int, help="seeds")
+    run.add_argument("--samplings", nargs="+", help="grid, jittered, random, blue-noise")
+    run.add_argument("--noise", nargs="+", type=float, help="normal noise, fraction of the mean spacing")
+    run.add_argument("--out", default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")
+    run.add_argument("--scheduler", help="address of a running Dask scheduler")
+    run.add_argument("--workers", type=int, help="start a local Dask cluster with N workers")
+    run.add_argument("--benchmark-json", nargs="+", help="pytest-benchmark JSON files to include in the report")
+    run.add_argument("--no-report", action="store_true", help="skip building the report")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run.set_defaults(func=_cmd_run)
+
+    flat = sub.add_parser("flatten", help="flatten a mesh or point-cloud file")
+    flat.add_argument("input")
+    flat.add_argument("--method", help="method name (default: scp for meshes, ocp for point sets)")
+    flat.add_argument("--param", nargs="+", action="extend", metavar="KEY=VALUE", help="method parameters")
+    flat.add_argument("--points-only", action="store_true", help="drop faces; treat the input as a point set")
+    flat.add_argument("-o", "--output", required=True, help="output .obj (v, vt, f) or .csv (u,v)")
+    flat.set_defaults(func=_cmd_flatten)
+
+    insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")
+    insp.add_argument("input")
+    insp.add_argument("--points-only", action="store_true", help="drop faces (the front end uses points only)")
+    insp.add_argument("--param", nargs="+", action="extend", metavar="KEY=VALUE", help="front-end parameters")
+    insp.add_argument("-o", "--output", required=True, help="output .json")
+    insp.set_defaults(func=_cmd_inspect)
+
+    rep = sub.add_parser("report", help="build the HTML and PDF report of a results directory")
+    rep.add_argument("results_dir")
+    rep.add_argument("--benchmark-json", nargs="+", help="pytest-benchmark JSON files")
+    rep.add_argument("--out", help="output directory (default: RESULTS_DIR/report)")
+    rep.set_defaults(func=_cmd_report)
+
+    lst = sub.add_parser("list", help="list methods (with parameters) and datasets")
+    lst.set_defaults(func=_cmd_list)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code (2 for bad input, with one line on stderr)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ParambenchError as exc:
+        print(f"parambench: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("parambench: interrupted; finished cells are kept, run again to resume.", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

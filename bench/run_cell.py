@@ -1,0 +1,162 @@
+"""Run one sweep cell: make the surface, run the method, measure, store the row.
+
+:func:`run_cell` is a plain top-level function of picklable arguments, so the same code
+runs in-process, in a process pool or on a Dask worker.
+"""
+
+from __future__ import annotations
+
+import json
+import traceback
+from functools import lru_cache
+
+import numpy as np
+
+from datasets_gen.errors import ParambenchError
+from datasets_gen.registry import make_surface
+from datasets_gen.surface import Surface
+from methods import get_method
+
+from .cells import Cell
+from .memory import PeakMemory
+from .metrics import evaluate, per_face_qc, uv_delaunay_faces
+from .storage import ResultStore
+
+__all__ = ["compute_cell", "run_cell", "store_cell", "surface_for", "METRIC_COLUMNS", "ARTIFACT_MAX_POINTS"]
+
+METRIC_COLUMNS = ("qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
+                  "area_distortion", "turning_numbers", "exact_error", "n_eval_faces")
+
+#: Cells on larger surfaces store no arrays: pictures of a million triangles are not drawn.
+ARTIFACT_MAX_POINTS = 200_000
+
+
+@lru_cache(maxsize=4)
+def surface_for(dataset: str, size: int, sampling: str, noise: float, seed: int) -> Surface:
+    """The surface of a cell, regenerated from its seed (cached per process)."""
+    if dataset.startswith("real/"):
+        return make_surface(dataset, seed=seed)
+    return make_surface(dataset, size, sampling=sampling, seed=seed, noise=noise)
+
+
+def _loops_arrays(prefix: str, loops) -> dict:
+    if not loops:
+        return {}
+    flat = np.concatenate([np.asarray(lp, dtype=np.int32) for lp in loops])
+    offsets = np.cumsum([0] + [len(lp) for lp in loops]).astype(np.int32)
+    return {f"{prefix}_loops_flat": flat, f"{prefix}_loops_offsets": offsets}
+
+
+def _empty_row(cell: Cell) -> dict:
+    row = cell.address()
+    row.update(cell_id=cell.cell_id, n_points=None, n_faces=None, status="failed", error_type="", error="",
+               eval_mesh="", time_total=None, timings="{}", diagnostics="{}", k_opt=None,
+               peak_memory_mb=None, artifact="")
+    row.update({c: None for c in METRIC_COLUMNS})
+    return row
+
+
+def _evaluation_mesh(surface: Surface, result) -> tuple[np.ndarray, str]:
+    if surface.faces is not None:
+        return surface.faces, "ground-truth"
+    if result.faces is not None:
+        return result.faces, "method"
+    return uv_delaunay_faces(surface.points, result.uv), "uv-delaunay"
+
+
+def _artifact(surface: Surface, result, faces, eval_kind: str) -> dict:
+    qc = per_face_qc(surface.points, faces, result.uv)
+    e1 = result.uv[faces[:, 1]] - result.uv[faces[:, 0]]
+    e2 = result.uv[faces[:, 2]] - result.uv[faces[:, 0]]
+    signed = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    majority = 1.0 if np.count_nonzero(signed > 0) >= np.count_nonzero(signed < 0) else -1.0
+    arrays = {
+        "points": surface.points.astype(np.float32),
+        "faces": faces.astype(np.int32),
+        "uv": result.uv,
+        "qc": qc,
+        "flipped": signed * majority < 0,
+    }
+    if eval_kind == "ground-truth":
+        arrays.update(_loops_arrays("gt", surface.boundary_loops))
+    diag = result.diagnostics
+    arrays.update(_loops_arrays("det", diag.get("boundary_loops")))
+    landscape = diag.get("landscape")
+    if landscape:
+        for key in ("k", "E", "t"):
+            arrays[f"landscape_{key}"] = np.asarray(landscape[key], dtype=np.float64)
+    return arrays
+
+
+def _jsonable_diagnostics(diag: dict) -> str:
+    # Loops and landscapes go to the npz; the row keeps scalars and short lists.
+    slim = {k: v for k, v in diag.items() if k not in ("boundary_loops", "landscape")}
+    if "boundary_loops" in diag:
+        slim["n_detected_loops"] = len(diag["boundary_loops"])
+    return json.dumps(slim, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v), sort_keys=True)
+
+
+def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
+    """Run one cell and return its row and arrays, writing nothing.
+
+    Never raises for a failure of the method or the data: the row records
+    ``status="failed"`` with the error type and text, and the sweep goes on.
+
+    Parameters
+    ----------
+    cell : Cell
+
+    Returns
+    -------
+    row : dict
+        Flat, JSON-serialisable; ``artifact`` is filled in by :func:`store_cell`.
+    arrays : dict of numpy arrays, or None
+        Pictures' data for ok cells on surfaces up to ``ARTIFACT_MAX_POINTS`` points.
+    """
+    row = _empty_row(cell)
+    arrays = None
+    try:
+        surface = surface_for(cell.dataset, cell.size, cell.sampling, cell.noise, cell.seed)
+        row.update(n_points=surface.n_points, n_faces=0 if surface.faces is None else int(len(surface.faces)))
+        method = get_method(cell.method)
+        given = surface if method.needs_faces else surface.points_only()
+        params = cell.params_dict
+        if "seed" in method.defaults:
+            params.setdefault("seed", cell.seed)
+        peak = PeakMemory()
+        with peak.measure():
+            result = method(given, **params)
+        faces, eval_kind = _evaluation_mesh(surface, result)
+        use_gt_loops = eval_kind == "ground-truth" and surface.boundary_loops is not None
+        metrics = evaluate(surface.points, faces, result.uv, exact_uv=surface.exact_uv,
+                           boundary_loops=surface.boundary_loops if use_gt_loops else None,
+                           diameter=surface.diameter)
+        row.update({c: metrics.get(c) for c in METRIC_COLUMNS})
+        row["turning_numbers"] = json.dumps(metrics.get("turning_numbers", []))
+        row.update(status="ok", eval_mesh=eval_kind, time_total=result.timings.get("total"),
+                   timings=json.dumps(result.timings, sort_keys=True),
+                   diagnostics=_jsonable_diagnostics(result.diagnostics),
+                   k_opt=result.diagnostics.get("k_opt"), peak_memory_mb=peak.delta_mb)
+        if surface.n_points <= ARTIFACT_MAX_POINTS:
+            arrays = _artifact(surface, result, faces, eval_kind)
+    except ParambenchError as exc:
+        row.update(status="failed", error_type=type(exc).__name__, error=str(exc))
+    except Exception as exc:  # a bug or a library failure: keep the sweep alive, keep the evidence
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        row.update(status="failed", error_type=type(exc).__name__,
+                   error=f"{exc} (at {where.filename.rsplit('/', 1)[-1]}:{where.lineno})")
+    return row, arrays
+
+
+def store_cell(store: ResultStore, row: dict, arrays: dict | None) -> dict:
+    """Write a computed cell: arrays first, then the row that points to them."""
+    if arrays is not None:
+        row["artifact"] = store.write_arrays(row["cell_id"], arrays)
+    store.write_row(row)
+    return row
+
+
+def run_cell(cell: Cell, results_dir: str) -> dict:
+    """Compute one cell and store it in ``results_dir``; returns the row."""
+    row, arrays = compute_cell(cell)
+    return store_cell(ResultStore(results_dir), row, arrays)

@@ -1,0 +1,98 @@
+"""The sweep: run every unfinished cell of a suite, in-process or on a Dask cluster."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import asdict
+from typing import Iterable, Iterator
+
+import pandas as pd
+from tqdm import tqdm
+
+from .cells import Cell
+from .run_cell import compute_cell, store_cell
+from .runmeta import run_metadata
+from .storage import ResultStore
+from .suites import Suite, expand_cells
+
+__all__ = ["run_sweep", "summary_table"]
+
+
+def _serial(cells: list[Cell]) -> Iterator[tuple[dict, dict | None]]:
+    for cell in cells:
+        yield compute_cell(cell)
+
+
+def _dask(cells: list[Cell], scheduler: str | None, workers: int | None) -> Iterator[tuple[dict, dict | None]]:
+    from .dask_backend import dask_results
+
+    yield from dask_results(cells, scheduler=scheduler, workers=workers)
+
+
+def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, workers: int | None = None,
+              progress: bool = True) -> pd.DataFrame:
+    """Run the cells of ``suite`` that ``results_dir`` does not hold yet.
+
+    Each finished cell is written at once (see :class:`bench.storage.ResultStore`); a
+    failing cell is recorded with its error and the sweep goes on.
+
+    Parameters
+    ----------
+    suite : Suite
+    results_dir : str
+    scheduler : str, optional
+        Address of an existing Dask distributed scheduler.
+    workers : int, optional
+        Start a local Dask cluster with this many single-threaded workers.
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    pandas.DataFrame
+        All rows in the results directory (old and new), also written to
+        ``results.parquet`` and ``results.csv``.
+    """
+    store = ResultStore(results_dir)
+    cells = expand_cells(suite)
+    done = store.finished_ids()
+    todo = [c for c in cells if c.cell_id not in done]
+    store.write_metadata(run_metadata(suite=suite.name, parameters=asdict(suite), seeds=list(suite.seeds),
+                                      n_cells=len(cells), n_skipped=len(cells) - len(todo),
+                                      scheduler=scheduler or (f"local-dask:{workers}" if workers else "in-process")))
+    if scheduler or workers:
+        results: Iterable = _dask(todo, scheduler, workers)
+    else:
+        results = _serial(todo)
+    bar = tqdm(total=len(todo), desc=f"parambench {suite.name}", unit="cell", disable=not progress,
+               file=sys.stderr)
+    with bar:
+        for row, arrays in results:
+            store_cell(store, row, arrays)
+            bar.set_postfix_str(f"{row['dataset']} {row['method']} {row['status']}", refresh=False)
+            bar.update(1)
+    return store.consolidate()
+
+
+def summary_table(table: pd.DataFrame) -> str:
+    """A compact text table for the terminal: per method, mean QC per dataset plus failures."""
+    if table.empty:
+        return "no results"
+    ok = table[table["status"] == "ok"]
+    lines = []
+    if not ok.empty:
+        pivot = ok.pivot_table(index="method", columns="dataset", values="qc_mean", aggfunc="mean")
+        lines.append("QC distortion (area-weighted mean; 1 is conformal):")
+        lines.append(pivot.to_string(float_format=lambda v: f"{v:.3f}"))
+        folds = ok.groupby("method")["foldovers"].sum().astype(int)
+        times = ok.groupby("method")["time_total"].median()
+        lines.append("")
+        lines.append(pd.DataFrame({"foldovers (sum)": folds, "median time (s)": times.round(3)}).to_string())
+    failed = table[table["status"] != "ok"]
+    lines.append("")
+    lines.append(f"{len(ok)} ok, {len(failed)} failed of {len(table)} cells")
+    for _, r in failed.head(10).iterrows():
+        lines.append(f"  FAILED {r['dataset']} / {r['method']}: {r['error_type']}: {str(r['error'])[:150]}")
+    if len(failed) > 10:
+        lines.append(f"  ... and {len(failed) - 10} more (see results.csv)")
+    return "\n".join(lines)
