@@ -1,0 +1,57 @@
+"""The plugin contract: registry lookups, parameter checking, mesh-only methods."""
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import MissingFacesError, UnknownNameError
+from datasets_gen.surface import Surface
+from methods import Method, Parameterization, get_method, method_names, register
+from methods.registry import all_methods
+
+
+def test_baselines_registered():
+    names = method_names()
+    assert "lscm-igl" in names and "scp-igl" in names
+    assert all(cls.name == name for name, cls in all_methods().items())
+
+
+def test_unknown_method_lists_available():
+    with pytest.raises(UnknownNameError, match="lscm-igl"):
+        get_method("no-such-method")
+
+
+def test_unknown_parameter_is_refused():
+    with pytest.raises(UnknownNameError, match="no parameter"):
+        get_method("scp-igl").resolve_params({"bogus": 1})
+
+
+@pytest.mark.parametrize("name", ["lscm-igl", "scp-igl"])
+def test_mesh_baselines_refuse_point_sets(name):
+    pts = np.random.default_rng(0).random((50, 3))
+    with pytest.raises(MissingFacesError, match="point set"):
+        get_method(name)(Surface(pts))
+
+
+@pytest.fixture
+def clean_registry():
+    from methods import registry
+
+    before = dict(registry._REGISTRY)
+    yield
+    registry._REGISTRY.clear()
+    registry._REGISTRY.update(before)
+
+
+def test_registered_plugin_runs_and_is_timed(clean_registry):
+    @register
+    class Projection(Method):
+        name = "test-xy-projection"
+        defaults = {"scale": 1.0}
+
+        def run(self, surface, scale):
+            return Parameterization(uv=surface.points[:, :2] * scale, method=self.name)
+
+    pts = np.random.default_rng(1).random((20, 3))
+    result = get_method("test-xy-projection")(Surface(pts), scale=2.0)
+    np.testing.assert_allclose(result.uv, pts[:, :2] * 2.0)
+    assert result.params == {"scale": 2.0} and result.timings["total"] >= 0
