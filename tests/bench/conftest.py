@@ -1,0 +1,25 @@
+"""Fixtures for command-line and sweep tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REAL_DIR = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "real"
+
+
+@pytest.fixture
+def real_dir() -> Path:
+    if not (REAL_DIR / "camelhead.off").exists():
+        pytest.fail(f"real meshes not found in {REAL_DIR}; the suite expects ../shared beside the project")
+    return REAL_DIR.resolve()
+
+
+def write_obj(path: Path, points, faces=None) -> Path:
+    """A minimal OBJ writer for test inputs (1-based faces)."""
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in points]
+    if faces is not None:
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -1,0 +1,120 @@
+"""The command line: flatten, list, inspect, and one-line errors with exit code 2."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from bench.metrics import count_foldovers, jacobian_singular_values
+
+from .conftest import write_obj
+
+
+def _read_obj(path):
+    v, vt, f = [], [], []
+    for line in path.read_text().splitlines():
+        tag, *rest = line.split()
+        if tag == "v":
+            v.append([float(x) for x in rest])
+        elif tag == "vt":
+            vt.append([float(x) for x in rest])
+        elif tag == "f":
+            f.append([int(c.split("/")[0]) - 1 for c in rest])
+    return np.array(v), np.array(vt), np.array(f, dtype=np.int64)
+
+
+def _grid_mesh(n=12, z=lambda x, y: 0.2 * x * y):
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    pts = np.c_[x.ravel(), y.ravel(), z(x.ravel(), y.ravel())]
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    faces = np.r_[np.c_[a, b, c], np.c_[a, c, d]]
+    return pts, faces
+
+
+def test_flatten_camelhead_obj(real_dir, tmp_path):
+    out = tmp_path / "out.obj"
+    assert main(["flatten", str(real_dir / "camelhead.off"), "-o", str(out)]) == 0
+    v, vt, f = _read_obj(out)
+    assert len(vt) == 11381 and len(v) == 11381 and len(f) == 22704
+    *_, signed, _ = jacobian_singular_values(v, f, vt)
+    assert count_foldovers(signed) == 0
+
+
+def test_flatten_csv_in_input_order(tmp_path):
+    pts, faces = _grid_mesh()
+    src = write_obj(tmp_path / "in.obj", pts, faces)
+    out = tmp_path / "uv.csv"
+    assert main(["flatten", str(src), "--method", "lscm-igl", "-o", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0] == "u,v" and len(lines) == 1 + len(pts)
+    uv = np.loadtxt(out, delimiter=",", skiprows=1)
+    # The gently curved grid flattens to a near-square: uv keeps the grid's neighbour structure.
+    d_uv = np.linalg.norm(uv[1] - uv[0])
+    d_diag = np.linalg.norm(uv[len(pts) - 1] - uv[0])
+    assert d_diag / d_uv == pytest.approx(np.sqrt(2) * 11, rel=0.05)
+
+
+def test_list_shows_methods_and_datasets(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "scp-igl" in out and "lscm-igl" in out and "saddle" in out and "real/camelhead" in out
+
+
+def _closed_tetra():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    faces = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    return pts, faces
+
+
+def _two_components():
+    pts, faces = _grid_mesh(5)
+    return np.vstack([pts, pts + [5, 0, 0]]), np.vstack([faces, faces + len(pts)])
+
+
+BAD_CASES = {
+    "missing-file": (None, ["flatten", "{tmp}/nope.obj", "-o", "{tmp}/o.obj"], "InputFileError"),
+    "unknown-method": ("grid", ["flatten", "{src}", "--method", "magic", "-o", "{tmp}/o.obj"], "UnknownNameError"),
+    "unknown-param": ("grid", ["flatten", "{src}", "--method", "scp-igl", "--param", "zz=1", "-o", "{tmp}/o.obj"],
+                      "UnknownNameError"),
+    "bad-output": ("grid", ["flatten", "{src}", "-o", "{tmp}/o.png"], "InputFileError"),
+    "points-only-mesh-method": ("grid", ["flatten", "{src}", "--points-only", "--method", "scp-igl",
+                                         "-o", "{tmp}/o.obj"], "MissingFacesError"),
+    "closed": ("tetra", ["flatten", "{src}", "--method", "scp-igl", "-o", "{tmp}/o.obj"], "NotADiskError"),
+    "components": ("two", ["flatten", "{src}", "--method", "scp-igl", "-o", "{tmp}/o.obj"], "DisconnectedError"),
+    "unknown-dataset": (None, ["run", "--datasets", "nowhere", "--out", "{tmp}/r"], "UnknownNameError"),
+    "unknown-suite": (None, ["run", "--suite", "huge", "--out", "{tmp}/r"], "UnknownNameError"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CASES))
+def test_bad_input_one_line_exit_2(case, tmp_path, capsys):
+    kind, argv, error = BAD_CASES[case]
+    src = tmp_path / "in.obj"
+    if kind == "grid":
+        write_obj(src, *_grid_mesh(6))
+    elif kind == "tetra":
+        write_obj(src, *_closed_tetra())
+    elif kind == "two":
+        write_obj(src, *_two_components())
+    argv = [a.format(tmp=tmp_path, src=src) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and error in err and "Traceback" not in err
+
+
+def test_nan_coordinates_in_file(tmp_path, capsys):
+    pts, faces = _grid_mesh(5)
+    src = tmp_path / "nan.obj"
+    src.write_text("\n".join(f"v {x} {y} {z}" for x, y, z in pts).replace("v 0.0 0.0 0.0", "v nan 0.0 0.0", 1)
+                   + "\n" + "\n".join(f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces) + "\n")
+    assert main(["flatten", str(src), "-o", str(tmp_path / "o.obj")]) == 2
+    assert "NaN" in capsys.readouterr().err
+
+
+def test_argparse_errors_are_one_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["flatten"])
+    assert exc.value.code == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
