@@ -1,0 +1,92 @@
+"""An evaluation mesh for point sets: Delaunay triangulation of the uv layout."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import Delaunay, QhullError, cKDTree
+
+from datasets_gen.errors import InvalidInputError, TooFewPointsError
+from datasets_gen.surface import DEGENERATE_AREA_TOL, validate_points
+
+from ._inputs import check_uv
+from .orientation import collapsed_mask
+
+__all__ = ["uv_delaunay_faces", "KNN_EDGE_K"]
+
+#: Neighbours per point used for the reference edge length.
+KNN_EDGE_K = 6
+
+
+def uv_delaunay_faces(points, uv, max_edge_factor: float = 3.0) -> np.ndarray:
+    """Delaunay triangulation of ``uv``, without the triangles that do not lie on the surface.
+
+    The Delaunay triangulation of the uv layout fills its convex hull, so it bridges holes
+    and concavities; those bridging triangles are long in 3D. A triangle is dropped when its
+    longest 3D edge exceeds ``max_edge_factor`` times the mean 3D distance to the
+    ``KNN_EDGE_K`` = 6 nearest neighbours (over all points). Triangles with (numerically)
+    zero area in uv or in 3D, which qhull can emit, are dropped too.
+
+    Every returned face is counter-clockwise in uv, so foldovers measured on this mesh are
+    0 by construction: for a point set a fold shows as dropped or stretched triangles
+    (high QC), not as flipped ones.
+
+    Parameters
+    ----------
+    points : (N, 3) array_like of float64
+    uv : (N, 2) array_like of float64
+    max_edge_factor : float
+        Positive.
+
+    Returns
+    -------
+    (M, 3) numpy.ndarray of int64
+        Possibly with some points in no face (points coinciding in uv, or isolated).
+
+    Raises
+    ------
+    InvalidInputError
+        Bad shapes, NaN/inf, a non-positive factor, all uv points collinear, or no triangle left.
+    TooFewPointsError
+        Fewer than ``KNN_EDGE_K + 1`` points.
+    """
+    pts = validate_points(points, min_points=KNN_EDGE_K + 1)
+    uv = check_uv(uv, pts.shape[0])
+    if not max_edge_factor > 0:
+        raise InvalidInputError(f"max_edge_factor must be positive, got {max_edge_factor}.")
+    if pts.shape[0] < KNN_EDGE_K + 1:  # pragma: no cover - validate_points enforces it
+        raise TooFewPointsError(f"need at least {KNN_EDGE_K + 1} points.")
+    try:
+        tri = Delaunay(uv).simplices.astype(np.int64)
+    except QhullError as exc:
+        raise InvalidInputError(
+            "the uv points cannot be triangulated (all collinear or coincident): the map collapsed; "
+            f"record the run as a failure. Qhull said: {str(exc).splitlines()[0]}"
+        ) from exc
+
+    dist, _ = cKDTree(pts).query(pts, k=KNN_EDGE_K + 1)
+    ref_edge = float(dist[:, 1:].mean())  # column 0 is the point itself
+
+    p = pts[tri]  # (M, 3, 3)
+    edges = np.roll(p, -1, axis=1) - p
+    edge_len = np.sqrt(np.einsum("ijk,ijk->ij", edges, edges))
+    area2_3d = np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1)
+    q = uv[tri]
+    d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    signed_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+    keep = edge_len.max(axis=1) <= max_edge_factor * ref_edge
+    if keep.any():
+        # Same zero-area rule (and scale) as datasets_gen.surface.validate_faces applied to the
+        # kept faces, so the result always passes validation.
+        scale = max(float(np.mean(edge_len[keep, 0])) ** 2, np.finfo(float).tiny)
+        keep &= area2_3d > DEGENERATE_AREA_TOL * scale
+        keep &= ~collapsed_mask(signed_uv)
+    if not keep.any():
+        raise InvalidInputError(
+            "no uv Delaunay triangle has 3D edges shorter than max_edge_factor x the mean neighbour distance; "
+            "the map scrambles neighbourhoods, or max_edge_factor is too small."
+        )
+    tri, signed_uv = tri[keep], signed_uv[keep]
+    flip = signed_uv < 0
+    tri[flip] = tri[flip][:, ::-1]  # qhull's vertex order is arbitrary; make every face CCW in uv
+    return np.ascontiguousarray(tri)

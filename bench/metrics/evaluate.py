@@ -1,0 +1,123 @@
+"""All distortion metrics of one parameterization, as a flat JSON-ready dict."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from datasets_gen.errors import InvalidInputError
+from methods.geometry2d import turning_number
+from methods.mesh.topology import boundary_loops as mesh_boundary_loops
+
+from ._inputs import check_mesh, check_uv
+from .alignment import exact_map_error
+from .distortion import area_distortion, weighted_quantile
+from .eval_mesh import uv_delaunay_faces
+from .jacobian import face_jacobian_sv, quasi_conformal
+from .orientation import collapsed_mask, majority_orientation
+
+__all__ = ["evaluate", "METRIC_KEYS"]
+
+#: The keys of the dict :func:`evaluate` returns, in order.
+METRIC_KEYS = (
+    "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
+    "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
+)
+
+
+def _check_loops(loops, n_points: int) -> list[np.ndarray]:
+    out = []
+    for i, loop in enumerate(loops):
+        arr = np.asarray(loop)
+        if arr.ndim != 1 or arr.dtype.kind not in "iu":
+            raise InvalidInputError(f"boundary loop {i} must be a 1-D integer array of point indices, got {arr.dtype} {arr.shape}.")
+        if arr.size and (arr.min() < 0 or arr.max() >= n_points):
+            raise InvalidInputError(f"boundary loop {i} has indices outside [0, {n_points - 1}]; indices are 0-based.")
+        out.append(arr.astype(np.int64))
+    return out
+
+
+def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=None) -> dict:
+    """Measure the distortion of a map of a triangulated (or point-sampled) surface.
+
+    Parameters
+    ----------
+    points : (N, 3) array_like of float64
+    faces : (M, 3) array_like of int64 or None
+        Evaluation mesh. None for a point set: :func:`uv_delaunay_faces` builds one.
+    uv : (N, 2) array_like of float64
+        The map, one row per point.
+    exact_uv : (N, 2) array_like of float64, optional
+        Known exact map; gives ``exact_error``.
+    boundary_loops : list of (L_i,) array_like of int, optional
+        Point indices of each boundary loop, outer first. Default: the loops of the
+        evaluation mesh (longest first).
+    diameter : float, optional
+        Passed to :func:`exact_map_error` (default: bbox diagonal of ``exact_uv``).
+
+    Returns
+    -------
+    dict
+        JSON-serialisable values, keys :data:`METRIC_KEYS`:
+
+        - ``qc_mean``, ``qc_p95``, ``qc_max``: 3D-area-weighted mean, weighted 95th
+          percentile (inverted CDF) and maximum of ``s1/s2`` over the non-collapsed faces
+          (flipped faces included: their QC measures their shape, the flip is in ``foldovers``).
+        - ``foldovers`` (int), ``foldover_fraction`` (of ``n_eval_faces``): faces whose uv
+          orientation opposes the majority.
+        - ``collapsed`` (int): faces with zero uv area, left out of the QC and area numbers.
+        - ``area_distortion``: see :func:`area_distortion`.
+        - ``turning_numbers``: one float per loop, in loop order, multiplied by the majority
+          orientation (+1/-1) so that a faithful map gives +1 for an outer loop and -1 for
+          holes when the loops follow the face orientation, whether or not uv is mirrored.
+        - ``exact_error``: :func:`exact_map_error` or None.
+        - ``n_eval_faces`` (int).
+
+        QC and area values are None when every face collapsed.
+
+    Raises
+    ------
+    InvalidInputError
+        Bad shapes, NaN/inf in points or uv, indices out of range.
+    DegenerateFacesError
+        Faces with a repeated vertex or zero 3D area.
+    """
+    if faces is None:
+        faces = uv_delaunay_faces(points, uv)
+    pts, tri, uv = check_mesh(points, faces, uv)
+    s1, s2, signed, area = face_jacobian_sv(pts, tri, uv)
+
+    collapsed = collapsed_mask(signed)
+    orient = majority_orientation(signed)
+    n_faces = int(tri.shape[0])
+    live = ~collapsed
+    foldovers = int(np.count_nonzero(np.sign(signed[live]) != orient))
+
+    if live.any():
+        qc = quasi_conformal(s1[live], s2[live])
+        w = area[live]
+        qc_mean = float(np.average(qc, weights=w))
+        qc_p95 = weighted_quantile(qc, w, 0.95)
+        qc_max = float(qc.max())
+        area_dist = area_distortion(s1[live], s2[live], w)
+    else:
+        qc_mean = qc_p95 = qc_max = area_dist = None
+
+    loops = mesh_boundary_loops(tri) if boundary_loops is None else _check_loops(boundary_loops, pts.shape[0])
+    turning = [float(orient * turning_number(uv[loop])) for loop in loops]
+
+    exact_error = None
+    if exact_uv is not None:
+        exact_error = exact_map_error(uv, check_uv(exact_uv, pts.shape[0], name="exact_uv"), diameter)
+
+    return {
+        "qc_mean": qc_mean,
+        "qc_p95": qc_p95,
+        "qc_max": qc_max,
+        "foldovers": foldovers,
+        "foldover_fraction": foldovers / n_faces,
+        "collapsed": int(collapsed.sum()),
+        "area_distortion": area_dist,
+        "turning_numbers": turning,
+        "exact_error": exact_error,
+        "n_eval_faces": n_faces,
+    }
