@@ -26,6 +26,7 @@ __all__ = [
     "MissingFacesError",
     "SolverError",
     "ConvergenceError",
+    "ResourceLimitError",
 ]
 
 
@@ -90,3 +91,7 @@ class SolverError(ParambenchError):
 
 class ConvergenceError(SolverError):
     """An iterative solver or search did not converge."""
+
+
+class ResourceLimitError(ParambenchError):
+    """The input is too large for this method's memory or time complexity."""

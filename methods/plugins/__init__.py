@@ -1,3 +1,4 @@
 """Built-in method plugins; importing this package registers them."""
 
 from . import lscm_igl, scp_igl  # noqa: F401
+from . import sklearn_peers  # noqa: F401
