@@ -31,10 +31,14 @@ from datasets_gen.errors import DegenerateFacesError, InvalidInputError
 
 def grid_mesh(n: int, m: int, x0=-1.0, x1=1.0, y0=-1.0, y1=1.0):
     """Planar grid in z=0, faces counter-clockwise seen from +z."""
-    xs, ys = np.linspace(x0, x1, n + 1), np.linspace(y0, y1, m + 1)
+    return grid_mesh_from_lines(np.linspace(x0, x1, n + 1), np.linspace(y0, y1, m + 1))
+
+
+def grid_mesh_from_lines(xs, ys):
+    """Planar grid on the given x and y lines; point index i * len(ys) + j is (xs[i], ys[j])."""
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     pts = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
-    idx = np.arange((n + 1) * (m + 1)).reshape(n + 1, m + 1)
+    idx = np.arange(X.size).reshape(X.shape)
     a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
     c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
     faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])]).astype(np.int64)
@@ -269,11 +273,20 @@ def test_similarity_align_recovers_transform(reflect):
         assert np.abs(proper - y).max() < 1e-12
 
 
-def test_similarity_align_without_reflection_is_a_rotation():
+def test_similarity_align_without_reflection_is_the_best_rotation():
     rng = np.random.default_rng(2)
-    x = rng.normal(size=(30, 2))
-    _, _, R, _ = similarity_align(x, x * np.array([1.0, -1.0]), allow_reflection=False, return_transform=True)
+    x = rng.normal(size=(30, 2)) * np.array([2.0, 1.0])
+    y = x * np.array([1.0, -1.0]) + 0.1 * rng.normal(size=(30, 2))
+    aligned, _, R, _ = similarity_align(x, y, allow_reflection=False, return_transform=True)
     assert np.linalg.det(R) == pytest.approx(1.0)
+    # Brute force: for each angle the best scale and shift are linear least squares.
+    xc, yc = x - x.mean(0), y - y.mean(0)
+    best = np.inf
+    for th in np.linspace(0, 2 * np.pi, 20001):
+        rx = xc @ rot2(th).T
+        s = max(np.sum(rx * yc) / np.sum(rx * rx), 0.0)
+        best = min(best, np.sum((s * rx - yc) ** 2))
+    assert np.sum((aligned - y) ** 2) == pytest.approx(best, rel=1e-6)
 
 
 @pytest.mark.parametrize("eps", [0.01, 0.2])
@@ -317,6 +330,20 @@ def test_half_of_the_area_stretched_by_two():
     assert r["foldovers"] == 0
 
 
+def test_statistics_are_weighted_by_3d_area():
+    # Half of the triangles, covering only 0.04 / 1.04 < 5 % of the area, are stretched by 2 in x.
+    xs = np.concatenate([np.linspace(-0.04, 0, 9), np.linspace(0, 1, 9)[1:]])
+    pts, faces = grid_mesh_from_lines(xs, np.linspace(0, 1, 5))
+    uv = pts[:, :2].copy()
+    uv[:, 0] = np.where(uv[:, 0] < 0, 2 * uv[:, 0], uv[:, 0])
+    r = evaluate(pts, faces, uv)
+    share = 0.04 / 1.04
+    assert r["qc_mean"] == pytest.approx(1 + share, rel=1e-12)
+    assert r["qc_p95"] == pytest.approx(1.0, rel=1e-12)  # unweighted it would be 2
+    assert r["qc_max"] == pytest.approx(2.0, rel=1e-12)
+    assert r["area_distortion"] == pytest.approx(np.log(2) * np.sqrt(share * (1 - share)), rel=1e-12)
+
+
 def test_uniform_scaling_has_no_area_distortion():
     pts, faces = jittered_grid(seed=5)
     r = evaluate(pts, faces, 123.0 * pts[:, :2])
@@ -356,6 +383,22 @@ def test_uv_delaunay_drops_triangles_spanning_a_hole():
     _, _, signed, area = jacobian_singular_values(pts, faces, uv)
     assert np.all(signed > 0)
     assert area.sum() == pytest.approx(1 - np.pi * 0.25**2, abs=0.02)
+
+
+def test_uv_delaunay_orients_faces_whatever_qhull_returns(monkeypatch):
+    import bench.metrics.eval_mesh as eval_mesh
+
+    class Scrambled:  # qhull does not promise an orientation: reverse every other simplex
+        def __init__(self, uv):
+            self.simplices = Delaunay(uv).simplices.copy()
+            self.simplices[::2] = self.simplices[::2, ::-1]
+
+    monkeypatch.setattr(eval_mesh, "Delaunay", Scrambled)
+    pts, _ = jittered_grid(n=6)
+    uv = pts[:, :2] * np.array([1.0, -1.0])
+    faces = uv_delaunay_faces(pts, uv)
+    _, _, signed, _ = jacobian_singular_values(pts, faces, uv)
+    assert np.all(signed > 0)
 
 
 def test_uv_delaunay_keeps_a_convex_patch_whole():
