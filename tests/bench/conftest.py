@@ -16,10 +16,15 @@ def real_dir() -> Path:
     return REAL_DIR.resolve()
 
 
-def write_obj(path: Path, points, faces=None) -> Path:
-    """A minimal OBJ writer for test inputs (1-based faces)."""
+def _write_obj(path: Path, points, faces=None) -> Path:
     lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in points]
     if faces is not None:
         lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+@pytest.fixture
+def write_obj():
+    """A minimal OBJ writer for test inputs: ``write_obj(path, points, faces=None)``."""
+    return _write_obj

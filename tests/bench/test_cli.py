@@ -8,8 +8,6 @@ import pytest
 from bench.cli import main
 from bench.metrics import count_foldovers, jacobian_singular_values
 
-from .conftest import write_obj
-
 
 def _read_obj(path):
     v, vt, f = [], [], []
@@ -42,7 +40,7 @@ def test_flatten_camelhead_obj(real_dir, tmp_path):
     assert count_foldovers(signed) == 0
 
 
-def test_flatten_csv_in_input_order(tmp_path):
+def test_flatten_csv_in_input_order(tmp_path, write_obj):
     pts, faces = _grid_mesh()
     src = write_obj(tmp_path / "in.obj", pts, faces)
     out = tmp_path / "uv.csv"
@@ -89,7 +87,7 @@ BAD_CASES = {
 
 
 @pytest.mark.parametrize("case", sorted(BAD_CASES))
-def test_bad_input_one_line_exit_2(case, tmp_path, capsys):
+def test_bad_input_one_line_exit_2(case, tmp_path, capsys, write_obj):
     kind, argv, error = BAD_CASES[case]
     src = tmp_path / "in.obj"
     if kind == "grid":
