@@ -13,7 +13,7 @@ from bench.run_cell import surface_for
 from bench.suites import get_suite
 from methods.registry import all_methods, get_method
 
-from .conftest import best_of, run_or_skip
+from bench.benchmarks.timing import best_of, run_or_skip
 
 QUICK = get_suite("quick")
 SIZE = QUICK.sizes[0]

@@ -1,4 +1,4 @@
-"""Shared helpers for the benchmark suite."""
+"""Helpers shared by the benchmark modules: in-process baselines and skipping refused inputs."""
 
 from __future__ import annotations
 
