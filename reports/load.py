@@ -1,0 +1,415 @@
+"""Read a results directory (the sweep's storage contract) into a DataFrame and arrays.
+
+The report never runs a method: everything it shows comes from here. Rows come from
+``cells/*.json`` (one per finished cell, written atomically, so always current); rows found
+only in ``results.parquet`` (or ``results.csv`` when there is no parquet) are added, so a
+consolidated file from an older run and newer cell files give their union.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from datasets_gen.errors import InputFileError
+
+from .errors import EmptyResultsError
+
+__all__ = [
+    "ROW_COLUMNS",
+    "NUMERIC_COLUMNS",
+    "Results",
+    "CellArrays",
+    "load_results",
+    "gather_rows",
+    "normalise_rows",
+    "parse_json_field",
+    "loops_from_flat",
+    "load_cell_arrays",
+    "load_dataset_arrays",
+    "dataset_key_candidates",
+]
+
+#: Every column of a result row, in the order of the storage contract.
+ROW_COLUMNS = (
+    "cell_id", "dataset", "size", "sampling", "noise", "seed", "method", "params", "n_points", "n_faces",
+    "status", "error_type", "error", "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction",
+    "collapsed", "area_distortion", "turning_numbers", "exact_error", "n_eval_faces", "eval_mesh",
+    "time_total", "timings", "diagnostics", "k_opt", "peak_memory_mb", "artifact",
+)
+
+#: Columns coerced to float (NaN for null, for failed cells and for unparseable values).
+NUMERIC_COLUMNS = (
+    "size", "noise", "seed", "n_points", "n_faces", "qc_mean", "qc_p95", "qc_max", "foldovers",
+    "foldover_fraction", "collapsed", "area_distortion", "exact_error", "n_eval_faces", "time_total",
+    "k_opt", "peak_memory_mb",
+)
+
+_TEXT_COLUMNS = ("cell_id", "dataset", "sampling", "method", "status", "error_type", "error", "eval_mesh",
+                 "artifact")
+_JSON_COLUMNS = {"params": "{}", "timings": "{}", "diagnostics": "{}", "turning_numbers": "[]"}
+
+
+@dataclass
+class Results:
+    """Everything read from one results directory.
+
+    Attributes
+    ----------
+    root : pathlib.Path
+        The results directory.
+    run : dict
+        ``run.json`` (empty when the file is missing or unreadable).
+    rows : pandas.DataFrame
+        One row per cell with every column of :data:`ROW_COLUMNS`, normalised by
+        :func:`normalise_rows`, sorted by ``cell_id``.
+    warnings : list of str
+        Files that were skipped and why; the report lists them.
+    """
+
+    root: Path
+    run: dict
+    rows: pd.DataFrame
+    warnings: list = field(default_factory=list)
+
+
+@dataclass
+class CellArrays:
+    """The pictures' data of one ok cell (``cells/<cell_id>.npz``).
+
+    Attributes
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64
+        The evaluation mesh.
+    uv : (N, 2) numpy.ndarray of float64
+    qc : (M,) numpy.ndarray of float64
+        Per-face quasi-conformal distortion (1 = conformal).
+    flipped : (M,) numpy.ndarray of bool
+        Foldover mask.
+    gt_loops, det_loops : list of (L,) int64 arrays, or None
+        Ground-truth boundary loops and the loops the method detected.
+    landscape : dict with keys "k", "E", "t" of (K,) float64 arrays, or None
+        OCP line-search samples.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray
+    qc: np.ndarray
+    flipped: np.ndarray
+    gt_loops: list | None = None
+    det_loops: list | None = None
+    landscape: dict | None = None
+
+
+def parse_json_field(value, default=None):
+    """Decode a JSON-string column value; dicts and lists pass through.
+
+    Parameters
+    ----------
+    value : str, dict, list, None or float NaN
+    default : object
+        Returned for null, empty or undecodable values.
+    """
+    if isinstance(value, (dict, list)):
+        return value
+    if value is None or (isinstance(value, float) and math.isnan(value)) or value == "":
+        return default
+    try:
+        return json.loads(value)
+    except (TypeError, ValueError):
+        return default
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputFileError(f"{path}: not readable JSON ({exc}).") from exc
+    if not isinstance(data, dict):
+        raise InputFileError(f"{path}: expected a JSON object, got {type(data).__name__}.")
+    return data
+
+
+def _canonical_json(value, default: str) -> str:
+    # Rows from JSON cells may carry objects, rows from parquet carry strings: one form for both.
+    parsed = parse_json_field(value, None)
+    if parsed is None:
+        return default if not isinstance(value, str) or not value else value
+    return json.dumps(parsed, sort_keys=True)
+
+
+def normalise_rows(rows: pd.DataFrame) -> pd.DataFrame:
+    """Give raw rows every contract column with one dtype per column.
+
+    Missing columns are added as null; :data:`NUMERIC_COLUMNS` become float64 (NaN for
+    null); text columns become str ("" for null); JSON columns become canonical JSON
+    strings; ``status`` is lower-cased.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Raw rows, any subset of :data:`ROW_COLUMNS` plus extra columns (kept).
+
+    Returns
+    -------
+    pandas.DataFrame
+        A new frame sorted by ``cell_id`` with a fresh index.
+    """
+    df = rows.copy()
+    for col in ROW_COLUMNS:
+        if col not in df.columns:
+            df[col] = None
+    for col in NUMERIC_COLUMNS:
+        df[col] = pd.to_numeric(df[col], errors="coerce").astype("float64")
+    for col in _TEXT_COLUMNS:
+        df[col] = df[col].map(lambda v: "" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
+    for col, default in _JSON_COLUMNS.items():
+        df[col] = df[col].map(lambda v, d=default: _canonical_json(v, d))
+    df["status"] = df["status"].str.strip().str.lower().replace("", "failed")
+    return df.sort_values("cell_id", kind="stable").reset_index(drop=True)
+
+
+def gather_rows(root: Path) -> tuple[pd.DataFrame, list[str]]:
+    """Rows of ``cells/*.json`` plus rows only present in the consolidated table.
+
+    Parameters
+    ----------
+    root : pathlib.Path
+        A results directory.
+
+    Returns
+    -------
+    rows : pandas.DataFrame
+        Raw (not normalised) rows; empty when nothing was found.
+    warnings : list of str
+        Unreadable files that were skipped.
+    """
+    warnings: list[str] = []
+    records = []
+    for path in sorted((root / "cells").glob("*.json")):
+        try:
+            record = _read_json(path)
+        except InputFileError as exc:
+            warnings.append(f"skipped {path.name}: {exc}")
+            continue
+        record.setdefault("cell_id", path.stem)
+        records.append(record)
+    from_cells = pd.DataFrame.from_records(records)
+    table = None
+    for name, reader in (("results.parquet", pd.read_parquet), ("results.csv", pd.read_csv)):
+        path = root / name
+        if path.exists():
+            try:
+                table = reader(path)
+            except Exception as exc:  # pyarrow and the csv parser raise many kinds; skip the file either way
+                warnings.append(f"skipped {name}: {exc}")
+                continue
+            break
+    if table is None or table.empty or "cell_id" not in table.columns:
+        return from_cells, warnings
+    if from_cells.empty:
+        return table, warnings
+    extra = table[~table["cell_id"].astype(str).isin(set(from_cells["cell_id"].astype(str)))]
+    return pd.concat([from_cells, extra], ignore_index=True), warnings
+
+
+def load_results(results_dir: str | os.PathLike) -> Results:
+    """Read a results directory.
+
+    Parameters
+    ----------
+    results_dir : str or path-like
+
+    Returns
+    -------
+    Results
+
+    Raises
+    ------
+    EmptyResultsError
+        The directory does not exist or holds no result row at all. A directory whose
+        rows all failed is not empty: it gives a report of the failures.
+    """
+    root = Path(results_dir)
+    if not root.is_dir():
+        raise EmptyResultsError(
+            f"Results directory {root} does not exist. Run `parambench run` first (or pass the "
+            f"directory it wrote), then `parambench report RESULTS_DIR`.")
+    raw, warnings = gather_rows(root)
+    if raw.empty:
+        raise EmptyResultsError(
+            f"No finished cell in {root} (no cells/*.json, no results.parquet or results.csv). "
+            f"Run `parambench run` first and wait for at least one cell to finish.")
+    run: dict = {}
+    run_path = root / "run.json"
+    if run_path.exists():
+        try:
+            run = _read_json(run_path)
+        except InputFileError as exc:
+            warnings.append(f"skipped run.json: {exc}")
+    else:
+        warnings.append("run.json is missing: run metadata is not shown.")
+    return Results(root=root, run=run, rows=normalise_rows(raw), warnings=warnings)
+
+
+def loops_from_flat(flat: np.ndarray, offsets: np.ndarray, n_points: int | None = None) -> list[np.ndarray]:
+    """Split concatenated loops back into a list.
+
+    Parameters
+    ----------
+    flat : (S,) integer numpy.ndarray
+        Vertex indices of all loops, one after the other.
+    offsets : (L+1,) integer numpy.ndarray
+        ``flat[offsets[i]:offsets[i+1]]`` is loop ``i``; starts at 0, ends at ``S``.
+    n_points : int, optional
+        When given, indices must be below it.
+
+    Returns
+    -------
+    list of (L_i,) numpy.ndarray of int64
+
+    Raises
+    ------
+    InputFileError
+        Offsets not increasing from 0 to ``len(flat)``, or indices out of range.
+    """
+    flat = np.asarray(flat, dtype=np.int64).ravel()
+    offsets = np.asarray(offsets, dtype=np.int64).ravel()
+    if (len(offsets) < 1 or offsets[0] != 0 or offsets[-1] != len(flat) or np.any(np.diff(offsets) < 0)):
+        raise InputFileError("loop offsets must rise from 0 to the length of the flat loop array.")
+    if n_points is not None and len(flat) and (flat.min() < 0 or flat.max() >= n_points):
+        raise InputFileError(f"loop vertex indices must lie in [0, {n_points}).")
+    return [flat[a:b] for a, b in zip(offsets[:-1], offsets[1:]) if b > a]
+
+
+def _optional_loops(data, prefix: str, n_points: int) -> list | None:
+    flat, offsets = f"{prefix}_loops_flat", f"{prefix}_loops_offsets"
+    if flat not in data or offsets not in data:
+        return None
+    return loops_from_flat(data[flat], data[offsets], n_points)
+
+
+def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:
+    """Read a cell's npz.
+
+    Parameters
+    ----------
+    root : pathlib.Path
+        The results directory.
+    artifact : str
+        The row's ``artifact`` (path relative to ``root``); "" means none.
+
+    Returns
+    -------
+    CellArrays or None
+        None when the cell has no artifact or the file is gone (big cells keep none).
+
+    Raises
+    ------
+    InputFileError
+        The file is unreadable or its arrays disagree in shape.
+    """
+    if not artifact:
+        return None
+    path = root / artifact
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            points = np.asarray(data["points"], dtype=np.float64)
+            faces = np.asarray(data["faces"], dtype=np.int64)
+            uv = np.asarray(data["uv"], dtype=np.float64)
+            qc = np.asarray(data["qc"], dtype=np.float64).ravel()
+            flipped = np.asarray(data["flipped"], dtype=bool).ravel()
+            n = len(points)
+            gt = _optional_loops(data, "gt", n)
+            det = _optional_loops(data, "det", n)
+            landscape = None
+            if all(f"landscape_{k}" in data for k in "kEt"):
+                landscape = {k: np.asarray(data[f"landscape_{k}"], dtype=np.float64).ravel() for k in "kEt"}
+    except InputFileError as exc:
+        raise InputFileError(f"{artifact}: {exc}") from exc
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputFileError(f"{artifact}: unreadable cell arrays ({exc}).") from exc
+    if (points.ndim != 2 or points.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3
+            or uv.shape != (len(points), 2) or qc.shape != (len(faces),) or flipped.shape != (len(faces),)):
+        raise InputFileError(
+            f"{artifact}: array shapes disagree (points {points.shape}, faces {faces.shape}, uv {uv.shape}, "
+            f"qc {qc.shape}, flipped {flipped.shape}).")
+    if len(faces) and (faces.min() < 0 or faces.max() >= len(points)):
+        raise InputFileError(f"{artifact}: face indices out of range.")
+    if landscape is not None and not (len(landscape["k"]) == len(landscape["E"]) == len(landscape["t"])):
+        raise InputFileError(f"{artifact}: landscape_k, landscape_E and landscape_t differ in length.")
+    return CellArrays(points, faces, uv, qc, flipped, gt, det, landscape)
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
+
+
+def dataset_key_candidates(dataset: str, size, sampling: str, noise, seed) -> list[str]:
+    """File stems under ``datasets/`` that may hold a surface's diagnostics.
+
+    The contract key is ``f"{dataset}-{size}-{sampling}-s{seed}"``; a file-name-safe form
+    of it (``/`` and other unsafe characters replaced by ``_``) and one that also names the
+    noise level (``-n{noise:g}``) are accepted too.
+    """
+    size_text = str(int(size)) if size == size else "0"
+    seed_text = str(int(seed)) if seed == seed else "0"
+    noise = 0.0 if noise != noise else float(noise)
+    plain = f"{dataset}-{size_text}-{sampling}-s{seed_text}"
+    noisy = f"{dataset}-{size_text}-{sampling}-n{noise:g}-s{seed_text}"
+    out = []
+    for key in (noisy, _slug(noisy), plain, _slug(plain)):
+        if key not in out:
+            out.append(key)
+    return out
+
+
+def load_dataset_arrays(root: Path, candidates: list[str]) -> dict | None:
+    """Read a surface's diagnostics npz (weight samples, detected boundary).
+
+    Parameters
+    ----------
+    root : pathlib.Path
+        The results directory.
+    candidates : list of str
+        File stems to try, from :func:`dataset_key_candidates`.
+
+    Returns
+    -------
+    dict or None
+        Arrays by name; ``gt_loops`` and ``det_loops`` are decoded to lists of index
+        arrays when present. None when no candidate file exists.
+
+    Raises
+    ------
+    InputFileError
+        The file is unreadable or its loops are inconsistent.
+    """
+    for key in candidates:
+        path = root / "datasets" / f"{key}.npz"
+        if not path.is_file():
+            continue
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                out = {name: np.asarray(data[name]) for name in data.files}
+        except (OSError, ValueError) as exc:
+            raise InputFileError(f"datasets/{key}.npz: unreadable ({exc}).") from exc
+        n = len(out["points"]) if "points" in out else None
+        try:
+            out["gt_loops"] = _optional_loops(out, "gt", n)
+            out["det_loops"] = _optional_loops(out, "det", n)
+        except InputFileError as exc:
+            raise InputFileError(f"datasets/{key}.npz: {exc}") from exc
+        return out
+    return None

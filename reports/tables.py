@@ -1,0 +1,349 @@
+"""The report's tables, as data (:class:`Table`); :mod:`reports.html` renders them.
+
+Seeds are repeats: a summary row is one (configuration, method variant) and shows the
+median over its ok seeds. Every metric is "lower is better" (QC >= 1 with 1 conformal,
+foldovers, area distortion, exact-map error, time); the best value of each column within a
+configuration is marked when at least two variants have a value. Failed cells keep their
+row, with the error text in the status column, and are listed once more in full in the
+failures table.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .labels import CONFIG_COLUMNS
+
+__all__ = [
+    "Cell",
+    "Table",
+    "SUMMARY_METRICS",
+    "summarise",
+    "best_mask",
+    "summary_tables",
+    "overview_table",
+    "failures_table",
+    "metadata_table",
+    "benchmark_table",
+    "exponent_table",
+    "format_number",
+]
+
+#: (column, header, kind) of the summary's metric columns; all lower-is-better.
+SUMMARY_METRICS = (
+    ("qc_mean", "QC mean", "ratio"),
+    ("qc_p95", "QC p95", "ratio"),
+    ("qc_max", "QC max", "ratio"),
+    ("foldovers", "Foldovers", "count"),
+    ("area_distortion", "Area dist.", "ratio"),
+    ("exact_error", "Exact-map err.", "small"),
+    ("time_total", "Time (s)", "time"),
+)
+
+_ERROR_SHORT = 300  # characters of an error shown in a summary cell; the failures table has all of it
+_MISSING = "—"
+
+
+@dataclass
+class Cell:
+    """One table cell: its text, CSS classes and a tooltip."""
+
+    text: str
+    classes: tuple = ()
+    title: str = ""
+
+
+@dataclass
+class Table:
+    """A table ready to render.
+
+    Attributes
+    ----------
+    columns : list of str
+        Header texts.
+    rows : list of list of Cell
+        Body rows, each as long as ``columns``.
+    caption : str
+    css_class : str
+        Class of the ``<table>`` element (tests count rows per class).
+    numeric : set of int
+        Indices of right-aligned columns.
+    """
+
+    columns: list
+    rows: list
+    caption: str = ""
+    css_class: str = ""
+    numeric: set = field(default_factory=set)
+
+
+def format_number(value, kind: str = "ratio") -> str:
+    """Text for a metric value; NaN and None give an em dash.
+
+    ``kind`` is "ratio" (4 significant digits), "count" (an integer when it is one),
+    "small" (3 significant digits, scientific when tiny) or "time" (3 significant digits).
+    """
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return _MISSING
+    value = float(value)
+    if kind == "count":
+        return f"{int(round(value))}" if float(value).is_integer() else f"{value:.1f}"
+    if kind == "small":
+        return f"{value:.3g}"
+    if kind == "time":
+        return f"{value:.3g}"
+    return f"{value:.4g}"
+
+
+def _short(text: str, limit: int = _ERROR_SHORT) -> str:
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _error_text(error_type: str, error: str) -> str:
+    if error_type and error:
+        return f"{error_type}: {error}"
+    return error_type or error or "failed (no error text recorded)"
+
+
+def _status(group: pd.DataFrame) -> tuple[str, bool]:
+    ok = group["status"] == "ok"
+    n_ok, n = int(ok.sum()), len(group)
+    failed = group[~ok]
+    errors = list(dict.fromkeys(_error_text(t, e) for t, e in zip(failed["error_type"], failed["error"])))
+    collapsed = bool((group.loc[ok, "collapsed"].fillna(0) > 0).any())
+    if n_ok == n:
+        return ("ok (collapsed)" if collapsed else "ok"), False
+    text = "failed: " if n_ok == 0 else f"{n - n_ok} of {n} seeds failed: "
+    return text + " | ".join(_short(e) for e in errors), True
+
+
+def summarise(rows: pd.DataFrame) -> pd.DataFrame:
+    """One row per (configuration, variant): medians over ok seeds and a status text.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Labelled rows (see :func:`reports.labels.add_labels`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns: the configuration columns, ``config``, ``variant``, ``method``,
+        ``n_cells``, ``n_ok``, ``n_points`` and the :data:`SUMMARY_METRICS` columns
+        (NaN when no seed is ok), ``status`` (text) and ``has_failure`` (bool); sorted by
+        configuration then variant.
+    """
+    metric_cols = [m[0] for m in SUMMARY_METRICS]
+    keys = [*CONFIG_COLUMNS, "config", "variant"]
+    out = []
+    for key, group in rows.groupby(keys, sort=True, dropna=False):
+        ok = group[group["status"] == "ok"]
+        record = dict(zip(keys, key))
+        record["method"] = group["method"].iloc[0]
+        record["n_cells"] = len(group)
+        record["n_ok"] = len(ok)
+        record["n_points"] = float(group["n_points"].median()) if group["n_points"].notna().any() else np.nan
+        for col in metric_cols:
+            values = ok[col].dropna()
+            record[col] = float(values.median()) if len(values) else np.nan
+        record["status"], record["has_failure"] = _status(group)
+        out.append(record)
+    return pd.DataFrame(out, columns=[*keys, "method", "n_cells", "n_ok", "n_points", *metric_cols,
+                                      "status", "has_failure"])
+
+
+def best_mask(summary: pd.DataFrame, by: str = "config") -> pd.DataFrame:
+    """Where each metric column reaches its minimum within each group.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Output of :func:`summarise`.
+    by : str
+        Grouping column; the best value is marked within each group.
+
+    Returns
+    -------
+    pandas.DataFrame of bool
+        Same index as ``summary``, one column per metric. A column of a group is marked only
+        when at least two rows have a value; ties (to a relative 1e-9) are all marked.
+    """
+    cols = [m[0] for m in SUMMARY_METRICS]
+    mask = pd.DataFrame(False, index=summary.index, columns=cols)
+    for _, group in summary.groupby(by, sort=False):
+        for col in cols:
+            values = group[col].dropna()
+            if len(values) < 2:
+                continue
+            best = values.min()
+            hit = np.isclose(values.to_numpy(), best, rtol=1e-9, atol=0.0)
+            mask.loc[values.index[hit], col] = True
+    return mask
+
+
+def summary_tables(summary: pd.DataFrame) -> dict[str, Table]:
+    """One summary table per configuration, rows = method variants.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Output of :func:`summarise`.
+
+    Returns
+    -------
+    dict of str to Table
+        Keyed by the configuration label, in the summary's order.
+    """
+    mask = best_mask(summary)
+    columns = ["Method", "Seeds ok", *[m[1] for m in SUMMARY_METRICS], "Status"]
+    tables: dict[str, Table] = {}
+    for config, group in summary.groupby("config", sort=False):
+        body = []
+        for idx, rec in group.iterrows():
+            row = [Cell(str(rec["variant"]), ("method",)),
+                   Cell(f"{int(rec['n_ok'])}/{int(rec['n_cells'])}")]
+            for col, _, kind in SUMMARY_METRICS:
+                best = bool(mask.at[idx, col])
+                row.append(Cell(format_number(rec[col], kind), ("best",) if best else (),
+                                "best in this table" if best else ""))
+            status_class = ("status", "failed") if rec["has_failure"] else ("status", "ok")
+            row.append(Cell(str(rec["status"]), status_class))
+            body.append(row)
+        n_points = group["n_points"].median()
+        caption = str(config) + ("" if n_points != n_points else f" — {int(n_points)} points")
+        tables[str(config)] = Table(columns, body, caption, "summary",
+                                    numeric=set(range(1, 2 + len(SUMMARY_METRICS))))
+    return tables
+
+
+def overview_table(summary: pd.DataFrame) -> Table:
+    """Method variants x configurations at a glance: median QC mean, or the error type.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Output of :func:`summarise`.
+    """
+    configs = list(dict.fromkeys(summary["config"]))
+    variants = sorted(dict.fromkeys(summary["variant"]))
+    mask = best_mask(summary)
+    lookup = {(r.config, r.variant): (i, r) for i, r in zip(summary.index, summary.itertuples())}
+    body = []
+    for variant in variants:
+        row = [Cell(variant, ("method",))]
+        for config in configs:
+            hit = lookup.get((config, variant))
+            if hit is None:
+                row.append(Cell("·", ("absent",), "not run"))
+                continue
+            idx, rec = hit
+            if rec.n_ok == 0:
+                row.append(Cell("failed", ("failed",), _short(rec.status, 200)))
+                continue
+            text = format_number(rec.qc_mean, "ratio")
+            classes = ["best"] if mask.at[idx, "qc_mean"] else []
+            if rec.has_failure:
+                text += " (!)"
+                classes.append("partial")
+            row.append(Cell(text, tuple(classes), _short(rec.status, 200) if rec.has_failure else ""))
+        body.append(row)
+    return Table(["Method", *configs], body, "Median QC mean per method and surface (1 = conformal)",
+                 "overview", numeric=set(range(1, 1 + len(configs))))
+
+
+def failures_table(rows: pd.DataFrame) -> Table:
+    """Every failed cell with its full error text.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Labelled rows.
+    """
+    failed = rows[rows["status"] != "ok"].sort_values(["config", "variant", "seed"], kind="stable")
+    body = [[Cell(str(r.config)), Cell(str(r.variant), ("method",)),
+             Cell(format_number(r.seed, "count")), Cell(r.error_type or _MISSING),
+             Cell(r.error or _MISSING, ("error",))]
+            for r in failed.itertuples()]
+    return Table(["Surface", "Method", "Seed", "Error type", "Error"], body,
+                 f"{len(failed)} failed cell(s)", "failures", numeric={2})
+
+
+def _meta_value(value) -> str:
+    if isinstance(value, (dict, list)):
+        return json.dumps(value, indent=1, sort_keys=True)
+    return _MISSING if value is None or value == "" else str(value)
+
+
+def metadata_table(run: dict) -> Table:
+    """Run metadata: version, commit, machine, date, command, suite, parameters, seeds.
+
+    Parameters
+    ----------
+    run : dict
+        Contents of ``run.json`` (may be empty or partial).
+    """
+    machine = run.get("machine") or {}
+    if not isinstance(machine, dict):
+        machine = {"description": machine}
+    items = [
+        ("Package version", run.get("package_version")),
+        ("Git commit", run.get("git_commit")),
+        ("Date", run.get("date")),
+        ("Command", run.get("command")),
+        ("Suite", run.get("suite")),
+        ("Machine", ", ".join(f"{k}: {machine[k]}" for k in ("hostname", "platform", "python", "cpu_count",
+                                                             "memory_gb") if k in machine)
+         or _meta_value(machine or None)),
+        ("Seeds", ", ".join(str(s) for s in run["seeds"]) if isinstance(run.get("seeds"), list)
+         else run.get("seeds")),
+        ("Parameters", run.get("parameters")),
+    ]
+    known = {"package_version", "git_commit", "date", "command", "suite", "machine", "seeds", "parameters"}
+    items += [(k.replace("_", " ").capitalize(), v) for k, v in sorted(run.items()) if k not in known]
+    body = [[Cell(k, ("key",)), Cell(_meta_value(v), ("pre",) if isinstance(v, (dict, list)) else ())]
+            for k, v in items]
+    return Table(["Item", "Value"], body, "Run metadata", "metadata")
+
+
+def benchmark_table(stats: pd.DataFrame) -> Table:
+    """pytest-benchmark statistics, one row per benchmark.
+
+    Parameters
+    ----------
+    stats : pandas.DataFrame
+        Output of :func:`reports.benchmarks.load_benchmarks`.
+    """
+    cols = [("min", "Min (s)"), ("median", "Median (s)"), ("mean", "Mean (s)"), ("stddev", "Std dev (s)"),
+            ("max", "Max (s)")]
+    body = []
+    for r in stats.itertuples():
+        row = [Cell(str(r.group) or _MISSING), Cell(str(r.name), ("method",))]
+        row += [Cell(format_number(getattr(r, c), "time")) for c, _ in cols]
+        row += [Cell(format_number(r.rounds, "count")), Cell(_short(r.extra, 160))]
+        body.append(row)
+    return Table(["Group", "Benchmark", *[h for _, h in cols], "Rounds", "Extra info"], body,
+                 "pytest-benchmark statistics", "benchmarks", numeric=set(range(2, 8)))
+
+
+def exponent_table(fits: pd.DataFrame) -> Table:
+    """Fitted exponents p of time = c * points**p, one row per surface family and variant.
+
+    Parameters
+    ----------
+    fits : pandas.DataFrame
+        Output of :func:`reports.figures.scaling.scaling_fits`.
+    """
+    body = []
+    for r in fits.itertuples():
+        family = " · ".join(str(x) for x in (r.dataset, r.sampling) if x) + (f" · noise {r.noise:g}" if r.noise else "")
+        body.append([Cell(family), Cell(str(r.variant), ("method",)), Cell(f"{r.exponent:.2f}"),
+                     Cell(format_number(r.n_sizes, "count")),
+                     Cell(f"{int(r.n_min)}–{int(r.n_max)}")])
+    return Table(["Surface", "Method", "Exponent p", "Sizes", "Points"], body,
+                 "Fitted exponents of time against points", "exponents", numeric={2, 3, 4})
