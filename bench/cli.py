@@ -171,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="run a sweep and build its report")
-    run.add_argument("--suite", default="quick", help="quick (default, < 3 min) or full")
+    run.add_argument("--suite", default="quick", help="quick (default, < 3 min), full, or scale (10k to 1M points)")
     run.add_argument("--methods", nargs="+", help="method names (default: all registered)")
     run.add_argument("--datasets", nargs="+", help="dataset names (default: the suite's)")
     run.add_argument("--sizes", nargs="+", type=int, help="point counts of procedural datasets")

@@ -64,6 +64,15 @@ SUITES = {
         seeds=(0, 1, 2),
         param_grids=True,
     ),
+    # Issue "scale": time and peak memory against size, fitted exponents in the report.
+    "scale": Suite(
+        name="scale",
+        datasets=("bump", "holes"),
+        sizes=(10_000, 100_000, 1_000_000),
+        samplings=("jittered",),
+        seeds=(0,),
+        methods=("scp-igl", "scp", "sdp", "ocp"),
+    ),
 }
 
 
