@@ -165,6 +165,8 @@ def render_html(results: Results, benchmark_json=()) -> str:
     InputFileError
         A benchmark file is unreadable.
     """
+    paths = [Path(p) for p in benchmark_json]
+    stats = load_benchmarks(paths) if paths else None  # first: a bad file fails before the slow part
     warnings = list(results.warnings)
     rows = add_labels(results.rows)
     summary = summarise(rows)
@@ -203,9 +205,7 @@ def render_html(results: Results, benchmark_json=()) -> str:
         scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
     sections.append(scaling)
 
-    paths = [Path(p) for p in benchmark_json]
-    if paths:
-        stats = load_benchmarks(paths)
+    if stats is not None:
         bench = Section("Benchmarks", intro="From " + ", ".join(p.name for p in paths) + ".")
         picture = benchmark_figure(stats)
         if picture is not None:

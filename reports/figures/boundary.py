@@ -95,7 +95,7 @@ def _draw_panel(ax, panel: BoundaryPanel, seed: int) -> str:
     n = len(panel.points)
     rng = np.random.default_rng(seed)
     cloud = rng.choice(n, size=_MAX_CLOUD, replace=False) if n > _MAX_CLOUD else np.arange(n)
-    ax.scatter(xy[cloud, 0], xy[cloud, 1], s=1.0, c="#c8c8c8", linewidths=0, rasterized=True)
+    ax.scatter(xy[cloud, 0], xy[cloud, 1], s=1.0, c="#c8c8c8", linewidths=0)
     if panel.gt_loops:
         ax.add_collection(LineCollection(_closed_segments(xy, panel.gt_loops), colors=_GT_COLOR, linewidths=1.6))
     mask = panel.det_mask

@@ -24,6 +24,8 @@ __all__ = ["subdivision_barycentrics", "checker_parity", "checkerboard_figure", 
 CHECK_COLORS = np.array([[0.96, 0.94, 0.88], [0.16, 0.35, 0.62]])
 _NCOLS = 4
 _MAX_LEVEL = 8
+#: Sub-triangles a coarse mesh is split into, about, per panel: enough for crisp check edges.
+_TARGET_PIECES = 12_000
 
 
 def subdivision_barycentrics(level: int) -> np.ndarray:
@@ -80,7 +82,8 @@ def _draw_panel(ax, label: str, arrays: CellArrays, n_checks: int, max_faces: in
         return
     shown = subsample_faces(len(arrays.faces), max_faces, seed=seed)
     faces = arrays.faces[shown]
-    level = int(min(_MAX_LEVEL, max(1, math.isqrt(max(1, max_faces // max(1, len(faces)))))))
+    target = min(max_faces, _TARGET_PIECES)
+    level = int(min(_MAX_LEVEL, max(1, math.isqrt(max(1, target // max(1, len(faces)))))))
     bary = subdivision_barycentrics(level)  # (S, 3, 3)
     xy, depth, view = view_projection(arrays.points, arrays.faces)
     # Sub-triangle corners: (M, S, 3, k) = sum over the face's corners of weight * value.
@@ -93,7 +96,7 @@ def _draw_panel(ax, label: str, arrays: CellArrays, n_checks: int, max_faces: in
     colors = CHECK_COLORS[parity] * shade
     order = np.argsort(corner_depth.mean(axis=1), kind="stable")  # far first: painter's algorithm
     ax.add_collection(PolyCollection(corner_xy[order], facecolors=colors[order], edgecolors="face",
-                                     linewidths=0.15, rasterized=True))
+                                     linewidths=0.15))
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     pad = 0.03 * max(float((hi - lo).max()), 1e-12)
     ax.set_xlim(lo[0] - pad, hi[0] + pad)

@@ -78,8 +78,7 @@ def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: i
     verts = uv[faces[shown]]
     qc = np.nan_to_num(arrays.qc[shown], nan=norm.vmax, posinf=norm.vmax)
     # Edges in the face colour hide the hairline seams antialiasing leaves between triangles.
-    tris = PolyCollection(verts, array=qc, cmap=QC_CMAP, norm=norm, edgecolors="face", linewidths=0.15,
-                          rasterized=True)
+    tris = PolyCollection(verts, array=qc, cmap=QC_CMAP, norm=norm, edgecolors="face", linewidths=0.15)
     ax.add_collection(tris)
     flipped = verts[arrays.flipped[shown]]
     if len(flipped):

@@ -1,0 +1,139 @@
+"""build_report end to end on synthetic results: content, self-containment, partial results."""
+
+import base64
+import io
+import re
+from pathlib import Path
+
+import matplotlib.image
+import pytest
+
+from datasets_gen.errors import InputFileError, UnknownNameError
+from reports.build import build_report
+from reports.errors import EmptyResultsError
+
+
+def summary_row_count(html: str) -> int:
+    tables = re.findall(r'<table class="summary">(.*?)</table>', html, flags=re.S)
+    return sum(t.split("<tbody>", 1)[1].count("<tr>") for t in tables)
+
+
+def section_titles(html: str) -> list[str]:
+    return re.findall(r"<h[23]>(.*?)</h[23]>", html)
+
+
+def test_report_has_every_part(built_report):
+    html = built_report["paths"]["html"].read_text()
+    rows = built_report["rows"]
+    groups = {(r["dataset"], r["size"], r["method"]) for r in rows}
+    assert summary_row_count(html) == len(groups) == 9
+    assert html.count('<table class="summary">') == 3
+    titles = section_titles(html)
+    for expected in ("Overview", "Summary tables", "Failed cells", "Time against size", "Benchmarks",
+                     "Run metadata", "uv layouts", "Checkerboard texture", "Boundary detection", "OCP landscape",
+                     "Weight histograms"):
+        assert expected in titles, expected
+    # one picture section per surface family: bump (shown at its 400-point size) and saddle
+    assert "Surface: bump · 400 pts · poisson (seed 0)" in titles
+    assert "Surface: saddle · 144 pts · poisson (seed 0)" in titles
+    assert titles.count("uv layouts") == 2
+    # the failed cell is reported with its error text, in the summary and in full
+    assert html.count("OCP line search did not reach turning number 1") >= 2
+    assert "ConvergenceError" in html
+    # best values are marked
+    assert html.count('class="best') >= 9
+    # run metadata and benchmark statistics
+    assert "0123456789abcdef0123456789abcdef01234567" in html
+    assert "testhost" in html and "test_ocp_2k" in html
+    # a fitted exponent for each method appears (1.10, 1.30, 1.50)
+    for text in (">1.10<", ">1.30<", ">1.50<"):
+        assert text in html
+
+
+def test_report_is_self_contained(built_report):
+    html = built_report["paths"]["html"].read_text()
+    assert "<script" not in html
+    assert not re.search(r'(src|href)="(?!data:|#)', html)
+    assert "@import" not in html and "url(" not in html
+    images = re.findall(r'<img[^>]+src="data:image/png;base64,([^"]+)"', html)
+    assert len(images) == html.count("<img") >= 12
+    for data in images:
+        image = matplotlib.image.imread(io.BytesIO(base64.b64decode(data)), format="png")
+        assert image.shape[0] > 50 and image.shape[1] > 50
+
+
+def test_default_out_dir_is_inside_results(tmp_path, make_results, spec_type):
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"saddle": [144]}, methods=("scp",), seeds=(0,), failed=()))
+    paths = build_report(root, formats=("html",))
+    assert paths == {"html": root / "report" / "report.html"}
+    assert paths["html"].is_file()
+    assert not (root / "report" / ".report.html.tmp").exists()
+    out = build_report(root, out_dir=tmp_path / "elsewhere" / "deep", formats=("html",))
+    assert out["html"] == tmp_path / "elsewhere" / "deep" / "report.html" and out["html"].is_file()
+
+
+def test_out_dir_in_source_tree_is_refused(results_dir):
+    source = Path(__file__).resolve().parents[2] / "reports" / "out"
+    with pytest.raises(InputFileError, match="source tree"):
+        build_report(results_dir, out_dir=source, formats=("html",))
+    assert not source.exists()
+
+
+def test_unknown_format_is_refused(results_dir):
+    with pytest.raises(UnknownNameError, match="docx"):
+        build_report(results_dir, formats=("docx",))
+
+
+def test_empty_results_give_a_clear_message(tmp_path):
+    with pytest.raises(EmptyResultsError, match="parambench run"):
+        build_report(tmp_path / "nothing")
+    (tmp_path / "empty" / "cells").mkdir(parents=True)
+    with pytest.raises(EmptyResultsError, match="parambench run"):
+        build_report(tmp_path / "empty")
+    assert not (tmp_path / "empty" / "report").exists()
+
+
+def test_single_method_single_dataset(tmp_path, make_results, spec_type):
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"saddle": [144]}, methods=("scp",), seeds=(0,), failed=()))
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert summary_row_count(html) == 1
+    assert "class=\"best" not in html  # nothing to compare with
+    assert "No cell failed." in html
+    assert "No method was timed at two or more sizes" in html
+    assert "uv layouts" in section_titles(html)
+    assert "OCP landscape" not in section_titles(html)  # scp has no landscape
+
+
+def test_all_cells_failed_still_gives_a_report(tmp_path, make_results, spec_type, mesh_tools):
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"bump": [144]}, methods=("ocp", "scp"), seeds=(0, 1), fail_all=True))
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert "Every cell failed" in html
+    assert summary_row_count(html) == 2
+    failures = re.search(r'<table class="failures">(.*?)</table>', html, flags=re.S).group(1)
+    assert failures.count("<tr>") == 1 + 4  # header + every failed cell
+    assert "No method stored uv arrays" in html
+    assert "Weight histograms" in section_titles(html)  # the surface's own diagnostics are still there
+
+
+def test_missing_arrays_and_unreadable_files_are_noted(tmp_path, make_results, spec_type):
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"bump": [144]}, seeds=(0,), failed=(), parquet=False, run_json=False))
+    npz = sorted((root / "cells").glob("*lscm*.npz"))[0]
+    npz.unlink()  # big cells keep no arrays
+    bad = sorted((root / "cells").glob("*scp*.npz"))[0]
+    bad.write_bytes(b"garbage")
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert "lscm (no stored arrays)" in html
+    assert "no picture from" in html and bad.name in html
+    assert "run.json is missing" in html
+    assert "uv layouts" in section_titles(html)  # ocp still drawn
+
+
+def test_bad_benchmark_file_is_a_clear_error(results_dir, tmp_path):
+    bad = tmp_path / "bench.json"
+    bad.write_text("{}")
+    with pytest.raises(InputFileError, match="benchmark-json"):
+        build_report(results_dir, benchmark_json=[bad], formats=("html",))

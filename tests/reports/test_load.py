@@ -1,0 +1,156 @@
+"""Reading a results directory: rows, union with the consolidated table, arrays, bad files."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from datasets_gen.errors import InputFileError, ParambenchError
+from reports.errors import EmptyResultsError
+from reports.load import (NUMERIC_COLUMNS, ROW_COLUMNS, dataset_key_candidates, load_cell_arrays,
+                          load_dataset_arrays, load_results, loops_from_flat, normalise_rows, parse_json_field)
+
+
+def test_reads_every_cell_with_contract_columns_and_dtypes(results_dir, make_results):
+    results = load_results(results_dir)
+    rows = results.rows
+    # 3 surfaces (bump 144, bump 400, saddle 144) x 2 seeds x 3 methods
+    assert len(rows) == 18
+    assert set(ROW_COLUMNS) <= set(rows.columns)
+    for col in NUMERIC_COLUMNS:
+        assert rows[col].dtype == np.float64, col
+    assert set(rows["status"]) == {"ok", "failed"}
+    failed = rows[rows["status"] == "failed"]
+    assert len(failed) == 1
+    assert failed["qc_mean"].isna().all()
+    assert failed["error_type"].iloc[0] == "ConvergenceError"
+    assert results.run["git_commit"].startswith("0123456789")
+    assert rows["cell_id"].is_monotonic_increasing
+    assert results.warnings == []
+
+
+def test_rows_only_in_parquet_are_kept_and_cell_files_win(results_dir):
+    cells = sorted((results_dir / "cells").glob("*.json"))
+    gone = json.loads(cells[0].read_text())["cell_id"]
+    cells[0].unlink()  # the parquet still has it
+    changed = json.loads(cells[1].read_text())
+    changed["time_total"] = 123.0  # newer than the consolidated table
+    cells[1].write_text(json.dumps(changed))
+    rows = load_results(results_dir).rows
+    assert len(rows) == 18
+    assert gone in set(rows["cell_id"])
+    assert rows.loc[rows["cell_id"] == changed["cell_id"], "time_total"].item() == 123.0
+
+
+def test_parquet_alone_is_enough(results_dir):
+    for path in (results_dir / "cells").glob("*.json"):
+        path.unlink()
+    assert len(load_results(results_dir).rows) == 18
+
+
+def test_csv_is_read_when_there_is_no_parquet(results_dir):
+    for path in (results_dir / "cells").glob("*.json"):
+        path.unlink()
+    (results_dir / "results.parquet").unlink()
+    rows = load_results(results_dir).rows
+    assert len(rows) == 18
+    assert rows["params"].map(lambda p: isinstance(json.loads(p), dict)).all()
+
+
+def test_corrupt_cell_file_is_skipped_with_a_warning(results_dir):
+    (results_dir / "results.parquet").unlink()
+    (results_dir / "results.csv").unlink()
+    (results_dir / "cells" / "zz-broken.json").write_text('{"cell_id": "zz", "status": ')
+    results = load_results(results_dir)
+    assert len(results.rows) == 18
+    assert any("zz-broken.json" in w for w in results.warnings)
+
+
+def test_missing_run_json_is_a_warning_not_an_error(results_dir):
+    (results_dir / "run.json").unlink()
+    results = load_results(results_dir)
+    assert results.run == {}
+    assert any("run.json" in w for w in results.warnings)
+
+
+@pytest.mark.parametrize("make", ["missing", "empty", "empty_cells"])
+def test_no_results_raises_a_clear_error(tmp_path, make):
+    root = tmp_path / "results"
+    if make != "missing":
+        root.mkdir()
+    if make == "empty_cells":
+        (root / "cells").mkdir()
+    with pytest.raises(EmptyResultsError, match="parambench run"):
+        load_results(root)
+    assert issubclass(EmptyResultsError, ParambenchError)
+
+
+def test_normalise_rows_fills_missing_columns_and_canonicalises_json():
+    raw = pd.DataFrame([{"cell_id": "b", "status": "OK ", "params": {"k": 8}, "qc_mean": "1.5"},
+                        {"cell_id": "a", "status": None, "params": '{"k":  9}', "qc_mean": None}])
+    rows = normalise_rows(raw)
+    assert list(rows["cell_id"]) == ["a", "b"]
+    assert list(rows["status"]) == ["failed", "ok"]
+    assert list(rows["params"]) == ['{"k": 9}', '{"k": 8}']
+    assert rows["qc_mean"].iloc[1] == 1.5 and np.isnan(rows["qc_mean"].iloc[0])
+    assert list(rows["error"]) == ["", ""]
+    assert list(rows["turning_numbers"]) == ["[]", "[]"]
+
+
+def test_parse_json_field():
+    assert parse_json_field('{"a": 1}') == {"a": 1}
+    assert parse_json_field([1, 2]) == [1, 2]
+    assert parse_json_field(float("nan"), {}) == {}
+    assert parse_json_field("not json", "d") == "d"
+
+
+def test_loops_round_trip_and_bad_offsets():
+    loops = [np.array([0, 1, 2, 3]), np.array([7, 6, 5])]
+    flat = np.concatenate(loops)
+    out = loops_from_flat(flat, [0, 4, 7], n_points=8)
+    assert [list(x) for x in out] == [[0, 1, 2, 3], [7, 6, 5]]
+    with pytest.raises(InputFileError):
+        loops_from_flat(flat, [0, 4, 6])
+    with pytest.raises(InputFileError):
+        loops_from_flat(flat, [0, 4, 7], n_points=7)
+
+
+def test_cell_arrays_are_read_with_optional_parts(results_dir):
+    rows = load_results(results_dir).rows
+    ocp = rows[(rows["method"] == "ocp") & (rows["status"] == "ok")].iloc[0]
+    arrays = load_cell_arrays(results_dir, ocp["artifact"])
+    assert arrays.points.shape[1] == 3 and arrays.uv.shape == (len(arrays.points), 2)
+    assert arrays.qc.shape == arrays.flipped.shape == (len(arrays.faces),)
+    assert arrays.flipped.sum() == ocp["foldovers"]
+    assert len(arrays.gt_loops) == 1 and len(arrays.det_loops) == 1
+    assert set(arrays.landscape) == {"k", "E", "t"}
+    lscm = rows[(rows["method"] == "lscm")].iloc[0]
+    assert load_cell_arrays(results_dir, lscm["artifact"]).landscape is None
+    assert load_cell_arrays(results_dir, "") is None
+    assert load_cell_arrays(results_dir, "cells/not-there.npz") is None
+
+
+def test_inconsistent_cell_arrays_raise(tmp_path):
+    np.savez(tmp_path / "bad.npz", points=np.zeros((4, 3)), faces=np.array([[0, 1, 2]]), uv=np.zeros((3, 2)),
+             qc=np.ones(1), flipped=np.zeros(1, bool))
+    with pytest.raises(InputFileError, match="shapes"):
+        load_cell_arrays(tmp_path, "bad.npz")
+    np.savez(tmp_path / "bad2.npz", points=np.zeros((3, 3)), faces=np.array([[0, 1, 5]]), uv=np.zeros((3, 2)),
+             qc=np.ones(1), flipped=np.zeros(1, bool))
+    with pytest.raises(InputFileError, match="out of range"):
+        load_cell_arrays(tmp_path, "bad2.npz")
+    (tmp_path / "bad3.npz").write_bytes(b"not an npz")
+    with pytest.raises(InputFileError):
+        load_cell_arrays(tmp_path, "bad3.npz")
+
+
+def test_dataset_arrays_found_by_contract_key(results_dir):
+    keys = dataset_key_candidates("bump", 144.0, "poisson", 0.0, 1.0)
+    assert "bump-144-poisson-s1" in keys
+    assert "bump-144-poisson-n0-s1" in keys
+    data = load_dataset_arrays(results_dir, keys)
+    assert {"w_tan_interior", "w_cot_boundary", "det_boundary_mask"} <= set(data)
+    assert len(data["gt_loops"]) == 1
+    assert load_dataset_arrays(results_dir, ["nothing-here"]) is None
+    assert dataset_key_candidates("real/bunny", 0, "", 0.0, 0)[1] == "real_bunny-0--n0-s0"

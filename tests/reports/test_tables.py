@@ -1,0 +1,140 @@
+"""Summary tables: medians over seeds, best-value marks, failures kept with their text."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from reports.labels import add_labels
+from reports.load import normalise_rows
+from reports.tables import (SUMMARY_METRICS, benchmark_table, best_mask, exponent_table, failures_table,
+                            format_number, metadata_table, overview_table, summarise, summary_tables)
+
+
+def _row(method, seed, dataset="bump", status="ok", **metrics):
+    base = {"cell_id": f"{dataset}-{method}-{seed}", "dataset": dataset, "size": 100, "sampling": "grid",
+            "noise": 0.0, "seed": seed, "method": method, "params": "{}", "n_points": 100, "status": status,
+            "error_type": "", "error": ""}
+    base.update(metrics)
+    return base
+
+
+@pytest.fixture
+def hand_rows():
+    rows = [
+        _row("a", 0, qc_mean=1.10, qc_p95=1.3, qc_max=2.0, foldovers=0, area_distortion=1.2, time_total=1.0),
+        _row("a", 1, qc_mean=1.20, qc_p95=1.5, qc_max=4.0, foldovers=2, area_distortion=1.4, time_total=3.0),
+        _row("a", 2, status="failed", error_type="SolverError", error="eigensolver did not converge"),
+        _row("b", 0, qc_mean=1.05, qc_p95=1.4, qc_max=3.0, foldovers=1, area_distortion=1.1, time_total=0.5),
+        _row("c", 0, status="failed", error_type="NotADiskError", error="mesh has 2 components"),
+        _row("a", 0, dataset="disk", qc_mean=1.0, qc_p95=1.0, qc_max=1.0, foldovers=0, time_total=0.1,
+             exact_error=0.002),
+    ]
+    return add_labels(normalise_rows(pd.DataFrame(rows)))
+
+
+def test_summarise_takes_medians_over_ok_seeds_and_keeps_failures(hand_rows):
+    summary = summarise(hand_rows)
+    assert len(summary) == 4  # bump: a, b, c; disk: a
+    a = summary[(summary["dataset"] == "bump") & (summary["variant"] == "a")].iloc[0]
+    assert a["n_cells"] == 3 and a["n_ok"] == 2
+    assert a["qc_mean"] == pytest.approx(1.15)
+    assert a["qc_max"] == pytest.approx(3.0)
+    assert a["foldovers"] == pytest.approx(1.0)
+    assert a["time_total"] == pytest.approx(2.0)
+    assert a["has_failure"]
+    assert a["status"] == "1 of 3 seeds failed: SolverError: eigensolver did not converge"
+    c = summary[summary["variant"] == "c"].iloc[0]
+    assert c["n_ok"] == 0 and np.isnan(c["qc_mean"])
+    assert c["status"] == "failed: NotADiskError: mesh has 2 components"
+    b = summary[summary["variant"] == "b"].iloc[0]
+    assert b["status"] == "ok" and not b["has_failure"]
+
+
+def test_best_mask_marks_minimum_ties_and_skips_single_values(hand_rows):
+    summary = summarise(hand_rows)
+    mask = best_mask(summary)
+    bump = summary["dataset"] == "bump"
+    by_variant = {v: i for v, i in zip(summary.loc[bump, "variant"], summary.index[bump])}
+    assert mask.at[by_variant["b"], "qc_mean"] and not mask.at[by_variant["a"], "qc_mean"]
+    assert mask.at[by_variant["a"], "qc_p95"] and mask.at[by_variant["b"], "qc_p95"]  # a tie: median(1.3, 1.5) = 1.4
+    assert not mask.loc[by_variant["c"]].any()  # failed: nothing to mark
+    disk = summary.index[summary["dataset"] == "disk"][0]
+    assert not mask.loc[disk].any()  # one method alone is not "best"
+    # exact_error has a single value in the bump table (none) -> never marked there
+    assert not mask.loc[bump, "exact_error"].any()
+
+
+def test_summary_tables_render_rows_best_cells_and_error_text(hand_rows):
+    tables = summary_tables(summarise(hand_rows))
+    assert list(tables) == ["bump · 100 pts · grid", "disk · 100 pts · grid"]
+    bump = tables["bump · 100 pts · grid"]
+    assert len(bump.rows) == 3
+    assert len(bump.columns) == 3 + len(SUMMARY_METRICS)
+    texts = {row[0].text: row for row in bump.rows}
+    qc_col = bump.columns.index("QC mean")
+    assert texts["b"][qc_col].text == "1.05" and "best" in texts["b"][qc_col].classes
+    assert "best" not in texts["a"][qc_col].classes
+    assert texts["c"][qc_col].text == "—"
+    assert "NotADiskError: mesh has 2 components" in texts["c"][-1].text
+    assert "failed" in texts["c"][-1].classes
+    assert texts["a"][1].text == "2/3"
+
+
+def test_failures_table_lists_every_failed_cell_in_full(hand_rows):
+    table = failures_table(hand_rows)
+    assert len(table.rows) == 2
+    errors = sorted(row[-1].text for row in table.rows)
+    assert errors == ["eigensolver did not converge", "mesh has 2 components"]
+
+
+def test_overview_shows_failed_and_partial_cells(hand_rows):
+    table = overview_table(summarise(hand_rows))
+    assert table.columns == ["Method", "bump · 100 pts · grid", "disk · 100 pts · grid"]
+    cells = {row[0].text: [c.text for c in row[1:]] for row in table.rows}
+    assert cells["a"] == ["1.15 (!)", "1"]
+    assert cells["c"] == ["failed", "·"]
+    assert cells["b"] == ["1.05", "·"]
+
+
+def test_long_error_is_shortened_in_the_summary_but_not_in_the_failures_table():
+    long_error = "x" * 1000
+    rows = add_labels(normalise_rows(pd.DataFrame([_row("a", 0, status="failed", error_type="E",
+                                                        error=long_error)])))
+    status = summary_tables(summarise(rows))["bump · 100 pts · grid"].rows[0][-1].text
+    assert len(status) < 400 and status.endswith("…")
+    assert failures_table(rows).rows[0][-1].text == long_error
+
+
+def test_format_number():
+    assert format_number(None) == "—"
+    assert format_number(float("nan")) == "—"
+    assert format_number(1.234567) == "1.235"
+    assert format_number(3.0, "count") == "3"
+    assert format_number(2.5, "count") == "2.5"
+    assert format_number(0.000123456, "small") == "0.000123"
+    assert format_number(12.3456, "time") == "12.3"
+
+
+def test_metadata_table_shows_every_recorded_item():
+    run = {"package_version": "0.1.0", "git_commit": "abc123", "date": "2024-01-01", "command": "parambench run",
+           "suite": "quick", "machine": {"hostname": "h", "cpu_count": 2}, "parameters": {"sizes": [1, 2]},
+           "seeds": [0, 1, 2], "extra_field": "kept"}
+    table = metadata_table(run)
+    values = {row[0].text: row[1].text for row in table.rows}
+    assert values["Git commit"] == "abc123"
+    assert values["Seeds"] == "0, 1, 2"
+    assert values["Machine"] == "hostname: h, cpu_count: 2"
+    assert '"sizes"' in values["Parameters"]
+    assert values["Extra field"] == "kept"
+    assert {row[0].text: row[1].text for row in metadata_table({}).rows}["Git commit"] == "—"
+
+
+def test_benchmark_and_exponent_tables():
+    stats = pd.DataFrame([{"source": "b.json", "group": "g", "name": "t1", "min": 0.1, "max": 0.3, "mean": 0.2,
+                           "stddev": 0.05, "median": 0.19, "rounds": 5.0, "extra": "{}"}])
+    table = benchmark_table(stats)
+    assert [c.text for c in table.rows[0]][:4] == ["g", "t1", "0.1", "0.19"]
+    fits = pd.DataFrame([{"dataset": "bump", "sampling": "grid", "noise": 0.0, "variant": "a", "exponent": 1.234,
+                          "coefficient": 1e-6, "n_sizes": 3, "n_min": 100.0, "n_max": 10000.0}])
+    row = [c.text for c in exponent_table(fits).rows[0]]
+    assert row == ["bump · grid", "a", "1.23", "3", "100–10000"]
