@@ -1,0 +1,279 @@
+"""Boundary points by the angle criterion, ordered into oriented loops (paper Sec. 4.1).
+
+Detection: a point is on the boundary when the largest angular gap between the spokes
+to its geodesic-ball members, in its DEM tangent plane, exceeds a threshold (120 degrees
+by default; interior points of a reasonable sampling have gaps well under 90 degrees,
+points on a straight boundary have 180). The whole geodesic ball is used, not only the
+K nearest, so a locally sparse interior does not look like a boundary.
+
+Ordering: at a boundary point the bisector g of the gap points out of the surface; the
+loop direction is g turned by +90 degrees in the tangent plane (seen from the normal's
+side), which keeps the surface on the left. Each boundary point's successor is the
+nearest other boundary point of its ball lying ahead (positive component along that
+direction). Loops are the cycles of this successor map. Walking with the surface on the
+left makes the outer loop counter-clockwise and holes clockwise seen from the normals'
+side, the convention of :class:`datasets_gen.surface.Surface`.
+
+Fake loops: cycles with fewer than ``min_loop_size`` points (default 8) are dropped, as
+are boundary points on no cycle; the first are isolated gaps in the sampling, the second
+points the walk stepped over (both counted in the diagnostics). Loops are returned
+longest (3D perimeter) first, so the outer boundary of a surface with holes comes first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from datasets_gen.errors import InvalidInputError, NoBoundaryError
+
+from .normals import tangent_frames
+
+__all__ = ["BoundaryLoops", "angular_gaps", "successors", "cycles", "find_boundary", "DEFAULT_MIN_LOOP_SIZE"]
+
+DEFAULT_MIN_LOOP_SIZE = 8
+
+#: Successors lie within this angle of the walking direction.
+_COS_CONE = np.cos(np.deg2rad(80.0))
+
+#: Weight of the angular deviation in the successor score.
+_LATERAL_PENALTY = 3.0
+
+#: Rounds of "drop points on too-small cycles, walk again".
+_MAX_PRUNE_ROUNDS = 20
+
+
+@dataclass(frozen=True, eq=False)
+class BoundaryLoops:
+    """Boundary points in oriented loops.
+
+    Attributes
+    ----------
+    loops : list of (L_i,) numpy.ndarray of int64
+        Loops in walking order, longest first; outer counter-clockwise, holes clockwise
+        seen from the normals' side; decimated if asked.
+    mask : (N,) numpy.ndarray of bool
+        True at the points of ``loops``.
+    candidates : (N,) numpy.ndarray of bool
+        Every point passing the angle criterion (before loop extraction and decimation).
+    max_gap : (N,) numpy.ndarray of float64
+        Largest angular gap per point, radians.
+    diagnostics : dict
+        ``n_candidates``, ``n_in_loops``, ``n_dropped_points`` (on no cycle),
+        ``n_dropped_loops`` (too small), ``loop_sizes`` (before decimation).
+    """
+
+    loops: list
+    mask: np.ndarray
+    candidates: np.ndarray
+    max_gap: np.ndarray
+    diagnostics: dict
+
+
+def angular_gaps(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Largest angular gap between ball spokes, and its bisector, per point.
+
+    Parameters
+    ----------
+    coords : (N, B, 2) numpy.ndarray of float64
+        Tangent coordinates of ball members.
+    mask : (N, B) numpy.ndarray of bool
+        Real members (at least one per row).
+
+    Returns
+    -------
+    gap : (N,) numpy.ndarray of float64
+        Radians in (0, 2 pi].
+    bisector : (N, 2) numpy.ndarray of float64
+        Unit vector in the tangent frame pointing into the middle of the gap (out of the
+        surface at a boundary point).
+    """
+    n, b = mask.shape
+    ang = np.where(mask, np.arctan2(coords[..., 1], coords[..., 0]), np.inf)
+    ang.sort(axis=1)
+    size = mask.sum(axis=1)
+    rows = np.arange(n)
+    first = ang[:, 0]
+    last = ang[rows, size - 1]
+    wrap = first + 2.0 * np.pi - last
+    if b > 1:
+        with np.errstate(invalid="ignore"):
+            diffs = np.diff(ang, axis=1)
+        diffs = np.where(np.arange(b - 1)[None, :] < (size - 1)[:, None], diffs, -np.inf)
+        j = np.argmax(diffs, axis=1)
+        inner = diffs[rows, j]
+    else:
+        j = np.zeros(n, dtype=np.int64)
+        inner = np.full(n, -np.inf)
+    use_wrap = wrap >= inner
+    gap = np.where(use_wrap, wrap, inner)
+    mid = np.where(use_wrap, last + 0.5 * wrap, ang[rows, j] + 0.5 * np.where(use_wrap, 0.0, inner))
+    return gap, np.stack([np.cos(mid), np.sin(mid)], axis=1)
+
+
+def successors(ball_indices: np.ndarray, coords: np.ndarray, candidates: np.ndarray,
+               outward: np.ndarray, bisector: np.ndarray) -> np.ndarray:
+    """Next boundary point of each candidate, walking with the surface on the left.
+
+    Among the candidates of the ball that lie ahead (within 80 degrees of the walking
+    direction) and whose own outward direction agrees (positive dot product in 3D), the
+    one minimising ``|c| (1 + 3 (1 - cos a))`` is chosen, with ``a`` the angle between c
+    and the walking direction: the nearest point, unless a slightly farther one lies much
+    closer to the boundary line (a point just inside the boundary is passed over).
+
+    Parameters
+    ----------
+    ball_indices : (N, B) numpy.ndarray of int64
+    coords : (N, B, 2) numpy.ndarray of float64
+    candidates : (N,) numpy.ndarray of bool
+        Boundary points.
+    outward : (N, 3) numpy.ndarray of float64
+        Outward gap direction of every point in 3D (zero rows are fine off candidates).
+    bisector : (N, 2) numpy.ndarray of float64
+        The same direction in each point's tangent frame (:func:`angular_gaps`).
+
+    Returns
+    -------
+    (N,) numpy.ndarray of int64
+        Successor point index for candidates, -1 where no boundary point lies ahead and
+        for non-candidates.
+    """
+    rows = np.flatnonzero(candidates)
+    succ = np.full(candidates.shape[0], -1, dtype=np.int64)
+    if rows.size == 0:
+        return succ
+    idx = ball_indices[rows]
+    safe = np.where(idx >= 0, idx, 0)
+    c = coords[rows]
+    ahead_dir = np.stack([-bisector[rows, 1], bisector[rows, 0]], axis=1)  # +90 degrees
+    dist = np.sqrt(np.einsum("nbi,nbi->nb", c, c))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_a = np.einsum("nbi,ni->nb", c, ahead_dir) / dist
+    agree = np.einsum("nbi,ni->nb", outward[safe], outward[rows]) > 0
+    ok = (idx >= 0) & candidates[safe] & agree & (cos_a > _COS_CONE)
+    score = np.where(ok, dist * (1.0 + _LATERAL_PENALTY * (1.0 - cos_a)), np.inf)
+    best = np.argmin(score, axis=1)
+    pick = np.arange(rows.size)
+    found = np.isfinite(score[pick, best])
+    succ[rows[found]] = idx[pick, best][found]
+    return succ
+
+
+def cycles(succ: np.ndarray, nodes: np.ndarray) -> list[np.ndarray]:
+    """Cycles of a partial successor map.
+
+    A plain loop over the boundary points (O(#boundary), which is O(sqrt N) for a
+    surface sampling), since following pointers is inherently sequential.
+
+    Parameters
+    ----------
+    succ : (N,) numpy.ndarray of int64
+        Successor or -1.
+    nodes : (M,) numpy.ndarray of int64
+        Where walks start.
+
+    Returns
+    -------
+    list of (L_i,) numpy.ndarray of int64
+        Each cycle once, starting at its smallest index.
+    """
+    state = np.zeros(succ.shape[0], dtype=np.int8)  # 0 new, 1 on current path, 2 done
+    found = []
+    for start in nodes.tolist():
+        if state[start]:
+            continue
+        path = []
+        v = start
+        while v >= 0 and state[v] == 0:
+            state[v] = 1
+            path.append(v)
+            v = int(succ[v])
+        if v >= 0 and state[v] == 1:
+            cyc = np.asarray(path[path.index(v):], dtype=np.int64)
+            found.append(np.roll(cyc, -int(np.argmin(cyc))))
+        for u in path:
+            state[u] = 2
+    return found
+
+
+def _perimeter(points: np.ndarray, loop: np.ndarray) -> float:
+    p = points[loop]
+    return float(np.linalg.norm(p - np.roll(p, -1, axis=0), axis=1).sum())
+
+
+def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndarray, coords: np.ndarray, *,
+                  angle_deg: float = 120.0, decimate: int = 1,
+                  min_loop_size: int = DEFAULT_MIN_LOOP_SIZE) -> BoundaryLoops:
+    """Boundary points and loops of a point set from its geodesic balls.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64
+        The normals whose tangent frames (:func:`methods.pointset.normals.tangent_frames`)
+        the DEM coordinates are expressed in.
+    ball_indices : (N, B) numpy.ndarray of int64
+        -1 at padding.
+    coords : (N, B, 2) numpy.ndarray of float64
+        DEM tangent coordinates.
+    angle_deg : float
+        Angle-criterion threshold in degrees, in (0, 360).
+    decimate : int
+        Keep every ``decimate``-th point of each loop (1 keeps all; Fig. 7d uses 2).
+    min_loop_size : int
+        Smaller cycles are dropped as sampling gaps.
+
+    Returns
+    -------
+    BoundaryLoops
+
+    Raises
+    ------
+    InvalidInputError
+        Parameters out of range.
+    NoBoundaryError
+        No loop found: the surface looks closed.
+    """
+    if not 0.0 < angle_deg < 360.0:
+        raise InvalidInputError(f"boundary_angle_deg must lie in (0, 360), got {angle_deg}.")
+    if int(decimate) != decimate or decimate < 1:
+        raise InvalidInputError(f"boundary_decimate must be a positive integer, got {decimate}.")
+    mask = ball_indices >= 0
+    gap, bisector = angular_gaps(coords, mask)
+    candidates = gap > np.deg2rad(angle_deg)
+    e1, e2 = tangent_frames(normals)
+    outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
+    # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
+    # true loop open: drop the points of small cycles and walk again until none is left.
+    active = candidates.copy()
+    n_dropped_loops = 0
+    for _ in range(_MAX_PRUNE_ROUNDS):
+        succ = successors(ball_indices, coords, active, outward, bisector)
+        all_cycles = cycles(succ, np.flatnonzero(active))
+        small = [c for c in all_cycles if c.size < min_loop_size]
+        if not small:
+            break
+        n_dropped_loops += len(small)
+        active[np.concatenate(small)] = False
+    kept = [c for c in all_cycles if c.size >= min_loop_size]
+    if not kept:
+        raise NoBoundaryError(
+            f"no boundary loop found ({int(candidates.sum())} isolated boundary candidate(s) at "
+            f"{angle_deg:g} degrees): the surface looks closed; cut it open before flattening."
+        )
+    kept.sort(key=lambda c: _perimeter(points, c), reverse=True)
+    in_loops = int(sum(c.size for c in kept))
+    loops = [c[::int(decimate)] for c in kept]
+    out_mask = np.zeros(points.shape[0], dtype=bool)
+    for loop in loops:
+        out_mask[loop] = True
+    diagnostics = {
+        "n_candidates": int(candidates.sum()),
+        "n_in_loops": in_loops,
+        "n_dropped_points": int(candidates.sum()) - in_loops,
+        "n_dropped_loops": n_dropped_loops,
+        "loop_sizes": [int(c.size) for c in kept],
+    }
+    return BoundaryLoops(loops=loops, mask=out_mask, candidates=candidates, max_gap=gap,
+                         diagnostics=diagnostics)
