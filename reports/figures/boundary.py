@@ -11,12 +11,14 @@ from matplotlib.lines import Line2D
 
 from ._common import Picture, figure_to_picture, new_figure, view_projection
 
-__all__ = ["BoundaryPanel", "boundary_scores", "boundary_figure"]
+__all__ = ["BoundaryPanel", "boundary_scores", "classify_points", "boundary_figure"]
 
 _NCOLS = 3
 _MAX_CLOUD = 20_000  # grey context points drawn per panel
-_GT_COLOR = "black"
+_GT_COLOR = "#333333"
 _DET_COLOR = "#f28e2b"
+_FALSE_COLOR = "#e15759"
+_MISS_COLOR = "#1f1f1f"
 _LOOP_COLORS = ("#4e79a7", "#59a14f", "#b07aa1", "#76b7b2", "#edc948")
 
 
@@ -86,6 +88,29 @@ def boundary_scores(n_points: int, gt_loops, det_mask=None, det_loops=None) -> d
     }
 
 
+def classify_points(n_points: int, gt_loops, det_mask: np.ndarray):
+    """Split points into detected-and-true, detected-but-false and missed.
+
+    Parameters
+    ----------
+    n_points : int
+    gt_loops : list of int arrays, or None
+        Ground truth; with None every detected point counts as a hit and none as missed.
+    det_mask : (n_points,) bool array
+
+    Returns
+    -------
+    hit, false_alarm, missed : (n_points,) numpy.ndarray of bool
+    """
+    mask = np.asarray(det_mask, dtype=bool)
+    if gt_loops is None:
+        return mask.copy(), np.zeros(n_points, dtype=bool), np.zeros(n_points, dtype=bool)
+    truth = np.zeros(n_points, dtype=bool)
+    for loop in gt_loops:
+        truth[loop] = True
+    return mask & truth, mask & ~truth, truth & ~mask
+
+
 def _closed_segments(xy: np.ndarray, loops) -> list[np.ndarray]:
     return [xy[np.append(loop, loop[0])] for loop in loops or [] if len(loop) > 1]
 
@@ -97,14 +122,20 @@ def _draw_panel(ax, panel: BoundaryPanel, seed: int) -> str:
     cloud = rng.choice(n, size=_MAX_CLOUD, replace=False) if n > _MAX_CLOUD else np.arange(n)
     ax.scatter(xy[cloud, 0], xy[cloud, 1], s=1.0, c="#c8c8c8", linewidths=0)
     if panel.gt_loops:
-        ax.add_collection(LineCollection(_closed_segments(xy, panel.gt_loops), colors=_GT_COLOR, linewidths=1.6))
+        ax.add_collection(LineCollection(_closed_segments(xy, panel.gt_loops), colors=_GT_COLOR, linewidths=3.0,
+                                         alpha=0.45, zorder=2))
     mask = panel.det_mask
     if mask is None and panel.det_loops:
         mask = np.zeros(n, dtype=bool)
         for loop in panel.det_loops:
             mask[loop] = True
     if mask is not None:
-        ax.scatter(xy[mask, 0], xy[mask, 1], s=7, c=_DET_COLOR, linewidths=0, zorder=3)
+        hit, false_alarm, missed = classify_points(n, panel.gt_loops, mask)
+        ax.scatter(xy[hit, 0], xy[hit, 1], s=12, c=_DET_COLOR, linewidths=0, zorder=4.5)
+        ax.scatter(xy[false_alarm, 0], xy[false_alarm, 1], s=22, c=_FALSE_COLOR, edgecolors="black",
+                   linewidths=0.5, zorder=5)
+        ax.scatter(xy[missed, 0], xy[missed, 1], s=26, facecolors="none", edgecolors=_MISS_COLOR,
+                   linewidths=1.0, zorder=5)
     for i, seg in enumerate(_closed_segments(xy, panel.det_loops)):
         ax.plot(seg[:, 0], seg[:, 1], color=_LOOP_COLORS[i % len(_LOOP_COLORS)], lw=1.0, ls="--", zorder=4)
     ax.set_aspect("equal")
@@ -143,7 +174,7 @@ def boundary_figure(panels: list[BoundaryPanel], title: str, *, seed: int = 0) -
     nrows = math.ceil(len(panels) / ncols)
     height = 3.0 * nrows + 0.4
     # Fixed margins: constrained layout mis-places titles of equal-aspect panels next to a legend.
-    fig = new_figure(max(3.4 * ncols, 5.2), height, layout=None)
+    fig = new_figure(max(3.4 * ncols, 6.4), height, layout=None)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.4 / height, top=1.0 - 0.5 / height,
                         wspace=0.04, hspace=0.3)
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
@@ -151,11 +182,15 @@ def boundary_figure(panels: list[BoundaryPanel], title: str, *, seed: int = 0) -
         _draw_panel(ax, panel, seed)
     for ax in axes[len(panels):]:
         ax.set_axis_off()
-    handles = [Line2D([], [], color=_GT_COLOR, lw=1.6, label="ground-truth boundary"),
-               Line2D([], [], color=_DET_COLOR, marker="o", ls="", ms=4, label="detected boundary point"),
+    handles = [Line2D([], [], color=_GT_COLOR, lw=3.0, alpha=0.45, label="ground-truth boundary"),
+               Line2D([], [], color=_DET_COLOR, marker="o", ls="", ms=4, label="detected, on the boundary"),
+               Line2D([], [], color=_FALSE_COLOR, marker="o", mec="black", mew=0.5, ls="", ms=5,
+                      label="detected, not on it"),
+               Line2D([], [], color=_MISS_COLOR, marker="o", mfc="none", ls="", ms=5, label="missed"),
                Line2D([], [], color=_LOOP_COLORS[0], lw=1.0, ls="--", label="detected loop")]
-    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8, frameon=False)
-    caption = (f"Boundary detection on {title}: points the angle criterion flags (orange) and the loops built "
-               f"from them (dashed) against the true boundary (black). Precision is the share of flagged "
-               f"points that are truly on the boundary, recall the share of true boundary points flagged.")
+    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=7, frameon=False)
+    caption = (f"Boundary detection on {title}: points the angle criterion flags (orange if on the true boundary, "
+               f"red if not), true boundary points it missed (open circles) and the loops built from the flagged "
+               f"points (dashed), over the true boundary (grey). Precision is the share of flagged points that are "
+               f"truly on the boundary, recall the share of true boundary points flagged.")
     return figure_to_picture(fig, f"Boundary detection — {title}", caption, rows=nrows)

@@ -232,31 +232,31 @@ def _require_tool(name: str) -> str:
 
 # The test modules are imported in importlib mode, so helpers reach them as fixtures.
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def artifacts_dir() -> Path:
     """Where tests leave screenshots and rendered pages (PARAMBENCH_TEST_ARTIFACTS, gitignored)."""
     return _artifacts_dir()
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def require_tool():
     """``require_tool(name)`` -> path of an executable; fails under CI (it must be there), skips elsewhere."""
     return _require_tool
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def make_results():
     """``make_results(root, spec=None)`` writes a synthetic results directory and returns its rows."""
     return write_results
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def spec_type():
     """The :class:`Spec` class, to describe partial result sets."""
     return Spec
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def mesh_tools():
     """Helpers that build the synthetic meshes and maps."""
     return {"grid_mesh": grid_mesh, "per_face_qc": per_face_qc, "flipped_mask": flipped_mask,

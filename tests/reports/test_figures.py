@@ -12,6 +12,7 @@ from reports.figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchma
                              boundary_scores, checkerboard_figure, fit_power_law, landscape_figure,
                              negative_fractions, scaling_figure, scaling_fits, uv_layout_figure, weights_figure)
 from reports.figures._common import subsample_faces, view_projection
+from reports.figures.boundary import classify_points
 from reports.figures.checkerboard import checker_parity, subdivision_barycentrics
 from reports.figures.uv_layout import shared_qc_range
 from reports.figures.weights import shared_bins
@@ -102,6 +103,17 @@ def test_boundary_scores_by_hand():
     assert s["precision"] == pytest.approx(2 / 3) and s["recall"] == pytest.approx(0.5)
     assert s["n_det_loops"] == 2 and s["n_gt_loops"] == 1
     assert np.isnan(boundary_scores(10, gt, det_mask=np.zeros(10, bool))["precision"])
+
+
+def test_classify_points_by_hand():
+    mask = np.zeros(6, bool)
+    mask[[0, 1, 4]] = True
+    hit, false_alarm, missed = classify_points(6, [np.array([0, 1, 2])], mask)
+    assert list(np.flatnonzero(hit)) == [0, 1]
+    assert list(np.flatnonzero(false_alarm)) == [4]
+    assert list(np.flatnonzero(missed)) == [2]
+    hit, false_alarm, missed = classify_points(6, None, mask)
+    assert list(np.flatnonzero(hit)) == [0, 1, 4] and not false_alarm.any() and not missed.any()
 
 
 def test_fit_power_law_recovers_exponent():

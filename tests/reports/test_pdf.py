@@ -1,0 +1,81 @@
+"""The PDF: pages render to PNG (pdftoppm), tables are real text (pdftotext), images are embedded."""
+
+import re
+import shutil
+import subprocess
+
+import matplotlib.image
+import pytest
+
+from reports.build import build_report
+
+pytestmark = pytest.mark.slow  # WeasyPrint takes a few seconds per report
+
+
+@pytest.fixture(scope="module")
+def pdf_report(tmp_path_factory, request):
+    make_results = request.getfixturevalue("make_results")
+    write_benchmark_json = request.getfixturevalue("mesh_tools")["write_benchmark_json"]
+    root = tmp_path_factory.mktemp("pdf") / "results"
+    rows = make_results(root)
+    bench = write_benchmark_json(root.parent / "bench.json")
+    paths = build_report(root, benchmark_json=[bench])
+    return {"paths": paths, "rows": rows}
+
+
+def pdf_text(require_tool, path, layout=True):
+    args = [require_tool("pdftotext")] + (["-layout"] if layout else []) + [str(path), "-"]
+    return subprocess.run(args, check=True, capture_output=True, text=True).stdout
+
+
+def page_count(require_tool, path) -> int:
+    info = subprocess.run([require_tool("pdfinfo"), str(path)], check=True, capture_output=True, text=True).stdout
+    return int(re.search(r"^Pages:\s+(\d+)", info, flags=re.M).group(1))
+
+
+def test_pdf_pages_render_to_png(pdf_report, require_tool, artifacts_dir):
+    pdf = pdf_report["paths"]["pdf"]
+    assert pdf.read_bytes().startswith(b"%PDF")
+    n_pages = page_count(require_tool, pdf)
+    # cover + tables, two surfaces with five pictures each, scaling, benchmarks, metadata
+    assert 6 <= n_pages <= 20
+    out = artifacts_dir / "pdf-pages"
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    subprocess.run([require_tool("pdftoppm"), "-r", "60", "-png", str(pdf), str(out / "page")], check=True)
+    pages = sorted(out.glob("page-*.png"))
+    assert len(pages) == n_pages
+    for page in pages:
+        image = matplotlib.image.imread(page)
+        assert image.shape[1] > image.shape[0]  # A4 landscape
+        assert (image[..., :3] < 0.9).any()  # something is printed on every page
+
+
+def test_pdf_tables_are_extractable_text(pdf_report, require_tool):
+    text = pdf_text(require_tool, pdf_report["paths"]["pdf"])
+    for expected in ("Summary tables", "QC mean", "QC p95", "Foldovers", "Area dist.", "Exact-map err.",
+                     "Failed cells", "ConvergenceError", "Run metadata", "0123456789abcdef", "test_ocp_2k",
+                     "Time against size", "lscm", "scp", "ocp"):
+        assert expected in text, expected
+    assert "OCP line search did not reach" in text
+    # one summary line per (surface, method): each method's row appears in each of the 3 tables
+    method_rows = [line for line in text.splitlines() if re.match(r"\s*(lscm|scp|ocp)\s+\d/\d\s", line)]
+    assert len(method_rows) == 9
+
+
+def test_pdf_embeds_every_picture(pdf_report, require_tool):
+    pdf = pdf_report["paths"]["pdf"]
+    listing = subprocess.run([require_tool("pdfimages"), "-list", str(pdf)], check=True, capture_output=True,
+                             text=True).stdout
+    images = [line for line in listing.splitlines()[2:] if line.strip()]
+    html = pdf_report["paths"]["html"].read_text()
+    assert len(images) >= html.count("<img")
+
+
+def test_pdf_of_results_that_all_failed(tmp_path, make_results, spec_type, require_tool):
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"bump": [144]}, methods=("ocp",), seeds=(0,), fail_all=True))
+    paths = build_report(root, formats=("pdf",))
+    assert set(paths) == {"pdf"} and not (root / "report" / "report.html").exists()
+    text = pdf_text(require_tool, paths["pdf"], layout=False)
+    assert "Every cell failed" in text and "ConvergenceError" in text
