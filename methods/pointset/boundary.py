@@ -25,12 +25,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from datasets_gen.errors import InvalidInputError, NoBoundaryError
 
 from .normals import tangent_frames
 
-__all__ = ["BoundaryLoops", "angular_gaps", "successors", "cycles", "find_boundary", "DEFAULT_MIN_LOOP_SIZE"]
+__all__ = [
+    "BoundaryLoops",
+    "angular_gaps",
+    "successors",
+    "bridge_successors",
+    "cycles",
+    "find_boundary",
+    "DEFAULT_MIN_LOOP_SIZE",
+]
 
 DEFAULT_MIN_LOOP_SIZE = 8
 
@@ -39,6 +48,9 @@ _COS_CONE = np.cos(np.deg2rad(80.0))
 
 #: Weight of the angular deviation in the successor score.
 _LATERAL_PENALTY = 3.0
+
+#: Boundary points examined when bridging beyond the ball.
+_BRIDGE_K = 16
 
 #: Rounds of "drop points on too-small cycles, walk again".
 _MAX_PRUNE_ROUNDS = 20
@@ -143,21 +155,63 @@ def successors(ball_indices: np.ndarray, coords: np.ndarray, candidates: np.ndar
     succ = np.full(candidates.shape[0], -1, dtype=np.int64)
     if rows.size == 0:
         return succ
-    idx = ball_indices[rows]
+    succ[rows] = _best_ahead(rows, ball_indices[rows], coords[rows], candidates, outward, bisector)
+    return succ
+
+
+def _best_ahead(rows, idx, c, candidates, outward, bisector):
+    """Per row, the index in ``idx`` (-1 padded) of the best successor, or -1."""
     safe = np.where(idx >= 0, idx, 0)
-    c = coords[rows]
     ahead_dir = np.stack([-bisector[rows, 1], bisector[rows, 0]], axis=1)  # +90 degrees
     dist = np.sqrt(np.einsum("nbi,nbi->nb", c, c))
     with np.errstate(invalid="ignore", divide="ignore"):
         cos_a = np.einsum("nbi,ni->nb", c, ahead_dir) / dist
     agree = np.einsum("nbi,ni->nb", outward[safe], outward[rows]) > 0
-    ok = (idx >= 0) & candidates[safe] & agree & (cos_a > _COS_CONE)
+    ok = (idx >= 0) & (idx != rows[:, None]) & candidates[safe] & agree & (cos_a > _COS_CONE)
     score = np.where(ok, dist * (1.0 + _LATERAL_PENALTY * (1.0 - cos_a)), np.inf)
     best = np.argmin(score, axis=1)
     pick = np.arange(rows.size)
-    found = np.isfinite(score[pick, best])
-    succ[rows[found]] = idx[pick, best][found]
-    return succ
+    return np.where(np.isfinite(score[pick, best]), idx[pick, best], -1)
+
+
+def bridge_successors(points: np.ndarray, e1: np.ndarray, e2: np.ndarray, candidates: np.ndarray,
+                      outward: np.ndarray, bisector: np.ndarray, succ: np.ndarray, reach: float) -> np.ndarray:
+    """Fill missing successors from boundary points beyond the geodesic ball.
+
+    Where the angle criterion misses a boundary point (a notch of the sampling, a
+    concave corner) its neighbours along the boundary find no successor in their balls.
+    They look again among all boundary points within ``reach`` in 3D, projected into
+    their tangent frame, with the same choice rule as :func:`successors`.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    e1, e2 : (N, 3) numpy.ndarray of float64
+        Tangent frames of the DEM coordinates.
+    candidates : (N,) numpy.ndarray of bool
+    outward : (N, 3) numpy.ndarray of float64
+    bisector : (N, 2) numpy.ndarray of float64
+    succ : (N,) numpy.ndarray of int64
+        Successors so far (-1 = missing); not modified.
+    reach : float
+        Search radius.
+
+    Returns
+    -------
+    (N,) numpy.ndarray of int64
+    """
+    rows = np.flatnonzero(candidates & (succ < 0))
+    out = succ.copy()
+    cand_idx = np.flatnonzero(candidates)
+    if rows.size == 0 or cand_idx.size < 2:
+        return out
+    k = min(_BRIDGE_K, cand_idx.size)
+    dist, near = cKDTree(points[cand_idx]).query(points[rows], k=k, distance_upper_bound=reach)
+    near = np.where(np.isfinite(dist), cand_idx[np.minimum(near, cand_idx.size - 1)], -1)
+    d = points[np.where(near >= 0, near, 0)] - points[rows, None, :]
+    c = np.stack([np.einsum("nki,ni->nk", d, e1[rows]), np.einsum("nki,ni->nk", d, e2[rows])], axis=-1)
+    out[rows] = _best_ahead(rows, near, c, candidates, outward, bisector)
+    return out
 
 
 def cycles(succ: np.ndarray, nodes: np.ndarray) -> list[np.ndarray]:
@@ -243,6 +297,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     gap, bisector = angular_gaps(coords, mask)
     candidates = gap > np.deg2rad(angle_deg)
     e1, e2 = tangent_frames(normals)
+    # Bridges span up to twice the typical ball radius.
+    reach = 2.0 * float(np.median(np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)))
     outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
     # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
     # true loop open: drop the points of small cycles and walk again until none is left.
@@ -250,6 +306,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     n_dropped_loops = 0
     for _ in range(_MAX_PRUNE_ROUNDS):
         succ = successors(ball_indices, coords, active, outward, bisector)
+        succ = bridge_successors(points, e1, e2, active, outward, bisector, succ, reach)
         all_cycles = cycles(succ, np.flatnonzero(active))
         small = [c for c in all_cycles if c.size < min_loop_size]
         if not small:

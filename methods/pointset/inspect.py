@@ -1,0 +1,53 @@
+"""JSON diagnostics of the point-set front end on a surface (``parambench inspect``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from datasets_gen.surface import Surface
+
+from .frontend import build_frontend
+
+__all__ = ["inspect_surface"]
+
+
+def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
+    """Run :func:`~methods.pointset.frontend.build_frontend` on a surface's points and report.
+
+    Faces, if any, are ignored; the surface's normals are passed on when it has them.
+
+    Parameters
+    ----------
+    surface : Surface
+    **frontend_params
+        Keyword parameters of ``build_frontend`` (``k_nn``, ``ball_k``, ...).
+
+    Returns
+    -------
+    dict
+        JSON-serialisable: ``name``, ``n_points``, ``mean_spacing``, ``boundary_loops``
+        (lists of point indices in order, outer first), ``n_boundary_points``,
+        ``negative_weight_fraction`` {"interior", "boundary"},
+        ``reconstruction_error`` {"mean", "max", "unit"} (R_x / l^2), ``ball_size``,
+        ``timings`` (seconds per stage), ``params`` and the full ``diagnostics``.
+
+    Raises
+    ------
+    ParambenchError
+        Whatever ``build_frontend`` raises (e.g. NoBoundaryError on a closed surface).
+    """
+    fe = build_frontend(surface.points, surface.normals, **frontend_params)
+    diag = fe.diagnostics
+    return {
+        "name": surface.name,
+        "n_points": fe.n_points,
+        "mean_spacing": fe.mean_spacing,
+        "boundary_loops": [loop.tolist() for loop in fe.boundary_loops],
+        "n_boundary_points": int(fe.boundary_mask.sum()),
+        "negative_weight_fraction": dict(diag["negative_weights"]["negative_fraction"]),
+        "reconstruction_error": dict(diag["reconstruction_error"]),
+        "ball_size": dict(diag["ball_size"]),
+        "timings": {k: float(v) for k, v in fe.timings.items()},
+        "params": dict(fe.params),
+        "diagnostics": diag,
+    }

@@ -1,0 +1,127 @@
+"""Boundary points by the angle criterion and their loops, against planted ground truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import InvalidInputError, NoBoundaryError
+from methods.geometry2d import signed_area_2d
+from methods.pointset.boundary import angular_gaps, cycles, find_boundary, successors
+from methods.pointset.frontend import build_frontend
+
+HOLES = [(-0.45, -0.4, 0.25), (0.45, 0.35, 0.3)]
+
+
+def _surface(make_height_patch, make_cap, name, sampling):
+    if name == "cap":
+        return make_cap(1.0, 1.0, 80, sampling)  # ~5k points
+    if name == "holes":
+        return make_height_patch("bump", 75, sampling, holes=HOLES)
+    return make_height_patch(name, 70, sampling)
+
+
+def assert_same_cycle(found: np.ndarray, truth: np.ndarray) -> None:
+    """``found`` restricted to the true points is ``truth`` up to rotation (same direction)."""
+    in_truth = np.isin(found, truth)
+    sub = found[in_truth]
+    assert sub.size == truth.size, f"loop visits {sub.size} of {truth.size} true boundary points"
+    start = int(np.flatnonzero(truth == sub[0])[0])
+    np.testing.assert_array_equal(sub, np.roll(truth, -start))
+
+
+@pytest.mark.parametrize("sampling", ["grid", "jittered"])
+@pytest.mark.parametrize("name", ["bump", "saddle", "cap", "holes"])
+def test_boundary_points_and_loops_match_ground_truth(make_height_patch, make_cap, name, sampling):
+    patch = _surface(make_height_patch, make_cap, name, sampling)
+    fe = build_frontend(patch.points)
+    truth = patch.boundary_mask
+    found = fe.boundary_mask
+    recall = (found & truth).sum() / truth.sum()
+    precision = (found & truth).sum() / found.sum()
+    assert recall == 1.0
+    assert precision >= 0.95
+    # Every true loop found exactly once, no fake loops.
+    assert len(fe.boundary_loops) == len(patch.loops)
+    for true_loop in patch.loops:
+        owners = [i for i, loop in enumerate(fe.boundary_loops) if np.isin(loop, true_loop).any()]
+        assert len(owners) == 1
+        assert_same_cycle(fe.boundary_loops[owners[0]], true_loop)
+    # Outer loop first; it winds counter-clockwise (seen from +z, the normals' side) and
+    # holes clockwise.
+    assert np.isin(fe.boundary_loops[0], patch.loops[0]).all()
+    for i, loop in enumerate(fe.boundary_loops):
+        area = signed_area_2d(fe.points[loop, :2])
+        assert (area > 0) == (i == 0)
+
+
+def test_angular_gaps_by_hand():
+    # Spokes at 0, 90 and 180 degrees: the largest gap is 180 degrees, centred on -90.
+    coords = np.array([[[1.0, 0.0], [0.0, 2.0], [-1.0, 0.0], [0.0, 0.0]]])
+    mask = np.array([[True, True, True, False]])
+    gap, bis = angular_gaps(coords, mask)
+    np.testing.assert_allclose(gap, [np.pi])
+    np.testing.assert_allclose(bis, [[0.0, -1.0]], atol=1e-15)
+    # A full ring of 8 spokes has gaps of 45 degrees.
+    t = np.arange(8) * np.pi / 4 + 0.1
+    ring = np.stack([np.cos(t), np.sin(t)], axis=1)[None]
+    gap, _ = angular_gaps(ring, np.ones((1, 8), dtype=bool))
+    np.testing.assert_allclose(gap, [np.pi / 4])
+
+
+def test_successor_walks_with_the_surface_on_the_left():
+    # Points on the x axis, surface above (y > 0): outward is -y, so walking goes +x.
+    idx = np.array([[1, 2], [0, 2], [1, 0]])
+    xs = np.array([0.0, 1.0, 2.0])
+    coords = np.stack([np.stack([xs[idx[i]] - xs[i], np.zeros(2)], axis=1) for i in range(3)])
+    outward = np.tile([0.0, -1.0, 0.0], (3, 1))
+    bis = np.tile([0.0, -1.0], (3, 1))
+    succ = successors(idx, coords, np.ones(3, dtype=bool), outward, bis)
+    np.testing.assert_array_equal(succ, [1, 2, -1])
+
+
+def test_cycles_of_a_successor_map():
+    succ = np.array([1, 2, 0, 0, 5, 4, -1, 3])
+    found = cycles(succ, np.arange(8))
+    assert sorted(map(tuple, found)) == [(0, 1, 2), (4, 5)]
+
+
+def test_decimation_keeps_every_mth_point_in_order(make_height_patch):
+    patch = make_height_patch("bump", 40, "jittered")
+    full = build_frontend(patch.points)
+    half = build_frontend(patch.points, boundary_decimate=2)
+    np.testing.assert_array_equal(half.boundary_loops[0], full.boundary_loops[0][::2])
+    assert half.boundary_mask.sum() == (full.boundary_loops[0].size + 1) // 2
+
+
+def test_closed_sphere_raises_no_boundary(make_sphere):
+    with pytest.raises(NoBoundaryError, match="closed"):
+        build_frontend(make_sphere(3000))
+
+
+@pytest.mark.parametrize("radius,n_loops", [(1.5, 1), (5.0, 2)])
+def test_gap_versus_hole(make_height_patch, radius, n_loops):
+    """Removing the lattice points within ``radius`` spacings of a point: 1.5 spacings is a
+    sampling gap (no loop), 5 spacings is a hole (a clockwise loop around it, closed even
+    though the jagged lattice rim has notches the angle criterion misses)."""
+    patch = make_height_patch("plane", 60, "grid")
+    h = 2 / 59
+    centre = np.array([0.1, -0.2])
+    keep = np.hypot(*(patch.points[:, :2] - centre).T) > radius * h
+    fe = build_frontend(patch.points[keep])
+    assert len(fe.boundary_loops) == n_loops
+    if n_loops == 2:
+        hole = fe.points[fe.boundary_loops[1], :2]
+        assert np.all(np.hypot(*(hole - centre).T) < (radius + 1.5) * h)
+        assert signed_area_2d(hole) < 0
+
+
+def test_parameters_are_checked(make_height_patch):
+    patch = make_height_patch("plane", 10, "grid")
+    idx = np.zeros((len(patch.points), 3), dtype=np.int64)
+    coords = np.zeros((len(patch.points), 3, 2))
+    normals = np.tile([0.0, 0.0, 1.0], (len(patch.points), 1))
+    with pytest.raises(InvalidInputError, match="boundary_angle_deg"):
+        find_boundary(patch.points, normals, idx, coords, angle_deg=400)
+    with pytest.raises(InvalidInputError, match="boundary_decimate"):
+        find_boundary(patch.points, normals, idx, coords, decimate=0)
