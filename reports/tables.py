@@ -308,7 +308,7 @@ def metadata_table(run: dict) -> Table:
     items += [(k.replace("_", " ").capitalize(), v) for k, v in sorted(run.items()) if k not in known]
     body = [[Cell(k, ("key",)), Cell(_meta_value(v), ("pre",) if isinstance(v, (dict, list)) else ())]
             for k, v in items]
-    return Table(["Item", "Value"], body, "Run metadata", "metadata")
+    return Table(["Item", "Value"], body, "", "metadata")
 
 
 def benchmark_table(stats: pd.DataFrame) -> Table:

@@ -25,7 +25,7 @@ CHECK_COLORS = np.array([[0.96, 0.94, 0.88], [0.16, 0.35, 0.62]])
 _NCOLS = 4
 _MAX_LEVEL = 8
 #: Sub-triangles a coarse mesh is split into, about, per panel: enough for crisp check edges.
-_TARGET_PIECES = 12_000
+_TARGET_PIECES = 40_000
 
 
 def subdivision_barycentrics(level: int) -> np.ndarray:
