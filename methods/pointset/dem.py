@@ -194,46 +194,48 @@ def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
 
 
 @numba.njit(cache=True, nogil=True)
-def _dem_range(start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, lens, ball_k, radius,
+def _dem_range(centres, start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, lens, ball_k, radius,
                max_ball, upwind, w_eps, midpoint, front_weight, out_idx, out_uv, out_dist, out_size,
                seen, frozen, dist, pred, uv, heap_keys, heap_vals):
-    """DEM balls of centres start..stop-1; scratch arrays are stamped with the centre id."""
+    """DEM balls of centres[start:stop]; scratch arrays are stamped with the row number k,
+    unique per call even when a centre repeats, so they never need resetting."""
     n_trunc = 0
-    for s in range(start, stop):
-        row = s - out_offset
+    for k in range(start, stop):
+        s = centres[k]
+        row = k - out_offset
         ns = normals[s]
         e1s = e1[s]
         e2s = e2[s]
-        seen[s] = s
-        frozen[s] = s
+        seen[s] = k
+        frozen[s] = k
         dist[s] = 0.0
         uv[s, 0] = 0.0
         uv[s, 1] = 0.0
         size = 0
         for e in range(indptr[s], indptr[s + 1]):
             u = nbrs[e]
-            seen[u] = s
+            seen[u] = k
             dist[u] = lens[e]
             pred[u] = s
             size = _heap_push(heap_keys, heap_vals, size, lens[e], u)
         nb = 0
         while size > 0:
             d, v, size = _heap_pop(heap_keys, heap_vals, size)
-            if frozen[v] == s:
+            if frozen[v] == k:
                 continue  # stale heap entry
             if nb >= ball_k and d > radius:
                 break
             if nb >= max_ball:
                 n_trunc += 1
                 break
-            frozen[v] = s
+            frozen[v] = k
             if upwind:
                 su = 0.0
                 sv = 0.0
                 wsum = 0.0
                 for e in range(indptr[v], indptr[v + 1]):
                     q = nbrs[e]
-                    if frozen[q] != s:
+                    if frozen[q] != k:
                         continue
                     du, dv = _transport(points, normals, q, v, ns, e1s, e2s, midpoint)
                     w = 1.0 / (lens[e] * lens[e] + w_eps)
@@ -263,13 +265,13 @@ def _dem_range(start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, l
             nb += 1
             for e in range(indptr[v], indptr[v + 1]):
                 u = nbrs[e]
-                if frozen[u] == s:
+                if frozen[u] == k:
                     continue
                 nd = d + lens[e]
                 if nd > radius and nb >= ball_k:
                     continue  # could only pop after the ball is complete: never a member
-                if seen[u] != s or nd < dist[u]:
-                    seen[u] = s
+                if seen[u] != k or nd < dist[u]:
+                    seen[u] = k
                     dist[u] = nd
                     pred[u] = v
                     size = _heap_push(heap_keys, heap_vals, size, nd, u)
@@ -280,7 +282,7 @@ def _dem_range(start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, l
 def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix, mean_spacing: float, *,
               ball_k: int = 6, ball_eps_factor: float = 2.5, dem: str = "upwind",
               max_ball: int = DEFAULT_MAX_BALL, projection: str = "midpoint",
-              front_weight: bool = True) -> GeodesicBalls:
+              front_weight: bool = True, centres: np.ndarray | None = None) -> GeodesicBalls:
     """Geodesic K-eps balls of all points with their DEM tangent coordinates.
 
     Parameters
@@ -307,11 +309,13 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     front_weight : bool
         Scale upwind weights by the edge's alignment with the front (see the module
         docstring); False is the paper's Eq. 9.
+    centres : (M,) array_like of int, optional
+        Compute only these balls (rows of the result follow this order); all by default.
 
     Returns
     -------
     GeodesicBalls
-        ``B`` is the largest ball found (at most ``max_ball``).
+        ``B`` is the largest ball found (at most ``max_ball``); one row per centre.
 
     Raises
     ------
@@ -327,6 +331,11 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     if ball_eps_factor < 0:
         raise InvalidInputError(f"ball_eps_factor must be >= 0, got {ball_eps_factor}.")
     n = points.shape[0]
+    centre_ids = (np.arange(n, dtype=np.int64) if centres is None
+                  else np.ascontiguousarray(centres, dtype=np.int64).ravel())
+    if centre_ids.size and (centre_ids.min() < 0 or centre_ids.max() >= n):
+        raise InvalidInputError(f"centres must be point indices in [0, {n - 1}].")
+    n_out = centre_ids.size
     adjacency = adjacency.tocsr()
     indptr = adjacency.indptr.astype(np.int64)
     nbrs = adjacency.indices.astype(np.int64)
@@ -338,7 +347,7 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     # (cheaper to compile than numba's parallel=True).
     # numba.get_num_threads() follows NUMBA_NUM_THREADS / numba.set_num_threads().
     workers = max(1, numba.get_num_threads())
-    # Scratch per worker; stamps are centre ids, so they never need resetting.
+    # Scratch per worker, stamped with row numbers (see _dem_range).
     seen = np.full((workers, n), -1, dtype=np.int64)
     frozen = np.full((workers, n), -1, dtype=np.int64)
     dist = np.empty((workers, n))
@@ -351,27 +360,27 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     w_eps = _UPWIND_EPS * mean_spacing**2
 
     parts = []
-    sizes = np.empty(n, dtype=np.int64)
+    sizes = np.zeros(n_out, dtype=np.int64)
     n_trunc = 0
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for start in range(0, n, _BLOCK):
-            stop = min(start + _BLOCK, n)
+        for start in range(0, n_out, _BLOCK):
+            stop = min(start + _BLOCK, n_out)
             m = stop - start
             b_idx = np.full((m, max_ball), -1, dtype=np.int64)
             b_uv = np.zeros((m, max_ball, 2))
             b_dist = np.full((m, max_ball), np.inf)
             bounds = np.linspace(start, stop, workers + 1).astype(np.int64)
-            args = [(int(bounds[t]), int(bounds[t + 1]), start, points, normals, e1, e2, indptr, nbrs, lens,
+            args = [(centre_ids, int(bounds[t]), int(bounds[t + 1]), start, points, normals, e1, e2, indptr, nbrs, lens,
                      int(ball_k), radius, int(max_ball), dem == "upwind", w_eps, projection == "midpoint",
                      bool(front_weight), b_idx, b_uv, b_dist, sizes[start:stop], seen[t], frozen[t], dist[t],
                      pred[t], uv[t], heap_keys[t], heap_vals[t]) for t in range(workers)]
             n_trunc += sum(int(r) for r in pool.map(lambda a: _dem_range(*a), args))
             width = int(sizes[start:stop].max())
             parts.append((b_idx[:, :width].copy(), b_uv[:, :width].copy(), b_dist[:, :width].copy()))
-    width = int(sizes.max())
-    idx = np.full((n, width), -1, dtype=np.int64)
-    coords = np.zeros((n, width, 2))
-    gdist = np.full((n, width), np.inf)
+    width = int(sizes.max()) if n_out else 0
+    idx = np.full((n_out, width), -1, dtype=np.int64)
+    coords = np.zeros((n_out, width, 2))
+    gdist = np.full((n_out, width), np.inf)
     row = 0
     for b_idx, b_uv, b_dist in parts:
         m, w = b_idx.shape

@@ -169,3 +169,16 @@ def test_robust_variant_beats_paper_variant_under_noise(make_cap, sampling):
     robust = log_map_error(patch, _balls(patch))
     paper = log_map_error(patch, _balls(patch, paper=True))
     assert robust < 0.6 * paper
+
+
+def test_subset_of_centres_matches_full_run(make_cap):
+    patch = make_cap(1.0, 1.0, 30, "jittered")
+    graph, adj, normals = _setup(patch.points)
+    full = dem_balls(patch.points, normals, adj, graph.mean_spacing)
+    centres = np.array([5, 300, 5, 17])  # repeats are fine
+    sub = dem_balls(patch.points, normals, adj, graph.mean_spacing, centres=centres)
+    width = sub.indices.shape[1]
+    np.testing.assert_array_equal(sub.indices, full.indices[centres, :width])
+    np.testing.assert_array_equal(sub.coords, full.coords[centres, :width])
+    with pytest.raises(InvalidInputError, match="centres"):
+        dem_balls(patch.points, normals, adj, graph.mean_spacing, centres=[len(patch.points)])
