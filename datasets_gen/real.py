@@ -1,0 +1,128 @@
+"""Real meshes and point sets, read in place (never copied into the project).
+
+- ``real/camelhead``, ``real/lilium``, ``real/bump-domain``: disk-topology meshes from the
+  libigl tutorial data, in ``<project>/../shared/data/real/`` (override the folder with the
+  environment variable ``PARAMBENCH_REAL_DATA``).
+- ``real/bunny10k``, ``real/chameleon``: files shipped in the pymeshlab wheel
+  (``tests/sample_meshes/``), found from ``pymeshlab.__file__``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import igl
+import numpy as np
+
+from .errors import InputFileError
+from .io import load_surface
+from .surface import Surface
+
+__all__ = ["REAL_DATASETS", "RealDataset", "real_data_dir", "pymeshlab_samples_dir", "load_real"]
+
+ENV_VAR = "PARAMBENCH_REAL_DATA"
+
+
+def real_data_dir() -> Path:
+    """Folder of the shared real meshes: ``$PARAMBENCH_REAL_DATA`` or ``<project>/../shared/data/real``."""
+    override = os.environ.get(ENV_VAR)
+    if override:
+        return Path(override)
+    return (Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real").resolve()
+
+
+def pymeshlab_samples_dir() -> Path:
+    """The sample meshes folder inside the installed pymeshlab package."""
+    import pymeshlab
+
+    return Path(pymeshlab.__file__).resolve().parent / "tests" / "sample_meshes"
+
+
+@dataclass(frozen=True)
+class RealDataset:
+    """A real file: where it lives and what it is."""
+
+    name: str
+    filename: str
+    location: str  # "shared" or "pymeshlab"
+    description: str
+    points_only: bool = False
+
+    def path(self) -> Path:
+        folder = real_data_dir() if self.location == "shared" else pymeshlab_samples_dir()
+        return folder / self.filename
+
+
+REAL_DATASETS = {d.name: d for d in (
+    RealDataset("real/camelhead", "camelhead.off", "shared",
+                "camel head scan, disk mesh, 11381 vertices (libigl tutorial data)"),
+    RealDataset("real/lilium", "lilium.obj", "shared", "lilium petal, disk mesh, 3389 vertices (libigl tutorial data)"),
+    RealDataset("real/bump-domain", "bump-domain.obj", "shared",
+                "bumpy domain, disk mesh, 4172 vertices (libigl tutorial data)"),
+    RealDataset("real/bunny10k", "bunny10k_textured.obj", "pymeshlab",
+                "Stanford bunny, 5051 vertices, open with 5 holes (pymeshlab sample)"),
+    RealDataset("real/chameleon", "chameleon.pts", "pymeshlab",
+                "chameleon point set with normals, 4594 points, no faces (pymeshlab sample)", points_only=True),
+)}
+
+
+def load_real(name: str, *, seed: int | None = 0, noise: float = 0.0, requested: dict | None = None) -> Surface:
+    """Load a real dataset; mesh datasets get area-weighted vertex normals from their faces.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`REAL_DATASETS`.
+    seed : int or None
+        Seeds the noise.
+    noise : float
+        Gaussian displacement along the normals, as a fraction of the mean edge length
+        (meshes) or of the mean nearest-neighbour distance (point sets).
+    requested : dict, optional
+        The caller's ``n_points`` and ``sampling``, recorded as ignored.
+
+    Returns
+    -------
+    Surface
+        ``params``: ``n_points`` (the actual count), ``sampling`` None, ``noise``, ``file``,
+        ``ignored`` (the requested size and sampling, which do not apply).
+
+    Raises
+    ------
+    InputFileError
+        The file is not where it should be (the message says where it looked).
+    """
+    from .build import add_normal_noise, mean_edge_length
+
+    spec = REAL_DATASETS[name]
+    path = spec.path()
+    if not path.is_file():
+        where = (f"the shared data folder {path.parent} (set {ENV_VAR} to another folder)"
+                 if spec.location == "shared" else f"the pymeshlab package's sample folder {path.parent}")
+        raise InputFileError(f"{name}: {spec.filename} not found in {where}.")
+    surface = load_surface(path, name=name, points_only=spec.points_only)
+    normals = surface.normals
+    if normals is None and surface.faces is not None:
+        normals = np.asarray(igl.per_vertex_normals(surface.points, surface.faces,
+                                                    igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA), dtype=np.float64)
+    points = surface.points
+    if noise > 0:
+        if normals is None:
+            raise InputFileError(f"{name}: no normals to add noise along.")
+        spacing = (mean_edge_length(points, surface.faces) if surface.faces is not None
+                   else _mean_neighbour_distance(points))
+        points = add_normal_noise(points, normals, noise * spacing, np.random.default_rng(seed))
+    params = {"n_points": surface.n_points, "sampling": None, "noise": float(noise), "file": spec.filename,
+              "normals": "file" if surface.normals is not None else ("mesh, area-weighted" if normals is not None else None),
+              "ignored": dict(requested or {})}
+    return Surface(points=points, faces=surface.faces, normals=normals, name=name, params=params, seed=seed,
+                   boundary_mask=surface.boundary_mask, boundary_loops=surface.boundary_loops)
+
+
+def _mean_neighbour_distance(points: np.ndarray) -> float:
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(points).query(points, k=2)
+    return float(dist[:, 1].mean())
