@@ -82,7 +82,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     declared = obj_vertices if ext == ".obj" else _declared_vertex_count(head, ext)
     if declared is not None and declared != len(points):
         raise InputFileError(f"{path}: the file declares {declared} vertices but {len(points)} were read; "
-                             "the vertex order cannot be guaranteed, so the file is refused.")
+                             "the reader drops vertices with NaN, infinite or unparsable coordinates, and the vertex "
+                             "order cannot then be guaranteed, so the file is refused: repair those vertices.")
     faces = np.array(mesh.face_matrix(), dtype=np.int64) if mesh.face_number() > 0 else None
     normals = _file_normals(path, head, ext, mesh, len(points), obj_normals)
     if points_only:

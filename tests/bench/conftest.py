@@ -17,7 +17,7 @@ def real_dir() -> Path:
 
 
 def _write_obj(path: Path, points, faces=None) -> Path:
-    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in points]
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in points]
     if faces is not None:
         lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
     path.write_text("\n".join(lines) + "\n")
