@@ -21,6 +21,7 @@ __all__ = [
     "new_figure",
     "figure_to_picture",
     "subsample_faces",
+    "splat",
     "view_projection",
     "face_normals",
 ]
@@ -113,6 +114,35 @@ def subsample_faces(n_faces: int, limit: int = MAX_FACES_PER_PANEL, keep: np.nda
     if keep is not None:
         chosen |= np.asarray(keep, dtype=bool)
     return np.flatnonzero(chosen)
+
+
+def splat(verts: np.ndarray, n_faces: int) -> np.ndarray:
+    """Enlarge subsampled triangles about their centroids so that they cover the surface.
+
+    Drawing a random fraction f of a mesh's triangles leaves gaps. Random pieces that just
+    add up to the area still leave about e^-1 of it bare, so each drawn triangle is scaled
+    by ``sqrt(8 / f)`` (capped at 5): eight-fold cover leaves about e^-8 bare. Panels hold a
+    few hundred pixels and these meshes tens of thousands of triangles, so a triangle is
+    about a pixel and the enlarged ones a few; QC and texture vary smoothly, so the
+    overlaps do not show.
+
+    Parameters
+    ----------
+    verts : (K, 3, 2) numpy.ndarray of float64
+        Corners of the K drawn triangles.
+    n_faces : int
+        Faces of the whole mesh (K <= n_faces).
+
+    Returns
+    -------
+    (K, 3, 2) numpy.ndarray of float64
+        ``verts`` itself when nothing was left out.
+    """
+    if len(verts) >= n_faces or not len(verts):
+        return verts
+    scale = min(5.0, float(np.sqrt(8.0 * n_faces / len(verts))))
+    centres = verts.mean(axis=1, keepdims=True)
+    return centres + scale * (verts - centres)
 
 
 def face_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:

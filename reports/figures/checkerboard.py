@@ -15,8 +15,8 @@ import numpy as np
 from matplotlib.collections import PolyCollection
 
 from ..load import CellArrays
-from ._common import (MAX_FACES_PER_PANEL, Picture, face_normals, figure_to_picture, new_figure, subsample_faces,
-                      view_projection)
+from ._common import (MAX_FACES_PER_PANEL, Picture, face_normals, figure_to_picture, new_figure, splat,
+                      subsample_faces, view_projection)
 
 __all__ = ["subdivision_barycentrics", "checker_parity", "checkerboard_figure", "CHECK_COLORS"]
 
@@ -87,7 +87,8 @@ def _draw_panel(ax, label: str, arrays: CellArrays, n_checks: int, max_faces: in
     bary = subdivision_barycentrics(level)  # (S, 3, 3)
     xy, depth, view = view_projection(arrays.points, arrays.faces)
     # Sub-triangle corners: (M, S, 3, k) = sum over the face's corners of weight * value.
-    corner_xy = np.einsum("scd,mdk->msck", bary, xy[faces]).reshape(-1, 3, 2)
+    corner_xy = splat(np.einsum("scd,mdk->msck", bary, xy[faces]).reshape(-1, 3, 2),
+                      len(arrays.faces) * len(bary))
     corner_uv = np.einsum("scd,mdk->msck", bary, arrays.uv[faces]).reshape(-1, 3, 2)
     corner_depth = np.einsum("scd,md->msc", bary, depth[faces]).reshape(-1, 3)
     parity = checker_parity(corner_uv.mean(axis=1), n_checks) if len(corner_uv) else np.zeros(0, int)

@@ -12,7 +12,7 @@ from matplotlib.colors import Normalize
 from matplotlib.cm import ScalarMappable
 
 from ..load import CellArrays
-from ._common import MAX_FACES_PER_PANEL, Picture, figure_to_picture, new_figure, subsample_faces
+from ._common import MAX_FACES_PER_PANEL, Picture, figure_to_picture, new_figure, splat, subsample_faces
 
 __all__ = ["LayoutPanel", "shared_qc_range", "uv_layout_figure", "QC_CMAP", "FOLDOVER_COLOR"]
 
@@ -78,7 +78,7 @@ def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: i
     verts = uv[faces[shown]]
     qc = np.nan_to_num(arrays.qc[shown], nan=norm.vmax, posinf=norm.vmax)
     # Edges in the face colour hide the hairline seams antialiasing leaves between triangles.
-    tris = PolyCollection(verts, array=qc, cmap=QC_CMAP, norm=norm, edgecolors="face", linewidths=0.15)
+    tris = PolyCollection(splat(verts, len(faces)), array=qc, cmap=QC_CMAP, norm=norm, edgecolors="face", linewidths=0.15)
     ax.add_collection(tris)
     flipped = verts[arrays.flipped[shown]]
     if len(flipped):
@@ -134,4 +134,7 @@ def uv_layout_figure(panels: list[LayoutPanel], title: str, *, max_faces: int = 
     caption = (f"uv layouts on {title}, triangles coloured by QC distortion on one scale for all methods "
                f"({vmin:g} to {vmax:.3g}; larger values saturate). Foldovers are filled and circled in red, "
                f"ground-truth boundary loops drawn in black.")
+    if any(len(p.arrays.faces) > max_faces for p in panels):
+        caption += (f" Meshes over {max_faces} triangles are drawn from a random {max_faces} of them (all "
+                    f"foldovers kept), each enlarged to close the gaps.")
     return figure_to_picture(fig, f"uv layouts — {title}", caption, rows=nrows)

@@ -11,7 +11,7 @@ import pytest
 from reports.figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
                              boundary_scores, checkerboard_figure, fit_power_law, landscape_figure,
                              negative_fractions, scaling_figure, scaling_fits, uv_layout_figure, weights_figure)
-from reports.figures._common import subsample_faces, view_projection
+from reports.figures._common import splat, subsample_faces, view_projection
 from reports.figures.boundary import classify_points
 from reports.figures.checkerboard import checker_parity, subdivision_barycentrics
 from reports.figures.uv_layout import shared_qc_range
@@ -50,6 +50,16 @@ def test_subsample_keeps_all_small_meshes_and_every_foldover():
     assert {3, 500, 999} <= set(chosen)
     assert np.array_equal(chosen, subsample_faces(1000, 100, keep=keep, seed=1))
     assert np.all(np.diff(chosen) > 0)
+
+
+def test_splat_enlarges_subsampled_triangles_about_their_centroids():
+    verts = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], [[2.0, 2.0], [4.0, 2.0], [2.0, 5.0]]])
+    assert splat(verts, 2) is verts  # nothing left out: drawn as is
+    out = splat(verts, 4)  # half drawn: sqrt(8 * 2) = 4-fold in length
+    assert np.allclose(out.mean(axis=1), verts.mean(axis=1))
+    assert np.allclose(out - out.mean(axis=1, keepdims=True), 4.0 * (verts - verts.mean(axis=1, keepdims=True)))
+    assert np.allclose(splat(verts, 1000) - splat(verts, 1000).mean(axis=1, keepdims=True),
+                       5.0 * (verts - verts.mean(axis=1, keepdims=True)))  # capped
 
 
 def test_view_projection_is_a_rotation_and_faces_pick_the_front(mesh_tools):
