@@ -1,0 +1,47 @@
+"""libigl baselines on surfaces with known flattenings (issue: foundation, done-when figures)."""
+
+import numpy as np
+import pytest
+
+from bench.metrics import evaluate
+from datasets_gen.registry import make_surface
+from methods import get_method
+
+
+def _metrics(surface, method):
+    result = get_method(method)(surface)
+    return evaluate(surface.points, surface.faces, result.uv, exact_uv=surface.exact_uv,
+                    boundary_loops=surface.boundary_loops, diameter=surface.diameter)
+
+
+@pytest.mark.parametrize("sampling", ["grid", "jittered"])
+def test_scp_igl_unrolls_cylinder(sampling):
+    surface = make_surface("cylinder", 10_000, sampling=sampling, seed=0)
+    m = _metrics(surface, "scp-igl")
+    assert m["qc_mean"] < 1.01 and m["foldovers"] == 0 and m["exact_error"] < 1e-3
+
+
+@pytest.mark.parametrize("sampling", ["grid", "jittered"])
+def test_scp_igl_matches_stereographic_on_cap(sampling):
+    surface = make_surface("cap", 10_000, sampling=sampling, seed=0)
+    assert surface.exact_map_kind == "conformal"
+    m = _metrics(surface, "scp-igl")
+    assert m["exact_error"] < 1e-3 and m["foldovers"] == 0
+
+
+@pytest.mark.parametrize("method", ["lscm-igl", "scp-igl"])
+def test_baselines_on_plane_with_holes_are_similarities(method):
+    surface = make_surface("holes", 3000, sampling="random", seed=1)
+    m = _metrics(surface, method)
+    assert m["qc_max"] < 1 + 1e-6 and m["exact_error"] < 1e-6
+    assert np.allclose(sorted(m["turning_numbers"]), [-1, -1, -1, 1], atol=1e-9)
+
+
+def test_lscm_pins_are_farthest_boundary_pair():
+    surface = make_surface("saddle", 1500, sampling="jittered", seed=0)
+    result = get_method("lscm-igl")(surface)
+    i, j = result.diagnostics["pins"]
+    boundary = np.concatenate(surface.boundary_loops)
+    d = np.linalg.norm(surface.points[boundary][:, None] - surface.points[boundary][None], axis=-1)
+    assert np.linalg.norm(surface.points[i] - surface.points[j]) == pytest.approx(d.max())
+    np.testing.assert_allclose(result.uv[i], [0, 0], atol=1e-9)
