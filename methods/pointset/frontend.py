@@ -19,7 +19,7 @@ from ..base import StageTimer
 from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary
 from .dem import DEFAULT_MAX_BALL, DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
-from .neighbourhoods import knn_graph, require_connected, symmetric_adjacency
+from .neighbourhoods import knn_graph, require_connected, spatial_order, symmetric_adjacency
 # Aliased: build_frontend has a boolean parameter of the same name.
 from .normals import check_user_normals, orient_normals, pca_normals
 from .normals import smooth_normals as neighbourhood_smoothed
@@ -201,49 +201,61 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     pts, given = _validate(points, normals, k_nn, weights, dem, dem_variant)
     variant = DEM_VARIANTS[dem_variant]
     k_nn = int(k_nn)
+    n = pts.shape[0]
     timer = StageTimer()
 
+    # Every stage runs on the points in kd-tree order (memory locality of the graph
+    # searches; see spatial_order) and the results are mapped back to the input order.
     with timer("knn"):
-        graph = knn_graph(pts, k_nn)
+        order = spatial_order(pts)
+        inv = np.empty_like(order)
+        inv[order] = np.arange(n, dtype=np.int64)
+        p = pts[order]
+        graph = knn_graph(p, k_nn)
         adjacency = symmetric_adjacency(graph)
         require_connected(adjacency, k_nn)
         spacing = graph.mean_spacing
 
     with timer("normals"):
-        fitted = pca_normals(pts, graph.indices)
+        fitted = pca_normals(p, graph.indices)
         if given is not None:
-            check_user_normals(given, fitted, graph.indices)
-            oriented = given
+            oriented = given[order]
+            check_user_normals(oriented, fitted, graph.indices)
         else:
-            oriented = orient_normals(pts, fitted, graph.indices)
-        frame_normals = (neighbourhood_smoothed(pts, oriented, graph.indices, graph.distances, spacing,
+            oriented = orient_normals(p, fitted, graph.indices)
+        frame_normals = (neighbourhood_smoothed(p, oriented, graph.indices, graph.distances, spacing,
                                                 method=variant["smoothing"])
                          if smooth_normals else oriented)
+        del fitted
 
     with timer("dem"):
-        balls = dem_balls(pts, frame_normals, adjacency, spacing, ball_k=int(ball_k),
+        balls = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
                           ball_eps_factor=float(ball_eps_factor), dem=dem, max_ball=int(max_ball),
                           projection=variant["projection"], front_weight=variant["front_weight"])
     mask = balls.mask
+    del adjacency
 
     with timer("weights"):
         if weights == "tangent":
             w = tangent_weights(balls.coords, mask, float(reg_eps))
             r_x = reconstruction_error(balls.coords, w)
         else:
-            w = lle3d_weights(pts, balls.indices, float(reg_eps))
-            offsets = pts[np.where(mask, balls.indices, 0)] - pts[:, None, :]
-            r_x = reconstruction_error(offsets, w)
-        w_mat = weight_matrix(balls.indices, w)
-        lap = graph_laplacian(w_mat)
+            w = lle3d_weights(p, balls.indices, float(reg_eps))
+            r_x = np.empty(n)
+            for lo in range(0, n, 65536):  # 3D offsets chunked: (chunk, B, 3) at a time
+                sl = slice(lo, min(lo + 65536, n))
+                offsets = p[np.where(mask[sl], balls.indices[sl], 0)] - p[sl, None, :]
+                r_x[sl] = reconstruction_error(offsets, w[sl])
 
     with timer("boundary"):
-        bnd = find_boundary(pts, frame_normals, balls.indices, balls.coords, angle_deg=float(boundary_angle_deg),
+        bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, angle_deg=float(boundary_angle_deg),
                             decimate=int(boundary_decimate), min_loop_size=int(min_loop_size))
+        loops = [_from_sorted(loop, order) for loop in bnd.loops]
+        loops = [np.roll(loop, -int(np.argmin(loop))) for loop in loops]  # deterministic start
 
     rel = r_x / spacing**2
     diagnostics = {
-        "n_points": int(pts.shape[0]),
+        "n_points": int(n),
         "k_nn": k_nn,
         "mean_spacing": float(spacing),
         "normals_source": "given" if given is not None else "pca",
@@ -254,12 +266,28 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         "reconstruction_error": {"mean": float(rel.mean()), "max": float(rel.max()), "unit": "l^2"},
         "boundary": bnd.diagnostics,
     }
+    del mask
+
+    with timer("weights"):  # back to the input order, then the sparse matrices
+        ball_indices = _from_sorted(balls.indices[inv], order)
+        coords = balls.coords[inv]
+        del balls
+        w = w[inv]
+        w_mat = weight_matrix(ball_indices, w)
+        del w
+        lap = graph_laplacian(w_mat)
+
     params = {"k_nn": k_nn, "ball_k": int(ball_k), "ball_eps_factor": float(ball_eps_factor), "dem": dem,
               "smooth_normals": bool(smooth_normals), "reg_eps": float(reg_eps),
               "boundary_angle_deg": float(boundary_angle_deg), "boundary_decimate": int(boundary_decimate),
               "weights": weights, "max_ball": int(max_ball), "min_loop_size": int(min_loop_size),
               "dem_variant": dem_variant}
-    return FrontEnd(points=pts, normals=oriented, knn_indices=graph.indices, mean_spacing=float(spacing),
-                    ball_indices=balls.indices, tangent_coords=balls.coords, W=w_mat, L=lap,
-                    boundary_mask=bnd.mask, boundary_loops=bnd.loops, reconstruction_error=r_x,
+    return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(graph.indices[inv], order),
+                    mean_spacing=float(spacing), ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
+                    boundary_mask=bnd.mask[inv], boundary_loops=loops, reconstruction_error=r_x[inv],
                     diagnostics=diagnostics, timings=dict(timer.timings), params=params)
+
+
+def _from_sorted(indices: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Map point indices of the reordered set back to input indices, keeping -1 padding."""
+    return np.where(indices >= 0, order[np.maximum(indices, 0)], -1)

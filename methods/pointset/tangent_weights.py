@@ -77,16 +77,22 @@ def lle_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAULT_
     out = np.empty((n, b))
     for start in range(0, n, _CHUNK):
         stop = min(start + _CHUNK, n)
-        m = mask[start:stop].astype(np.float64)
-        x = offsets[start:stop] * m[:, :, None]
-        lam = reg_eps * np.einsum("nbi,nbi->n", x, x)
+        m = mask[start:stop]
+        x = np.where(m[:, :, None], offsets[start:stop], 0.0)
+        # X^T X and X^T 1 by explicit column sums: several times faster than einsum for d <= 3.
+        cols = [x[:, :, i] for i in range(d)]
+        gram = np.empty((stop - start, d, d))
+        for i in range(d):
+            for j in range(i, d):
+                gram[:, i, j] = gram[:, j, i] = np.einsum("nb,nb->n", cols[i], cols[j])
+        lam = reg_eps * np.trace(gram, axis1=1, axis2=2)
         if np.any(lam <= 0):
             bad = start + int(np.flatnonzero(lam <= 0)[0])
             raise InvalidInputError(f"neighbourhood of point {bad} is degenerate (all offsets zero); remove duplicates.")
-        gram = np.einsum("nbi,nbj->nij", x, x) + lam[:, None, None] * np.eye(d)
+        gram[:, range(d), range(d)] += lam[:, None]
         rhs = x.sum(axis=1)
         y = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
-        w = m - np.einsum("nbi,ni->nb", x, y)
+        w = m - sum(cols[i] * y[:, i:i + 1] for i in range(d))
         out[start:stop] = w / w.sum(axis=1, keepdims=True)
     return out
 
@@ -234,7 +240,7 @@ def negative_weight_stats(weights: np.ndarray, mask: np.ndarray, boundary_mask: 
     lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
     if hi <= lo:
         hi = lo + 1.0
-    edges = np.linspace(lo, hi, bins + 1)
+    edges = np.histogram_bin_edges([], bins=bins, range=(lo, hi))
     out: dict = {"negative_fraction": {}, "points_with_negative": {}, "min_weight": {},
                  "histogram": {"edges": edges.tolist()}}
     for key, rows in (("interior", ~boundary_mask), ("boundary", boundary_mask)):
@@ -245,5 +251,6 @@ def negative_weight_stats(weights: np.ndarray, mask: np.ndarray, boundary_mask: 
         out["negative_fraction"][key] = float(neg.sum() / vals.size) if vals.size else 0.0
         out["points_with_negative"][key] = float(neg.any(axis=1).mean()) if sub_w.shape[0] else 0.0
         out["min_weight"][key] = float(vals.min()) if vals.size else 0.0
-        out["histogram"][key] = np.histogram(vals, bins=edges)[0].tolist()
+        # An int bin count with a range takes numpy's fast path for uniform bins.
+        out["histogram"][key] = np.histogram(vals, bins=bins, range=(lo, hi))[0].tolist()
     return out
