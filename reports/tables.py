@@ -223,38 +223,53 @@ def summary_tables(summary: pd.DataFrame) -> dict[str, Table]:
 
 
 def overview_table(summary: pd.DataFrame) -> Table:
-    """Method variants x configurations at a glance: median QC mean, or the error type.
+    """Method variants x datasets at a glance: median QC mean, failures counted.
+
+    A dataset's value is the median, over its configurations (sizes, samplings, noise),
+    of the per-configuration medians; the lowest value of each column is marked when at
+    least two variants have one.
 
     Parameters
     ----------
     summary : pandas.DataFrame
         Output of :func:`summarise`.
     """
-    configs = list(dict.fromkeys(summary["config"]))
+    datasets = list(dict.fromkeys(summary["dataset"]))
     variants = sorted(dict.fromkeys(summary["variant"]))
-    mask = best_mask(summary)
-    lookup = {(r.config, r.variant): (i, r) for i, r in zip(summary.index, summary.itertuples())}
+    cells: dict = {}
+    for (dataset, variant), group in summary.groupby(["dataset", "variant"], sort=False):
+        values = group["qc_mean"].dropna()
+        n_failed = int((group["n_cells"] - group["n_ok"]).sum())
+        errors = "; ".join(dict.fromkeys(s for s, f in zip(group["status"], group["has_failure"]) if f))
+        cells[(dataset, variant)] = (float(values.median()) if len(values) else np.nan, n_failed,
+                                     int(group["n_cells"].sum()), errors)
+    best = {}
+    for dataset in datasets:
+        values = [cells[(dataset, v)][0] for v in variants if (dataset, v) in cells]
+        values = [v for v in values if v == v]
+        best[dataset] = min(values) if len(values) >= 2 else None
     body = []
     for variant in variants:
         row = [Cell(variant, ("method",))]
-        for config in configs:
-            hit = lookup.get((config, variant))
-            if hit is None:
+        for dataset in datasets:
+            if (dataset, variant) not in cells:
                 row.append(Cell("·", ("absent",), "not run"))
                 continue
-            idx, rec = hit
-            if rec.n_ok == 0:
-                row.append(Cell("failed", ("failed",), _short(rec.status, 200)))
+            value, n_failed, n_cells, errors = cells[(dataset, variant)]
+            if value != value:
+                row.append(Cell("failed" if n_failed else _MISSING, ("failed",) if n_failed else (),
+                                _short(errors, 200)))
                 continue
-            text = format_number(rec.qc_mean, "ratio")
-            classes = ["best"] if mask.at[idx, "qc_mean"] else []
-            if rec.has_failure:
-                text += " (!)"
+            text = format_number(value, "ratio")
+            classes = ["best"] if best[dataset] is not None and np.isclose(value, best[dataset], rtol=1e-9,
+                                                                           atol=0.0) else []
+            if n_failed:
+                text += f" ({n_failed} of {n_cells} failed)"
                 classes.append("partial")
-            row.append(Cell(text, tuple(classes), _short(rec.status, 200) if rec.has_failure else ""))
+            row.append(Cell(text, tuple(classes), _short(errors, 200)))
         body.append(row)
-    return Table(["Method", *configs], body, "Median QC mean per method and surface (1 = conformal)",
-                 "overview", numeric=set(range(1, 1 + len(configs))))
+    return Table(["Method", *datasets], body, "Median QC mean per method and dataset (1 = conformal)",
+                 "overview", numeric=set(range(1, 1 + len(datasets))))
 
 
 def failures_table(rows: pd.DataFrame) -> Table:

@@ -23,7 +23,7 @@ __all__ = ["subdivision_barycentrics", "checker_parity", "checkerboard_figure", 
 #: The two check colours (RGB in [0, 1]).
 CHECK_COLORS = np.array([[0.96, 0.94, 0.88], [0.16, 0.35, 0.62]])
 _NCOLS = 4
-_MAX_LEVEL = 8
+_MAX_LEVEL = 4
 #: Sub-triangles a coarse mesh is split into, about, per panel: enough for crisp check edges.
 _TARGET_PIECES = 40_000
 

@@ -275,11 +275,11 @@ def results_dir(tmp_path) -> Path:
 
 @pytest.fixture(scope="session")
 def built_report(tmp_path_factory):
-    """The default results with an HTML report (and a benchmark file) built once per session."""
+    """The default results with their HTML and PDF report (and a benchmark file), built once per session."""
     from reports.build import build_report
 
     root = tmp_path_factory.mktemp("built") / "results"
     rows = write_results(root)
     bench = write_benchmark_json(root.parent / "bench.json")
-    paths = build_report(root, benchmark_json=[bench], formats=("html",))
+    paths = build_report(root, benchmark_json=[bench])
     return {"root": root, "rows": rows, "paths": paths, "bench": bench}

@@ -12,15 +12,9 @@ from reports.build import build_report
 pytestmark = pytest.mark.slow  # WeasyPrint takes a few seconds per report
 
 
-@pytest.fixture(scope="module")
-def pdf_report(tmp_path_factory, request):
-    make_results = request.getfixturevalue("make_results")
-    write_benchmark_json = request.getfixturevalue("mesh_tools")["write_benchmark_json"]
-    root = tmp_path_factory.mktemp("pdf") / "results"
-    rows = make_results(root)
-    bench = write_benchmark_json(root.parent / "bench.json")
-    paths = build_report(root, benchmark_json=[bench])
-    return {"paths": paths, "rows": rows}
+@pytest.fixture(scope="session")
+def pdf_report(built_report):
+    return built_report
 
 
 def pdf_text(require_tool, path, layout=True):

@@ -87,13 +87,23 @@ def test_failures_table_lists_every_failed_cell_in_full(hand_rows):
     assert errors == ["eigensolver did not converge", "mesh has 2 components"]
 
 
-def test_overview_shows_failed_and_partial_cells(hand_rows):
+def test_overview_is_method_by_dataset_with_failures_counted(hand_rows):
     table = overview_table(summarise(hand_rows))
-    assert table.columns == ["Method", "bump · 100 pts · grid", "disk · 100 pts · grid"]
-    cells = {row[0].text: [c.text for c in row[1:]] for row in table.rows}
-    assert cells["a"] == ["1.15 (!)", "1"]
-    assert cells["c"] == ["failed", "·"]
-    assert cells["b"] == ["1.05", "·"]
+    assert table.columns == ["Method", "bump", "disk"]
+    cells = {row[0].text: row[1:] for row in table.rows}
+    assert [c.text for c in cells["a"]] == ["1.15 (1 of 3 failed)", "1"]
+    assert [c.text for c in cells["c"]] == ["failed", "·"]
+    assert "NotADiskError" in cells["c"][0].title
+    assert [c.text for c in cells["b"]] == ["1.05", "·"]
+    assert "best" in cells["b"][0].classes and "best" not in cells["a"][0].classes
+    assert "best" not in cells["a"][1].classes  # alone on disk
+
+
+def test_overview_takes_the_median_over_configurations():
+    rows = [_row("a", 0, qc_mean=q) | {"size": size, "cell_id": f"a{size}"} for q, size in
+            ((1.1, 100), (1.3, 200), (1.2, 400))]
+    table = overview_table(summarise(add_labels(normalise_rows(pd.DataFrame(rows)))))
+    assert [c.text for c in table.rows[0]] == ["a", "1.2"]
 
 
 def test_long_error_is_shortened_in_the_summary_but_not_in_the_failures_table():
