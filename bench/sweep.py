@@ -10,6 +10,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from .cells import Cell
+from .dataset_diagnostics import store_missing_diagnostics
 from .run_cell import compute_cell, store_cell
 from .runmeta import run_metadata
 from .storage import ResultStore
@@ -30,7 +31,7 @@ def _dask(cells: list[Cell], scheduler: str | None, workers: int | None) -> Iter
 
 
 def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, workers: int | None = None,
-              progress: bool = True) -> pd.DataFrame:
+              progress: bool = True, diagnostics: bool = True) -> pd.DataFrame:
     """Run the cells of ``suite`` that ``results_dir`` does not hold yet.
 
     Each finished cell is written at once (see :class:`bench.storage.ResultStore`); a
@@ -46,6 +47,8 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
         Start a local Dask cluster with this many single-threaded workers.
     progress : bool
         Show a progress bar on stderr.
+    diagnostics : bool
+        Also store per-surface weight histograms and detected boundaries for the report.
 
     Returns
     -------
@@ -71,6 +74,9 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
             store_cell(store, row, arrays)
             bar.set_postfix_str(f"{row['dataset']} {row['method']} {row['status']}", refresh=False)
             bar.update(1)
+    if diagnostics:
+        for problem in store_missing_diagnostics(store, cells):
+            print(f"parambench: note: no surface diagnostics for {problem}", file=sys.stderr)
     return store.consolidate()
 
 

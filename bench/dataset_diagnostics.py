@@ -1,0 +1,97 @@
+"""Per-surface diagnostics for the report: weight histograms and the detected boundary.
+
+Computed once per surface of a sweep (not per method), in the process that writes the
+results, for surfaces up to ``MAX_POINTS`` points. The paper's Fig. 5 compares W^tan with
+cotangent weights at interior and boundary points; both are row-normalised here so the
+two are on the same scale.
+"""
+
+from __future__ import annotations
+
+import igl
+import numpy as np
+import scipy.sparse as sp
+
+from datasets_gen.errors import ParambenchError
+from datasets_gen.surface import Surface
+from methods.pointset.frontend import build_frontend
+
+from .cells import Cell
+from .run_cell import surface_for
+from .storage import ResultStore
+
+__all__ = ["surface_diagnostics", "store_missing_diagnostics", "MAX_POINTS"]
+
+MAX_POINTS = 200_000
+
+
+def _split_rows(W: sp.csr_matrix, interior: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    W = W.tocsr()
+    counts = np.diff(W.indptr)
+    row_is_interior = np.repeat(interior, counts)
+    return W.data[row_is_interior], W.data[~row_is_interior]
+
+
+def _row_normalised_cotangent(surface: Surface) -> sp.csr_matrix:
+    L = igl.cotmatrix(surface.points, surface.faces).tocsr()
+    W = L - sp.diags(L.diagonal())
+    sums = np.asarray(W.sum(axis=1)).ravel()
+    sums[sums == 0] = 1.0
+    return (sp.diags(1.0 / sums) @ W).tocsr()
+
+
+def _loops(prefix: str, loops) -> dict:
+    if not loops:
+        return {}
+    return {f"{prefix}_loops_flat": np.concatenate(loops).astype(np.int32),
+            f"{prefix}_loops_offsets": np.cumsum([0] + [len(lp) for lp in loops]).astype(np.int32)}
+
+
+def surface_diagnostics(surface: Surface) -> dict:
+    """Arrays for the report's weight histograms and boundary pictures.
+
+    Returns
+    -------
+    dict of numpy arrays
+        ``points``; ``w_tan_interior``/``w_tan_boundary`` (W^tan entries of interior and
+        boundary rows); ``w_cot_*`` likewise for row-normalised cotangent weights when the
+        surface has faces; ``det_boundary_mask`` and ``det_loops_*`` (angle criterion);
+        ``gt_loops_*`` when the ground truth is known.
+
+    Raises
+    ------
+    ParambenchError
+        When the front end refuses the points (e.g. a closed surface).
+    """
+    front = build_frontend(surface.points, surface.normals)
+    truth = surface.boundary_mask if surface.boundary_mask is not None else front.boundary_mask
+    arrays = {"points": surface.points.astype(np.float32), "det_boundary_mask": front.boundary_mask}
+    arrays["w_tan_interior"], arrays["w_tan_boundary"] = _split_rows(front.W, ~truth)
+    if surface.faces is not None:
+        arrays["w_cot_interior"], arrays["w_cot_boundary"] = _split_rows(_row_normalised_cotangent(surface), ~truth)
+    arrays.update(_loops("det", front.boundary_loops))
+    arrays.update(_loops("gt", surface.boundary_loops))
+    return arrays
+
+
+def store_missing_diagnostics(store: ResultStore, cells: list[Cell]) -> list[str]:
+    """Compute and store diagnostics for each surface of ``cells`` that has none yet.
+
+    Failures are not fatal (the report simply has no histogram for that surface); their
+    messages are returned.
+    """
+    problems = []
+    seen = set()
+    for cell in cells:
+        key = cell.dataset_key
+        if key in seen or store.has_arrays(key):
+            continue
+        seen.add(key)
+        try:
+            surface = surface_for(cell.dataset, cell.size, cell.sampling, cell.noise, cell.seed)
+            if surface.n_points > MAX_POINTS:
+                continue
+            store.write_arrays(key, surface_diagnostics(surface), folder="datasets")
+        except ParambenchError as exc:
+            problems.append(f"{key}: {type(exc).__name__}: {exc}")
+    return problems
