@@ -12,13 +12,14 @@ Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
    - ``grid``: the shape's lattice (a triangular lattice in the domain, rings on protrusions);
    - ``jittered``: the same, each point moved uniformly within a disk of radius 0.3 h;
    - ``random``: uniform by surface area (rejection sampling), exactly the requested count;
-   - ``blue-noise``: dart throwing on the surface (Poisson disk, radius 0.63 h, measured in
-     3D) over 4x as many area-uniform candidates, the boundary points fixed first; computed
+   - ``blue-noise``: dart throwing on the surface (Poisson disk, radius 0.59 h, measured in
+     3D) over 3x as many area-uniform candidates, the boundary points fixed first; computed
      as a maximal independent set with array operations (:mod:`~datasets_gen.sampling.poisson_disk`).
 
    Shapes with a merged-scan strip (gnome-strip) add a second, rotated scan inside the strip.
 4. Interior points crowding the boundary are removed (in the meshing chart).
-5. Delaunay in the shape's meshing chart; boundary loops checked against the planted curves.
+5. Constrained Delaunay in the shape's meshing chart, the boundary chords as constraints and
+   the holes removed; boundary loops checked against the planted curves.
 6. A seeded shuffle of the point order (no method can rely on generation order), then the
    normal-direction noise.
 """
@@ -45,8 +46,8 @@ LATTICE_JITTER = 0.3
 BOUNDARY_JITTER = 0.25
 #: Blue noise: candidates per wanted point, and Poisson-disk radius / lattice spacing
 #: (calibrated so that the count matches a lattice of the same h).
-BLUE_NOISE_OVERSAMPLING = 4
-BLUE_NOISE_RADIUS = 0.63
+BLUE_NOISE_OVERSAMPLING = 3
+BLUE_NOISE_RADIUS = 0.59
 #: Rotation (radians) and shift (fraction of h) of a merged second scan's lattice.
 SECOND_SCAN_SHIFT = (0.37, 0.21)
 
@@ -109,10 +110,14 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
 
     x = np.concatenate([boundary_x, interior])
     labels = np.concatenate([np.full(len(lp), k) for k, lp in enumerate(loops_x)] + [np.full(len(interior), -1)])
-    faces = delaunay_in_chart(shape.chart(x), x, shape.domain)
+    starts = np.cumsum([0] + [len(lp) for lp in loops_x])
+    segments = np.concatenate([np.column_stack([np.arange(a, b), np.roll(np.arange(a, b), -1)])
+                               for a, b in zip(starts[:-1], starts[1:])])
+    hole_seeds = shape.chart(np.array([h.center for h in shape.domain.holes], dtype=float).reshape(-1, 2))
+    faces = delaunay_in_chart(shape.chart(x), segments, hole_seeds)
     used = np.zeros(len(x), dtype=bool)
     used[faces.ravel()] = True
-    if not used.all():  # qhull may skip a point it deems coincident; drop it and renumber
+    if not used.all():  # a point no triangle uses (none expected); drop it and renumber
         remap = np.cumsum(used) - 1
         x, labels, faces = x[used], labels[used], remap[faces]
 
@@ -185,18 +190,22 @@ def _merge_second_scan(shape, sampling: str, h: float, metric: str, first: np.nd
     return merged[keep]
 
 
-def mean_edge_length(points: np.ndarray, faces: np.ndarray) -> float:
+def mean_edge_length(points: np.ndarray, faces: np.ndarray, max_faces: int = 200_000) -> float:
     """Mean length of the faces' edges (each face's three edges; interior edges count twice).
 
     Parameters
     ----------
     points : (n, 3) numpy.ndarray of float64
     faces : (m, 3) numpy.ndarray of int64
+    max_faces : int
+        Larger meshes are measured on every k-th face (a deterministic subsample; the
+        mean of 200k faces is exact to ~0.1 %).
 
     Returns
     -------
     float
     """
+    faces = faces[:: max(1, len(faces) // max_faces)]
     total = 0.0
     for i, j in ((0, 1), (1, 2), (2, 0)):
         total += np.linalg.norm(points[faces[:, j]] - points[faces[:, i]], axis=1).sum()
