@@ -55,7 +55,8 @@ nav.toc { background: #f4f6f9; border: 1px solid #dde3ea; padding: 0.5em 1.2em; 
 nav.toc ol { margin: 0.2em 0; padding-left: 1.4em; columns: 2; }
 nav.toc a { color: #1b3a5c; text-decoration: none; }
 table { border-collapse: collapse; margin: 0.4em 0 1.2em; font-size: 9pt; width: auto; max-width: 100%; }
-caption { caption-side: top; text-align: left; font-weight: bold; padding: 0.2em 0 0.35em; color: #333; }
+p.caption { font-weight: bold; margin: 0.8em 0 0.3em; color: #333; }
+div.table > table { margin-top: 0; }
 th, td { border: 1px solid #d4d9e0; padding: 0.22em 0.5em; vertical-align: top; text-align: left; }
 thead th { background: #1b3a5c; color: white; font-weight: 600; }
 tbody tr:nth-child(even) td { background: #f6f8fb; }
@@ -83,7 +84,8 @@ figcaption { font-size: 9pt; color: #444; margin-top: 0.3em; max-width: 60em; }
   section.new-page { break-before: page; page-break-before: always; }
   thead { display: table-header-group; }
   tr { break-inside: avoid; page-break-inside: avoid; }
-  table:not(.failures) { break-inside: avoid; page-break-inside: avoid; }
+  div.table:not(.for-failures) { break-inside: avoid; page-break-inside: avoid; }
+  p.caption { break-after: avoid; page-break-after: avoid; }
   h2, h3, h2 + p, h3 + p { break-after: avoid; page-break-after: avoid; }
   nav.toc ol { columns: 3; }
 }
@@ -97,9 +99,12 @@ def anchor(title: str) -> str:
 
 def render_table(table: Table) -> str:
     """HTML of a :class:`reports.tables.Table` (texts escaped)."""
-    out = [f'<table class="{html.escape(table.css_class)}">']
+    # The caption is a paragraph above the table rather than a <caption>, which would wrap
+    # to the width of a narrow table; the wrapper keeps the two on one page.
+    out = [f'<div class="table for-{html.escape(table.css_class or "plain")}">']
     if table.caption:
-        out.append(f"<caption>{html.escape(table.caption)}</caption>")
+        out.append(f'<p class="caption">{html.escape(table.caption)}</p>')
+    out.append(f'<table class="{html.escape(table.css_class)}">')
     out.append("<thead><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in table.columns) + "</tr></thead>")
     out.append("<tbody>")
     for row in table.rows:
@@ -111,7 +116,7 @@ def render_table(table: Table) -> str:
                 attrs += f' title="{html.escape(cell.title)}"'
             cells.append(f"<td{attrs}>{html.escape(cell.text)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "\n".join(out)
 
 

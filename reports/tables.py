@@ -172,18 +172,18 @@ def best_mask(summary: pd.DataFrame, by: str = "config") -> pd.DataFrame:
     -------
     pandas.DataFrame of bool
         Same index as ``summary``, one column per metric. A column of a group is marked only
-        when at least two rows have a value; ties (to a relative 1e-9) are all marked.
+        when at least two rows have a value; values that print the same as the minimum (see
+        :func:`format_number`) are all marked.
     """
-    cols = [m[0] for m in SUMMARY_METRICS]
-    mask = pd.DataFrame(False, index=summary.index, columns=cols)
+    mask = pd.DataFrame(False, index=summary.index, columns=[m[0] for m in SUMMARY_METRICS])
     for _, group in summary.groupby(by, sort=False):
-        for col in cols:
+        for col, _, kind in SUMMARY_METRICS:
             values = group[col].dropna()
             if len(values) < 2:
                 continue
-            best = values.min()
-            hit = np.isclose(values.to_numpy(), best, rtol=1e-9, atol=0.0)
-            mask.loc[values.index[hit], col] = True
+            # Ties as the reader sees them: every value that prints like the minimum.
+            shown = values.map(lambda v, k=kind: format_number(v, k))
+            mask.loc[values.index[shown == format_number(values.min(), kind)], col] = True
     return mask
 
 
@@ -261,8 +261,8 @@ def overview_table(summary: pd.DataFrame) -> Table:
                                 _short(errors, 200)))
                 continue
             text = format_number(value, "ratio")
-            classes = ["best"] if best[dataset] is not None and np.isclose(value, best[dataset], rtol=1e-9,
-                                                                           atol=0.0) else []
+            is_best = best[dataset] is not None and text == format_number(best[dataset], "ratio")
+            classes = ["best"] if is_best else []
             if n_failed:
                 text += f" ({n_failed} of {n_cells} failed)"
                 classes.append("partial")

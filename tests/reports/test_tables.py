@@ -148,3 +148,10 @@ def test_benchmark_and_exponent_tables():
                           "coefficient": 1e-6, "n_sizes": 3, "n_min": 100.0, "n_max": 10000.0}])
     row = [c.text for c in exponent_table(fits).rows[0]]
     assert row == ["bump · grid", "a", "1.23", "3", "100–10000"]
+
+
+def test_values_that_print_alike_are_both_best():
+    rows = [_row("a", 0, qc_mean=1.061041), _row("b", 0, qc_mean=1.060962), _row("c", 0, qc_mean=1.0625)]
+    summary = summarise(add_labels(normalise_rows(pd.DataFrame(rows))))
+    marked = summary.loc[best_mask(summary)["qc_mean"], "variant"]
+    assert list(marked) == ["a", "b"]  # both print as 1.061
