@@ -220,7 +220,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         fitted = pca_normals(p, graph.indices)
         if given is not None:
             oriented = given[order]
-            check_user_normals(oriented, fitted, graph.indices)
+            check_user_normals(p, oriented, fitted, graph.indices)
         else:
             oriented = orient_normals(p, fitted, graph.indices)
         frame_normals = (neighbourhood_smoothed(p, oriented, graph.indices, graph.distances, spacing,

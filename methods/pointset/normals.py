@@ -30,6 +30,9 @@ __all__ = [
 #: Rows per batch of covariance matrices (bounds temporary memory to ~100 MB).
 _PCA_CHUNK = 200_000
 
+#: Weight of the off-tangent-plane term of the orientation tree's edge weights.
+_OFF_PLANE_WEIGHT = 3.0
+
 #: Below this ``|sum of normals| / N`` the global sign falls back to "away from the centroid".
 _CANCEL_TOL = 0.05
 
@@ -60,16 +63,22 @@ def pca_normals(points: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def consistent_signs(normals: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
+def consistent_signs(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
     """Signs (+1/-1) making normals agree along a minimum spanning tree of the kNN graph.
 
-    The tree uses edge weights ``1 - |n_i . n_j|`` (Hoppe et al. 1992), so sign decisions
-    are made across the most parallel pairs first. Each point's sign is the product of
-    the edge flips on its tree path to the root, computed by pointer doubling
-    (O(N log depth), no Python loop over points).
+    Edge weights are ``1 - |n_i . n_j| + 3 (|n_i . e| + |n_j . e|)``, e the unit edge
+    direction: the first term is Hoppe et al.'s (1992), so signs are decided across the
+    most parallel pairs first; the second keeps the tree off edges that leave the tangent
+    planes, which is what an edge across a thin part of the surface does (its two ends
+    have anti-parallel normals, |n_i . n_j| ~ 1, and plain Hoppe weights would prefer
+    it). Measured on the real meshes: the mesh vertex normals of camelhead disagreed with
+    the propagation at 466 of 11381 points with plain Hoppe weights, at none with these.
+    Each point's sign is the product of the edge flips on its tree path to the root,
+    computed by pointer doubling (O(N log depth), no Python loop over points).
 
     Parameters
     ----------
+    points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
         Unit normals, arbitrary signs.
     knn_indices : (N, K) numpy.ndarray of int64
@@ -85,8 +94,11 @@ def consistent_signs(normals: np.ndarray, knn_indices: np.ndarray) -> np.ndarray
     rows = np.repeat(np.arange(n, dtype=np.int64), k)
     cols = knn_indices.ravel()
     dots = np.einsum("ij,ij->i", normals[rows], normals[cols])
+    edge = points[cols] - points[rows]
+    edge /= np.linalg.norm(edge, axis=1, keepdims=True)
+    off_plane = np.abs(np.einsum("ij,ij->i", normals[rows], edge)) + np.abs(np.einsum("ij,ij->i", normals[cols], edge))
     # csgraph treats explicit zeros as missing edges: keep every weight strictly positive.
-    weights = 1.0 - np.abs(dots) + 1e-9
+    weights = 1.0 - np.abs(dots) + _OFF_PLANE_WEIGHT * off_plane + 1e-9
     graph = sp.csr_matrix((weights, (rows, cols)), shape=(n, n))
     tree = minimum_spanning_tree(graph)
     tree = tree + tree.T
@@ -136,7 +148,7 @@ def orient_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
     -------
     (N, 3) numpy.ndarray of float64
     """
-    oriented = normals * consistent_signs(normals, knn_indices)[:, None]
+    oriented = normals * consistent_signs(points, normals, knn_indices)[:, None]
     return oriented * _global_sign(points, oriented)
 
 
@@ -210,11 +222,12 @@ def smooth_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
     return avg / norm
 
 
-def check_user_normals(normals: np.ndarray, fitted: np.ndarray, knn_indices: np.ndarray) -> None:
+def check_user_normals(points: np.ndarray, normals: np.ndarray, fitted: np.ndarray, knn_indices: np.ndarray) -> None:
     """Raise when user-supplied normals are inconsistently oriented or off the surface.
 
     Parameters
     ----------
+    points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
         The user's unit normals.
     fitted : (N, 3) numpy.ndarray of float64
@@ -230,7 +243,7 @@ def check_user_normals(normals: np.ndarray, fitted: np.ndarray, knn_indices: np.
         i.e. more than 60 degrees off).
     """
     n = normals.shape[0]
-    signs = consistent_signs(normals, knn_indices)
+    signs = consistent_signs(points, normals, knn_indices)
     flipped = int((signs < 0).sum())
     minority = min(flipped, n - flipped)
     if minority > 0:

@@ -84,7 +84,7 @@ def test_consistent_signs_on_a_long_chain():
     pts = np.c_[np.cos(t), np.sin(t), 0.05 * t]
     normals = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)]
     flips = np.where(np.arange(2000) % 3 == 0, -1.0, 1.0)
-    signs = consistent_signs(normals * flips[:, None], knn_graph(pts, 4).indices)
+    signs = consistent_signs(pts, normals * flips[:, None], knn_graph(pts, 4).indices)
     fixed = normals * (flips * signs)[:, None]
     assert abs(np.einsum("ij,ij->i", fixed, normals).sum()) == pytest.approx(2000)
 
@@ -121,15 +121,15 @@ def test_user_normals_checks(make_cap):
     patch = make_cap(1.0, 1.0, 30, "jittered")
     graph = knn_graph(patch.points, 8)
     fitted = pca_normals(patch.points, graph.indices)
-    check_user_normals(patch.normals, fitted, graph.indices)  # consistent: no error
-    check_user_normals(-patch.normals, fitted, graph.indices)  # all flipped is still consistent
+    check_user_normals(patch.points, patch.normals, fitted, graph.indices)  # consistent: no error
+    check_user_normals(patch.points, -patch.normals, fitted, graph.indices)  # all flipped is still consistent
     flipped = patch.normals.copy()
     flipped[::7] *= -1
     with pytest.raises(InconsistentNormalsError, match="other side.*omit normals"):
-        check_user_normals(flipped, fitted, graph.indices)
+        check_user_normals(patch.points, flipped, fitted, graph.indices)
     sideways = np.tile([1.0, 0.0, 0.0], (len(patch.points), 1))  # consistent but in the tangent plane
     with pytest.raises(InconsistentNormalsError, match="perpendicular"):
-        check_user_normals(sideways, fitted, graph.indices)
+        check_user_normals(patch.points, sideways, fitted, graph.indices)
 
 
 def test_tangent_frames_are_right_handed_orthonormal():
@@ -143,3 +143,24 @@ def test_tangent_frames_are_right_handed_orthonormal():
     for a, b in ((e1, e2), (e1, n), (e2, n)):
         np.testing.assert_allclose(np.einsum("ij,ij->i", a, b), 0.0, atol=1e-12)
     np.testing.assert_allclose(np.cross(e1, e2), n, atol=1e-12)
+
+
+def test_thin_fold_does_not_fool_the_orientation_tree():
+    """Two sheets 1.2 spacings apart joined by a half cylinder (a U): kNN edges cross the
+    gap between anti-parallel normals (|n_i . n_j| = 1). The exact, consistent normals
+    must pass the check, which needs the off-tangent-plane term of the tree weights."""
+    h, gap = 0.05, 0.06
+    x, y = np.meshgrid(np.arange(0, 2 + 1e-9, h), np.arange(0, 1 + 1e-9, h))
+    bottom = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    top = bottom + [0.0, 0.0, gap]
+    t, yc = np.meshgrid(np.linspace(-np.pi / 2, np.pi / 2, 5)[1:-1], np.arange(0, 1 + 1e-9, h))
+    r = gap / 2
+    bend = np.c_[2 + r * np.cos(t.ravel()), yc.ravel(), r + r * np.sin(t.ravel())]
+    points = np.vstack([bottom, top, bend])
+    normals = np.vstack([np.tile([0, 0, -1.0], (x.size, 1)), np.tile([0, 0, 1.0], (x.size, 1)),
+                         np.c_[np.cos(t.ravel()), np.zeros(t.size), np.sin(t.ravel())]])
+    graph = knn_graph(points, 8)
+    crossing = np.einsum("ij,ikj->ik", normals, normals[graph.indices]) < 0
+    assert crossing.sum() > 1000
+    signs = consistent_signs(points, normals, graph.indices)
+    assert np.all(signs == signs[0])
