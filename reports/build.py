@@ -49,10 +49,13 @@ def _check_out_dir(out_dir: Path) -> None:
 
 def _load_arrays(results: Results, artifact: str, warnings: list[str]) -> CellArrays | None:
     try:
-        return load_cell_arrays(results.root, artifact)
+        arrays = load_cell_arrays(results.root, artifact)
     except InputFileError as exc:
         warnings.append(f"no picture from {artifact}: {exc}")
         return None
+    if arrays is not None:
+        warnings.extend(arrays.problems)
+    return arrays
 
 
 def _view_section(results: Results, view: PictureView, warnings: list[str]) -> Section:

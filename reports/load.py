@@ -97,7 +97,10 @@ class CellArrays:
     gt_loops, det_loops : list of (L,) int64 arrays, or None
         Ground-truth boundary loops and the loops the method detected.
     landscape : dict with keys "k", "E", "t" of (K,) float64 arrays, or None
-        OCP line-search samples.
+        OCP line-search samples. When the file holds one turning number per boundary loop
+        (``landscape_t`` of shape (K, L)), ``t`` is the outer loop's (the first).
+    problems : list of str
+        Parts of the file that were left out and why (the rest is usable).
     """
 
     points: np.ndarray
@@ -108,6 +111,7 @@ class CellArrays:
     gt_loops: list | None = None
     det_loops: list | None = None
     landscape: dict | None = None
+    problems: list = field(default_factory=list)
 
 
 def parse_json_field(value, default=None):
@@ -335,7 +339,7 @@ def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:
             det = _optional_loops(data, "det", n)
             landscape = None
             if all(f"landscape_{k}" in data for k in "kEt"):
-                landscape = {k: np.asarray(data[f"landscape_{k}"], dtype=np.float64).ravel() for k in "kEt"}
+                landscape = {k: np.asarray(data[f"landscape_{k}"], dtype=np.float64) for k in "kEt"}
     except InputFileError as exc:
         raise InputFileError(f"{artifact}: {exc}") from exc
     except (OSError, KeyError, ValueError) as exc:
@@ -347,9 +351,23 @@ def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:
             f"qc {qc.shape}, flipped {flipped.shape}).")
     if len(faces) and (faces.min() < 0 or faces.max() >= len(points)):
         raise InputFileError(f"{artifact}: face indices out of range.")
-    if landscape is not None and not (len(landscape["k"]) == len(landscape["E"]) == len(landscape["t"])):
-        raise InputFileError(f"{artifact}: landscape_k, landscape_E and landscape_t differ in length.")
-    return CellArrays(points, faces, uv, qc, flipped, gt, det, landscape)
+    problems = []
+    if landscape is not None:
+        landscape, problem = _landscape(landscape)
+        if problem:
+            problems.append(f"{artifact}: {problem}")
+    return CellArrays(points, faces, uv, qc, flipped, gt, det, landscape, problems)
+
+
+def _landscape(raw: dict) -> tuple[dict | None, str]:
+    # Turning numbers may come one per boundary loop, (K, L): the outer loop (first) is the
+    # boundary polygon of the paper's Fig. 9.
+    k, energy, t = raw["k"].ravel(), raw["E"].ravel(), raw["t"]
+    t = t[:, 0] if t.ndim == 2 and t.shape[0] == len(k) and t.shape[1] >= 1 else t.ravel()
+    if not (len(k) == len(energy) == len(t)):
+        return None, (f"landscape left out: landscape_k {raw['k'].shape}, landscape_E {raw['E'].shape} and "
+                      f"landscape_t {raw['t'].shape} do not match.")
+    return {"k": k, "E": energy, "t": t}, ""
 
 
 def _slug(text: str) -> str:

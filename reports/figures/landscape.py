@@ -82,7 +82,7 @@ def landscape_figure(curves: list[LandscapeCurve], title: str) -> Picture:
     ax_t.grid(True, alpha=0.3)
     ax_t.yaxis.get_major_locator().set_params(integer=True)
     fig.suptitle(f"OCP landscape — {title}", fontsize=10)
-    caption = (f"OCP line search on {title}: the energy Ê_C against the scale k (top) and the turning number of "
-               f"the boundary polygon (bottom). Below k_opt the boundary spins (t > 1) in lower bowls; the search "
+    caption = (f"Line search over the scale k (OCP, optimized DNCP) on {title}: the energy Ê_C against the scale k (top) and the turning number of "
+               f"the outer boundary polygon (bottom). Below k_opt the boundary spins (t > 1) in lower bowls; the search "
                f"keeps to the t = 1 branch (dashed: the chosen k_opt).")
     return figure_to_picture(fig, f"OCP landscape — {title}", caption)

@@ -154,3 +154,25 @@ def test_dataset_arrays_found_by_contract_key(results_dir):
     assert len(data["gt_loops"]) == 1
     assert load_dataset_arrays(results_dir, ["nothing-here"]) is None
     assert dataset_key_candidates("real/bunny", 0, "", 0.0, 0)[1] == "real_bunny-0--n0-s0"
+
+
+def _tiny_npz(path, **extra):
+    np.savez(path, points=np.zeros((3, 3)), faces=np.array([[0, 1, 2]]), uv=np.zeros((3, 2)), qc=np.ones(1),
+             flipped=np.zeros(1, bool), **extra)
+
+
+def test_landscape_with_one_turning_number_per_loop_keeps_the_outer_loop(tmp_path):
+    k = np.array([1.0, 2.0, 3.0])
+    t = np.array([[3.0, -1.0], [2.0, -1.0], [1.0, -1.0]])
+    _tiny_npz(tmp_path / "a.npz", landscape_k=k, landscape_E=k**2, landscape_t=t)
+    arrays = load_cell_arrays(tmp_path, "a.npz")
+    assert list(arrays.landscape["t"]) == [3.0, 2.0, 1.0]
+    assert arrays.problems == []
+
+
+def test_mismatched_landscape_is_left_out_but_the_map_is_kept(tmp_path):
+    _tiny_npz(tmp_path / "b.npz", landscape_k=np.ones(3), landscape_E=np.ones(4), landscape_t=np.ones(3))
+    arrays = load_cell_arrays(tmp_path, "b.npz")
+    assert arrays.landscape is None
+    assert arrays.uv.shape == (3, 2)
+    assert len(arrays.problems) == 1 and "landscape left out" in arrays.problems[0]
