@@ -14,9 +14,12 @@ direction). Loops are the cycles of this successor map. Walking with the surface
 left makes the outer loop counter-clockwise and holes clockwise seen from the normals'
 side, the convention of :class:`datasets_gen.surface.Surface`.
 
-Fake loops: cycles with fewer than ``min_loop_size`` points (default 8) are dropped, as
-are boundary points on no cycle; the first are isolated gaps in the sampling, the second
-points the walk stepped over (both counted in the diagnostics). Loops are returned
+Fake loops: cycles with fewer than ``min_loop_size`` points (default 8) are dropped as
+isolated gaps in the sampling, and so are cycles shorter (3D perimeter) than two ball
+radii of their points, the rim of a locally much denser patch (seen on the camelhead
+scan); boundary points on no kept cycle are dropped too (all counted in the
+diagnostics). Where the walk finds no boundary point ahead inside the ball (a notch the
+angle criterion missed) it looks among boundary points up to two ball radii away. Loops are returned
 longest (3D perimeter) first, so the outer boundary of a surface with holes comes first.
 """
 
@@ -48,6 +51,10 @@ _COS_CONE = np.cos(np.deg2rad(80.0))
 
 #: Weight of the angular deviation in the successor score.
 _LATERAL_PENALTY = 3.0
+
+#: A loop shorter than this many ball radii of its points cannot enclose a hole the
+#: balls could see: it is the rim of a locally denser patch, not a boundary.
+_MIN_PERIMETER_BALLS = 2.0
 
 #: Boundary points examined when bridging beyond the ball.
 _BRIDGE_K = 16
@@ -297,8 +304,9 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     gap, bisector = angular_gaps(coords, mask)
     candidates = gap > np.deg2rad(angle_deg)
     e1, e2 = tangent_frames(normals)
+    ball_radius = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
     # Bridges span up to twice the typical ball radius.
-    reach = 2.0 * float(np.median(np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)))
+    reach = 2.0 * float(np.median(ball_radius))
     outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
     # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
     # true loop open: drop the points of small cycles and walk again until none is left.
@@ -313,7 +321,9 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
             break
         n_dropped_loops += len(small)
         active[np.concatenate(small)] = False
-    kept = [c for c in all_cycles if c.size >= min_loop_size]
+    kept = [c for c in all_cycles if c.size >= min_loop_size
+            and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * float(np.median(ball_radius[c]))]
+    n_dropped_loops += len(all_cycles) - len(kept)
     if not kept:
         raise NoBoundaryError(
             f"no boundary loop found ({int(candidates.sum())} isolated boundary candidate(s) at "
@@ -329,7 +339,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         "n_candidates": int(candidates.sum()),
         "n_in_loops": in_loops,
         "n_dropped_points": int(candidates.sum()) - in_loops,
-        "n_dropped_loops": n_dropped_loops,
+        "n_dropped_loops": int(n_dropped_loops),
         "loop_sizes": [int(c.size) for c in kept],
     }
     return BoundaryLoops(loops=loops, mask=out_mask, candidates=candidates, max_gap=gap,
