@@ -172,10 +172,11 @@ def boundary_figure(panels: list[BoundaryPanel], title: str, *, seed: int = 0) -
         raise ValueError("boundary_figure needs at least one panel.")
     ncols = min(_NCOLS, len(panels))
     nrows = math.ceil(len(panels) / ncols)
-    height = 3.0 * nrows + 0.4
+    legend_in = 0.4 if ncols > 1 else 0.55  # one narrow panel: the legend takes two lines
+    height = 3.0 * nrows + legend_in
     # Fixed margins: constrained layout mis-places titles of equal-aspect panels next to a legend.
     fig = new_figure(max(3.4 * ncols, 6.4), height, layout=None)
-    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.4 / height, top=1.0 - 0.5 / height,
+    fig.subplots_adjust(left=0.01, right=0.99, bottom=legend_in / height, top=1.0 - 0.5 / height,
                         wspace=0.04, hspace=0.3)
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, panel in zip(axes, panels):
@@ -188,7 +189,7 @@ def boundary_figure(panels: list[BoundaryPanel], title: str, *, seed: int = 0) -
                       label="detected, not on it"),
                Line2D([], [], color=_MISS_COLOR, marker="o", mfc="none", ls="", ms=5, label="missed"),
                Line2D([], [], color=_LOOP_COLORS[0], lw=1.0, ls="--", label="detected loop")]
-    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=7, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=5 if ncols > 1 else 3, fontsize=7, frameon=False)
     caption = (f"Boundary detection on {title}: points the angle criterion flags (orange if on the true boundary, "
                f"red if not), true boundary points it missed (open circles) and the loops built from the flagged "
                f"points (dashed), over the true boundary (grey). Precision is the share of flagged points that are "

@@ -65,8 +65,10 @@ def landscape_figure(curves: list[LandscapeCurve], title: str) -> Picture:
         if curve.k_opt == curve.k_opt:
             for ax in (ax_e, ax_t):
                 ax.axvline(curve.k_opt, color=color, ls="--", lw=0.9)
+            right = curve.k_opt > np.nanmax(k) - 0.3 * (np.nanmax(k) - np.nanmin(k))
             ax_e.annotate(f"k_opt = {curve.k_opt:.3g}", (curve.k_opt, 1.0), xycoords=("data", "axes fraction"),
-                          xytext=(3, -12), textcoords="offset points", fontsize=8, color=color)
+                          xytext=(-3 if right else 3, -12 - 10 * i), textcoords="offset points", fontsize=8,
+                          color=color, ha="right" if right else "left")
         all_e.append(e[np.isfinite(e)])
         all_k.append(k[np.isfinite(k)])
     energies, ks = np.concatenate(all_e), np.concatenate(all_k)
@@ -74,14 +76,14 @@ def landscape_figure(curves: list[LandscapeCurve], title: str) -> Picture:
         ax_e.set_yscale("log")
     if len(ks) and ks.min() > 0 and ks.max() / ks.min() > 20:
         ax_e.set_xscale("log")
-    ax_e.set_ylabel("energy Ê_C(k)")
+    ax_e.set_ylabel("energy Ê_C")
     ax_e.grid(True, which="major", alpha=0.3)
     ax_e.legend(fontsize=8, frameon=False)
-    ax_t.set_ylabel("turning number t")
+    ax_t.set_ylabel("turns t")
     ax_t.set_xlabel("scale k")
     ax_t.grid(True, alpha=0.3)
     ax_t.yaxis.get_major_locator().set_params(integer=True)
-    fig.suptitle(f"OCP landscape — {title}", fontsize=10)
+    fig.suptitle(f"Energy and turning number along the k line search — {title}", fontsize=10)
     caption = (f"Line search over the scale k (OCP, optimized DNCP) on {title}: the energy Ê_C against the scale k (top) and the turning number of "
                f"the outer boundary polygon (bottom). Below k_opt the boundary spins (t > 1) in lower bowls; the search "
                f"keeps to the t = 1 branch (dashed: the chosen k_opt).")
