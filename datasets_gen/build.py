@@ -9,7 +9,11 @@ Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
    the sampling is "grid").
 3. Interior points:
 
-   - ``grid``: the shape's lattice (a triangular lattice in the domain, rings on protrusions);
+   - ``grid``: the shape's lattice: a triangular lattice in the parameter domain, except on
+     protrusions (rings of constant arc length on the fingers, uniform on the surface). The
+     cap's domain is its geodesic polar chart (area factor 0.83-1), so its lattice is
+     near-regular on the sphere; on the graphs (saddle: area factor up to 2.24, bump: 1.42)
+     a parameter lattice is sparser in 3D where the surface is steep;
    - ``jittered``: the same, each point moved uniformly within a disk of radius 0.3 h;
    - ``random``: uniform by surface area (rejection sampling), exactly the requested count;
    - ``blue-noise``: dart throwing on the surface (Poisson disk, radius 0.59 h, measured in
@@ -37,7 +41,7 @@ from .sampling.poisson_disk import poisson_disk_select
 from .sampling.sizing import spacing_for_count
 from .surface import Surface
 
-__all__ = ["build_surface", "add_normal_noise", "mean_edge_length", "MIN_GENERATED_POINTS"]
+__all__ = ["build_surface", "add_normal_noise", "mean_edge_length", "check_noise", "MIN_GENERATED_POINTS"]
 
 #: Smallest size a generator accepts: below it the boundary alone would use most points.
 MIN_GENERATED_POINTS = 100
@@ -48,7 +52,7 @@ BOUNDARY_JITTER = 0.25
 #: (calibrated so that the count matches a lattice of the same h).
 BLUE_NOISE_OVERSAMPLING = 3
 BLUE_NOISE_RADIUS = 0.59
-#: Rotation (radians) and shift (fraction of h) of a merged second scan's lattice.
+#: Shift of a merged second scan's lattice origin, as fractions of h (it is also rotated).
 SECOND_SCAN_SHIFT = (0.37, 0.21)
 
 
@@ -78,50 +82,24 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
     TooFewPointsError
         ``n_points`` below :data:`MIN_GENERATED_POINTS`.
     InvalidInputError
-        Negative or non-finite noise.
+        Negative or non-finite noise, a count that is not a whole number.
     """
     if sampling not in SAMPLINGS:
         raise UnknownNameError(f"unknown sampling {sampling!r}; valid samplings: {', '.join(SAMPLINGS)}.")
-    if int(n_points) != n_points or n_points < MIN_GENERATED_POINTS:
-        raise TooFewPointsError(f"n_points={n_points!r}: ask for an integer of at least {MIN_GENERATED_POINTS} points.")
-    if not np.isfinite(noise) or noise < 0:
-        raise InvalidInputError(f"noise={noise!r} must be a finite, non-negative fraction of the mean spacing.")
-    n_points = int(n_points)
-    rng_boundary, rng_interior, rng_scan, rng_order, rng_noise = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5))
+    n_points = _check_count(n_points)
+    noise = check_noise(noise)
+    rngs = dict(zip(("boundary", "interior", "scan", "order", "noise"),
+                    (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5))))
 
-    metric = "3d" if sampling in ("random", "blue-noise") or shape.lattice_metric == "3d" else "param"
-    area = shape.surface_area if metric == "3d" else shape.domain.area
-    h = spacing_for_count(n_points / shape.count_factor(), area, curve_length(shape, metric))
-    if metric == "param":
-        h = shape.snap_spacing(h)
-
-    loops_x = place_boundary(shape, h, metric, jitter=0.0 if sampling == "grid" else BOUNDARY_JITTER,
-                             rng=rng_boundary)
-    loops_chart = [shape.chart(lp) for lp in loops_x]
-    boundary_x = np.concatenate(loops_x)
-    n_interior = max(1, round(n_points / shape.count_factor()) - len(boundary_x))
-
-    interior = _scan(shape, sampling, h, n_interior, boundary_x, loops_chart, rng_interior)
-    if hasattr(shape, "in_strip"):
-        interior = _merge_second_scan(shape, sampling, h, metric, interior, n_interior, boundary_x,
-                                      loops_chart, rng_scan)
-    interior = interior[~near_boundary(shape.chart(interior), loops_chart)]
-
-    x = np.concatenate([boundary_x, interior])
-    labels = np.concatenate([np.full(len(lp), k) for k, lp in enumerate(loops_x)] + [np.full(len(interior), -1)])
-    starts = np.cumsum([0] + [len(lp) for lp in loops_x])
-    segments = np.concatenate([np.column_stack([np.arange(a, b), np.roll(np.arange(a, b), -1)])
-                               for a, b in zip(starts[:-1], starts[1:])])
-    hole_seeds = shape.chart(np.array([h.center for h in shape.domain.holes], dtype=float).reshape(-1, 2))
-    faces = delaunay_in_chart(shape.chart(x), segments, hole_seeds)
+    x, labels, loop_sizes = _sample(shape, n_points, sampling, rngs)
+    faces = _triangulate(shape, x, loop_sizes)
     used = np.zeros(len(x), dtype=bool)
     used[faces.ravel()] = True
     if not used.all():  # a point no triangle uses (none expected); drop it and renumber
         remap = np.cumsum(used) - 1
         x, labels, faces = x[used], labels[used], remap[faces]
 
-    order = rng_order.permutation(len(x))
+    order = rngs["order"].permutation(len(x))
     inverse = np.empty_like(order)
     inverse[order] = np.arange(len(order))
     x, labels, faces = x[order], labels[order], inverse[faces]
@@ -129,15 +107,72 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
     loops = ordered_loops(faces, labels, shape.chart(x))
     spacing = mean_edge_length(points, faces)
     if noise > 0:
-        points = add_normal_noise(points, normals, noise * spacing, rng_noise)
+        points = add_normal_noise(points, normals, noise * spacing, rngs["noise"])
     exact = shape.exact_uv(x)
     mask = np.zeros(len(x), dtype=bool)
     mask[np.concatenate(loops)] = True
-    params = {"n_points": n_points, "sampling": sampling, "noise": float(noise), **shape.options,
+    params = {"n_points": n_points, "sampling": sampling, "noise": noise, **shape.options,
               "n_actual": int(len(x)), "spacing": spacing}
     return Surface(points=points, faces=faces, normals=normals, name=shape.name, params=params, seed=seed,
                    boundary_mask=mask, boundary_loops=loops, exact_uv=exact,
                    exact_map_kind=shape.exact_map_kind if exact is not None else None)
+
+
+def check_noise(noise) -> float:
+    """``noise`` as a float, or InvalidInputError unless finite and non-negative."""
+    try:
+        value = float(noise)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not np.isfinite(value) or value < 0:
+        raise InvalidInputError(f"noise={noise!r} must be a finite, non-negative fraction of the mean spacing.")
+    return value
+
+
+def _check_count(n_points) -> int:
+    try:
+        integral = float(n_points).is_integer() and not isinstance(n_points, bool)
+    except (TypeError, ValueError, OverflowError):
+        integral = False
+    if not integral:
+        raise InvalidInputError(f"n_points={n_points!r} must be a whole number of points.")
+    if n_points < MIN_GENERATED_POINTS:
+        raise TooFewPointsError(f"n_points={n_points!r}: ask for at least {MIN_GENERATED_POINTS} points.")
+    return int(n_points)
+
+
+def _sample(shape, n_points: int, sampling: str, rngs: dict) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Parameter points (boundary curves first, in order), their curve labels (-1 inside), loop sizes."""
+    metric = "3d" if sampling in ("random", "blue-noise") or shape.lattice_metric == "3d" else "param"
+    area = shape.surface_area if metric == "3d" else shape.domain.area
+    h = spacing_for_count(n_points / shape.count_factor(), area, curve_length(shape, metric))
+    if metric == "param":
+        h = shape.snap_spacing(h)
+
+    loops_x = place_boundary(shape, h, metric, jitter=0.0 if sampling == "grid" else BOUNDARY_JITTER,
+                             rng=rngs["boundary"])
+    loops_chart = [shape.chart(lp) for lp in loops_x]
+    boundary_x = np.concatenate(loops_x)
+    n_interior = max(1, round(n_points / shape.count_factor()) - len(boundary_x))
+
+    interior = _scan(shape, sampling, h, n_interior, boundary_x, loops_chart, rngs["interior"])
+    if hasattr(shape, "in_strip"):  # a merged-scan shape (gnome-strip)
+        interior = _merge_second_scan(shape, sampling, h, metric, interior, n_interior, boundary_x,
+                                      loops_chart, rngs["scan"])
+    interior = interior[~near_boundary(shape.chart(interior), loops_chart)]
+
+    x = np.concatenate([boundary_x, interior])
+    labels = np.concatenate([np.full(len(lp), k) for k, lp in enumerate(loops_x)] + [np.full(len(interior), -1)])
+    return x, labels, [len(lp) for lp in loops_x]
+
+
+def _triangulate(shape, x: np.ndarray, loop_sizes: list[int]) -> np.ndarray:
+    """Constrained Delaunay in the shape's chart; the leading points are the boundary loops in order."""
+    starts = np.cumsum([0] + loop_sizes)
+    segments = np.concatenate([np.column_stack([np.arange(a, b), np.roll(np.arange(a, b), -1)])
+                               for a, b in zip(starts[:-1], starts[1:])])
+    centers = np.array([hole.center for hole in shape.domain.holes], dtype=float).reshape(-1, 2)
+    return delaunay_in_chart(shape.chart(x), segments, shape.chart(centers))
 
 
 def _scan(shape, sampling: str, h: float, n_interior: int, boundary_x: np.ndarray, loops_chart: list,

@@ -68,7 +68,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     if not path.is_file():
         raise InputFileError(f"{path}: no such file; check the path.")
     try:
-        head = path.open("rb").read(HEADER_BYTES)
+        with path.open("rb") as fh:
+            head = fh.read(HEADER_BYTES)
     except OSError as exc:
         raise InputFileError(f"{path}: cannot read the file ({exc}).") from None
     meshset = pymeshlab.MeshSet()

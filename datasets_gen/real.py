@@ -114,9 +114,9 @@ def load_real(name: str, *, seed: int | None = 0, noise: float = 0.0, requested:
         spacing = (mean_edge_length(points, surface.faces) if surface.faces is not None
                    else _mean_neighbour_distance(points))
         points = add_normal_noise(points, normals, noise * spacing, np.random.default_rng(seed))
+    normals_from = "file" if surface.normals is not None else ("mesh, area-weighted" if normals is not None else None)
     params = {"n_points": surface.n_points, "sampling": None, "noise": float(noise), "file": spec.filename,
-              "normals": "file" if surface.normals is not None else ("mesh, area-weighted" if normals is not None else None),
-              "ignored": dict(requested or {})}
+              "normals": normals_from, "ignored": dict(requested or {})}
     return Surface(points=points, faces=surface.faces, normals=normals, name=name, params=params, seed=seed,
                    boundary_mask=surface.boundary_mask, boundary_loops=surface.boundary_loops)
 

@@ -8,8 +8,8 @@
 
 from __future__ import annotations
 
-from .build import build_surface
-from .errors import InvalidInputError, UnknownNameError
+from .build import build_surface, check_noise
+from .errors import UnknownNameError
 from .real import REAL_DATASETS, load_real
 from .sampling import SAMPLINGS
 from .shapes import SHAPES
@@ -75,18 +75,9 @@ def make_surface(name: str, n_points: int = 5000, *, sampling: str = "jittered",
     if name in REAL_DATASETS:
         if options:
             raise UnknownNameError(f"{name} takes no options (got {', '.join(sorted(options))}).")
-        _check_noise(noise)
-        return load_real(name, seed=seed, noise=noise, requested={"n_points": n_points, "sampling": sampling})
+        return load_real(name, seed=seed, noise=check_noise(noise),
+                         requested={"n_points": n_points, "sampling": sampling})
     if name not in SHAPES:
         raise UnknownNameError(f"unknown dataset {name!r}; valid datasets: {', '.join(dataset_names())}.")
     shape = SHAPES[name](**options)
     return build_surface(shape, n_points, sampling, seed, noise)
-
-
-def _check_noise(noise: float) -> None:
-    try:
-        ok = float(noise) >= 0 and float(noise) < float("inf")
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InvalidInputError(f"noise={noise!r} must be a finite, non-negative fraction of the mean spacing.")

@@ -64,7 +64,8 @@ def test_round_trip_keeps_vertex_order_and_faces(tmp_path, writer):
     assert s.boundary_mask.tolist() == [True, True, False, True, True, False]
     # the loop follows the faces (counter-clockwise seen from +z, the faces' side)
     loop = s.boundary_loops[0]
-    assert 0.5 * np.sum(POINTS[loop, 0] * np.roll(POINTS[loop, 1], -1) - np.roll(POINTS[loop, 0], -1) * POINTS[loop, 1]) > 0
+    x, y = POINTS[loop, 0], POINTS[loop, 1]
+    assert np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
 
 
 @pytest.mark.parametrize("writer", [_obj, _off, _ply])
