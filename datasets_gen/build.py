@@ -30,6 +30,8 @@ Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from .errors import InvalidInputError, TooFewPointsError, UnknownNameError
@@ -130,10 +132,8 @@ def check_noise(noise) -> float:
 
 
 def _check_count(n_points) -> int:
-    try:
-        integral = float(n_points).is_integer() and not isinstance(n_points, bool)
-    except (TypeError, ValueError, OverflowError):
-        integral = False
+    integral = isinstance(n_points, numbers.Real) and not isinstance(n_points, bool) and \
+        np.isfinite(float(n_points)) and float(n_points).is_integer()
     if not integral:
         raise InvalidInputError(f"n_points={n_points!r} must be a whole number of points.")
     if n_points < MIN_GENERATED_POINTS:

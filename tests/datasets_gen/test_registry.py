@@ -37,6 +37,10 @@ def test_unknown_names_list_the_valid_ones():
 def test_bad_values():
     with pytest.raises(TooFewPointsError):
         make_surface("plane", 50)
+    for count in (500.5, "500", None):
+        with pytest.raises(InvalidInputError):
+            make_surface("plane", count)
+    assert make_surface("plane", np.int64(500)).params["n_points"] == 500
     with pytest.raises(InvalidInputError):
         make_surface("plane", 500, noise=-0.1)
     with pytest.raises(InvalidInputError):
