@@ -2,3 +2,4 @@
 
 from . import lscm_igl, scp_igl  # noqa: F401
 from . import sklearn_peers  # noqa: F401
+from . import dncp_opt, scp  # noqa: F401

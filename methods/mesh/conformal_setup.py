@@ -1,0 +1,137 @@
+"""Glue between a triangle mesh and the spectral core: Laplacian, loops, B, pins, output scale."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import igl
+import numpy as np
+
+from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
+from datasets_gen.surface import Surface
+
+from ..base import StageTimer
+from ..spectral import ConformalProblem
+from .pins import farthest_pair
+from .topology import require_connected_disk_like
+from .weights import laplacian, mesh_weights, negative_cotangent_vertices
+
+__all__ = ["B_MATRICES", "build_mesh_problem", "resolve_pins", "scale_to_surface_area", "default_k_search"]
+
+B_MATRICES = ("boundary", "mass")
+
+
+def default_k_search(weights: str, normalized: bool) -> str:
+    """``"none"`` (k = 1) for weights at the cotangent scale, ``"line"`` for the others.
+
+    Cotangent and (regular-polygon scaled) uniform weights have k_opt within about 1e-3
+    of 1; authalic, mean-value, hybrid and every normalized kind need the search.
+    """
+    return "none" if weights in ("cotangent", "uniform") and not normalized else "line"
+
+
+def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, normalized: bool, uniform_at: Any,
+                       b_matrix: str) -> tuple[ConformalProblem, list[np.ndarray], dict]:
+    """Check the mesh and set up the conformal problem.
+
+    Parameters
+    ----------
+    surface : Surface
+        With faces.
+    timer : StageTimer
+        Stages ``topology`` and ``weights`` are recorded.
+    weights, normalized, uniform_at
+        See :func:`methods.mesh.weights.mesh_weights`.
+    b_matrix : {"boundary", "mass"}
+        Mullen's boundary indicator, or libigl's Voronoi mass matrix (what
+        ``igl.spectra.lscm`` uses).
+
+    Returns
+    -------
+    problem : ConformalProblem
+    loops : list of (L_i,) numpy.ndarray of int64
+        Boundary loops, longest first, oriented with the faces.
+    info : dict
+        Diagnostics: ``n_boundary_loops``, ``n_uniform_rows`` (hybrid).
+
+    Raises
+    ------
+    DisconnectedError, NotADiskError
+        From :func:`methods.mesh.topology.require_connected_disk_like`.
+    UnknownNameError
+        Unknown weights or b_matrix.
+    InvalidInputError
+        Bad uniform_at or unnormalizable weights.
+    """
+    if b_matrix not in B_MATRICES:
+        raise UnknownNameError(f"unknown b_matrix {b_matrix!r}; choose one of {', '.join(B_MATRICES)}.")
+    pts, faces = surface.points, surface.faces
+    with timer("topology"):
+        loops = require_connected_disk_like(pts, faces)
+    info: dict = {"n_boundary_loops": len(loops)}
+    with timer("weights"):
+        if weights == "hybrid":
+            uniform_at = "auto" if uniform_at is None else uniform_at
+        w = mesh_weights(pts, faces, weights, normalized=bool(normalized), uniform_at=uniform_at)
+        if weights == "hybrid" and (isinstance(uniform_at, str) and uniform_at == "auto"):
+            info["n_uniform_rows"] = int(negative_cotangent_vertices(pts, faces).sum())
+        b = "boundary" if b_matrix == "boundary" else igl.massmatrix(pts, faces, igl.MASSMATRIX_TYPE_VORONOI)
+        # Cotangent weights give the exact Dirichlet energy of the piecewise-linear map,
+        # which bounds the image area on every triangle: the energy is PSD for k >= 1.
+        psd = 1.0 if weights == "cotangent" and not normalized else None
+        problem = ConformalProblem(laplacian(w), loops, b_matrix=b, points=pts, psd_from_k=psd)
+    return problem, loops, info
+
+
+def resolve_pins(pins: Any, points: np.ndarray, loops: list[np.ndarray]) -> tuple[int, int]:
+    """The two pinned vertices of DNCP.
+
+    Parameters
+    ----------
+    pins : "farthest", "i,j" or a pair of int
+        ``"farthest"``: the two boundary vertices farthest apart in 3D.
+    points : (N, 3) numpy.ndarray of float64
+    loops : list of (L_i,) numpy.ndarray of int64
+
+    Returns
+    -------
+    (int, int)
+
+    Raises
+    ------
+    InvalidInputError
+        Not two distinct in-range vertex indices.
+    """
+    if isinstance(pins, str):
+        if pins == "farthest":
+            return farthest_pair(points, np.concatenate(loops))
+        try:
+            pair = [int(s) for s in pins.replace(";", ",").split(",")]
+        except ValueError:
+            raise InvalidInputError(f"pins={pins!r} is neither 'farthest' nor 'i,j' (two vertex indices).") from None
+    else:
+        pair = [int(v) for v in np.asarray(pins).ravel()]
+    n = points.shape[0]
+    if len(pair) != 2 or pair[0] == pair[1] or min(pair) < 0 or max(pair) >= n:
+        raise InvalidInputError(f"pins must be two distinct vertex indices in [0, {n - 1}], got {pins!r}.")
+    return pair[0], pair[1]
+
+
+def scale_to_surface_area(z: np.ndarray, problem: ConformalProblem, points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """uv = z scaled so that the area enclosed by its boundary equals the 3D surface area.
+
+    Returns
+    -------
+    (N, 2) numpy.ndarray of float64
+
+    Raises
+    ------
+    SolverError
+        The map encloses no positive area (collapsed or inverted).
+    """
+    area_uv = float(np.real(np.vdot(z, problem.area @ z)))
+    area_3d = float(np.sum(igl.doublearea(points, faces)) / 2.0)
+    if not area_uv > 0:
+        raise SolverError(f"the map encloses area {area_uv:.3g} <= 0 (collapsed or inverted); try other weights.")
+    zc = (z - z.mean()) * np.sqrt(area_3d / area_uv)
+    return np.column_stack([zc.real, zc.imag])

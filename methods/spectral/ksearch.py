@@ -1,0 +1,209 @@
+"""The k line search of Sec. 4.2 (Eq. 16), independent of how a map is computed at k.
+
+``E(k) = q(k)^2 + r * sum_loops |t(u_k)|`` where ``q(k)`` is the normalised conformal
+energy ``z^H (k L / 2 - M) z / z^H B z`` of the map u_k found at that k (SCP or DNCP) and
+t the turning numbers of the boundary loops (see :mod:`.turning`). Below k_opt the map
+spins (t >= 2) or its energy is negative; above k_opt it is regular and q > 0 grows. The
+search therefore
+
+1. evaluates k0 = 1; if the map there is *good* (regular turning and q >= 0) it steps
+   down geometrically until it is not, otherwise up until it is; the last two k bracket
+   the transition (the paper searches forward from k = 1; stepping down is needed for
+   weights like the cotangent ones whose k_opt is at or just below 1);
+2. bisects on "good" until the bracket is narrow (relative 1e-4), because the t = 1
+   bowl is often far narrower than the geometric step;
+3. minimises E over that bracket with bounded Brent (``scipy.optimize.minimize_scalar``).
+
+Each step of t adds r to E, so the minimiser cannot slide back into a spinning bowl.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from datasets_gen.errors import ConvergenceError, InvalidInputError
+
+from .turning import is_regular_turning, turning_penalty
+
+__all__ = ["KPoint", "KSearchResult", "line_search", "penalized_energy", "DEFAULT_R"]
+
+#: The paper's r in Eq. 16.
+DEFAULT_R = 10.0
+
+
+@dataclass
+class KPoint:
+    """One evaluation of the landscape.
+
+    Attributes
+    ----------
+    k : float
+    energy : float
+        Normalised conformal energy q(k) (signed).
+    turning : (n_loops,) numpy.ndarray of int64
+    state : Any
+        Whatever the evaluator needs to rebuild the map (e.g. boundary values).
+    """
+
+    k: float
+    energy: float
+    turning: np.ndarray
+    state: Any = field(default=None, repr=False)
+
+    @property
+    def regular(self) -> bool:
+        """Turning numbers of a faithful map (one loop +1, the others -1)."""
+        return is_regular_turning(self.turning)
+
+    @property
+    def good(self) -> bool:
+        """Regular and with non-negative energy: at or above k_opt."""
+        return self.regular and self.energy >= 0.0
+
+
+def penalized_energy(point: KPoint, r: float = DEFAULT_R) -> float:
+    """Eq. 16: ``q^2 + r * sum |t|``."""
+    return point.energy ** 2 + r * turning_penalty(point.turning)
+
+
+@dataclass
+class KSearchResult:
+    """Outcome of :func:`line_search`.
+
+    Attributes
+    ----------
+    k_opt : float
+    best : KPoint
+        The evaluation at k_opt.
+    bracket : tuple of float
+        The (lower, upper) k handed to the bounded minimiser.
+    landscape : dict
+        Lists ``k``, ``E``, ``q``, ``t`` (turning numbers per loop) in evaluation order.
+    n_evaluations : int
+    """
+
+    k_opt: float
+    best: KPoint
+    bracket: tuple[float, float]
+    landscape: dict
+    n_evaluations: int
+
+
+def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth: float = 1.25, max_steps: int = 40,
+                r: float = DEFAULT_R, xatol: float = 1e-9, maxiter: int = 100, refine_rtol: float = 1e-4,
+                refine_steps: int = 40, bracket: tuple[float, float] | None = None) -> KSearchResult:
+    """Find k_opt by Eq. 16.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(k) -> KPoint``; called once per distinct k.
+    k0 : float
+        Start of the geometric search (> 0).
+    growth : float
+        Ratio between successive k of the bracketing steps (> 1).
+    max_steps : int
+        Bracketing steps before giving up.
+    r : float
+        Turning-number penalty weight.
+    xatol : float
+        Absolute tolerance on k of the bounded minimiser, relative to the upper bracket end.
+    maxiter : int
+        Iterations of the bounded minimiser.
+    refine_rtol, refine_steps : float, int
+        Before minimising, bisect (geometrically) on "good" until ``hi / lo - 1`` is at
+        most ``refine_rtol`` or ``refine_steps`` were taken.
+    bracket : (float, float), optional
+        Skip the bracketing and minimise in this interval; its upper end must be good
+        (regular, q >= 0) and its lower end not.
+
+    Returns
+    -------
+    KSearchResult
+
+    Raises
+    ------
+    InvalidInputError
+        k0 <= 0, growth <= 1, or a bracket that is not ``0 < lower < upper``.
+    ConvergenceError
+        No t = 1 crossing was found (within ``max_steps``, or in ``bracket``), the
+        minimiser did not converge, or it ended on a spinning map.
+    """
+    if not k0 > 0 or not growth > 1:
+        raise InvalidInputError(f"the k search needs k0 > 0 and growth > 1, got k0={k0}, growth={growth}.")
+    landscape: dict[str, list] = {"k": [], "E": [], "q": [], "t": []}
+    cache: dict[float, KPoint] = {}
+
+    def ev(k: float) -> KPoint:
+        k = float(k)
+        if k not in cache:
+            p = evaluate(k)
+            cache[k] = p
+            landscape["k"].append(k)
+            landscape["E"].append(float(penalized_energy(p, r)))
+            landscape["q"].append(float(p.energy))
+            landscape["t"].append([int(v) for v in p.turning])
+        return cache[k]
+
+    if bracket is not None:
+        lo, hi = (float(v) for v in bracket)
+        if not 0 < lo < hi:
+            raise InvalidInputError(f"a k bracket must satisfy 0 < lower < upper, got {bracket}.")
+        p_hi = ev(hi)
+        if not p_hi.good:
+            raise ConvergenceError(
+                f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: at k = {hi:g} the boundary turning numbers are "
+                f"{p_hi.turning.tolist()} and the energy {p_hi.energy:.3g}; widen the bracket upwards or let the "
+                "search bracket by itself."
+            )
+        if ev(lo).good:
+            raise ConvergenceError(
+                f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: the map is already regular with positive "
+                "energy at the lower end, so k_opt lies below it; lower the bracket."
+            )
+    else:
+        k = float(k0)
+        p = ev(k)
+        step = 1.0 / growth if p.good else growth
+        for _ in range(max_steps):
+            k_next = k * step
+            p_next = ev(k_next)
+            if p_next.good != p.good:
+                lo, hi = sorted((k, k_next))
+                break
+            k, p = k_next, p_next
+        else:
+            direction = "down" if step < 1 else "up"
+            raise ConvergenceError(
+                f"no t = 1 crossing found stepping {direction} from k = {k0:g} to k = {k:g} in {max_steps} steps "
+                f"(last turning numbers {p.turning.tolist()}, energy {p.energy:.3g}); the weights' scale is far "
+                "from the conformal one: try normalized=False, or k_search='direct'."
+            )
+
+    # The t = 1 bowl can be a tiny part of the bracket (cotangent DNCP: about 3e-5 of a
+    # bracket [0.8, 1]) and Brent's golden-section steps would keep landing on spinning
+    # maps; bisect on "good" first so the bracket hugs the transition.
+    for _ in range(refine_steps):
+        if hi / lo - 1.0 <= refine_rtol:
+            break
+        mid = float(np.sqrt(lo * hi))
+        if ev(mid).good:
+            hi = mid
+        else:
+            lo = mid
+    res = minimize_scalar(lambda kk: penalized_energy(ev(kk), r), bounds=(lo, hi), method="bounded",
+                          options={"xatol": xatol * hi, "maxiter": maxiter})
+    if not res.success:
+        raise ConvergenceError(f"the bounded k minimisation in [{lo:g}, {hi:g}] did not converge ({res.message}); "
+                               "raise maxiter or try k_search='direct'.")
+    regular = [p for p in cache.values() if p.regular]
+    if not regular:
+        raise ConvergenceError(f"every map evaluated in [{lo:g}, {hi:g}] spins (turning numbers != 1); "
+                               "try k_search='direct'.")
+    best = min(regular, key=lambda p: penalized_energy(p, r))
+    return KSearchResult(k_opt=best.k, best=best, bracket=(lo, hi), landscape=landscape, n_evaluations=len(cache))

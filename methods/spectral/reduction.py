@@ -1,0 +1,222 @@
+"""Exact reduction of the conformal problems to the boundary (plus any pinned vertices).
+
+The area matrix M and Mullen's B live on the boundary only, so every interior row of
+``(k L / 2 - M) z = lambda B z`` reads ``L_II z_I + L_IK z_K = 0``: the interior is the
+discrete harmonic extension of the kept values, *whatever k and lambda*. Eliminating it
+leaves the dense Schur complement ``S = L_KK - L_KI L_II^{-1} L_IK`` and
+
+* SCP:  ``(k S / 2 - M_KK) z_K = lambda z_K``,
+* DNCP: the same operator with two entries of z_K pinned,
+* k_opt directly: ``M_KK z = mu (S / 2) z``, the largest real mu.
+
+S costs one real factorisation of L_II and one solve per kept vertex; after that each k
+costs one dense eigen-solve of the size of the boundary, and the turning numbers need
+only z_K. This is the back end of the k searches with B = boundary indicator.
+"""
+
+from __future__ import annotations
+
+from contextlib import nullcontext
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+from threadpoolctl import threadpool_limits
+
+from datasets_gen.errors import SolverError
+
+from .sparse_eigen import SparseFactor
+
+__all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real_pencil"]
+
+#: Dense problems smaller than this run single-threaded: LAPACK gains nothing from threads
+#: at boundary sizes of a few hundred, and on a shared 2-core machine the threads' spinning
+#: made a 280 x 280 complex eigen-solve 10x slower (1.2 s instead of 0.11 s).
+SINGLE_THREAD_BELOW = 1500
+
+
+def _blas_limit(size: int):
+    return threadpool_limits(1, user_api="blas") if size < SINGLE_THREAD_BELOW else nullcontext()
+
+
+class BoundaryReduction:
+    """Schur complement of a Laplacian onto a kept vertex set.
+
+    Parameters
+    ----------
+    laplacian : (V, V) scipy.sparse matrix of float64
+        L = D - W, possibly non-symmetric.
+    keep : (K,) numpy.ndarray of int64
+        Kept vertices (boundary loops concatenated, then pins), distinct.
+    perm_interior : (V - K,) numpy.ndarray of int64, optional
+        Elimination order for L_II (indices into the interior list).
+    max_block_bytes : int
+        Memory bound for one block of right-hand sides.
+
+    Attributes
+    ----------
+    keep, interior : numpy.ndarray of int64
+    schur : (K, K) numpy.ndarray of float64
+    n_solves : int
+        Right-hand sides solved so far.
+    """
+
+    def __init__(self, laplacian: sp.spmatrix, keep: np.ndarray, perm_interior: np.ndarray | None = None,
+                 max_block_bytes: int = 128 * 2**20) -> None:
+        lap = sp.csr_matrix(laplacian)
+        n = lap.shape[0]
+        self.keep = np.asarray(keep, dtype=np.int64)
+        mask = np.ones(n, dtype=bool)
+        mask[self.keep] = False
+        self.interior = np.flatnonzero(mask)
+        self._l_ik = sp.csc_matrix(lap[self.interior][:, self.keep])
+        l_ki = sp.csr_matrix(lap[self.keep][:, self.interior])
+        l_kk = lap[self.keep][:, self.keep].toarray()
+        self._factor = SparseFactor(lap[self.interior][:, self.interior], perm_interior) if self.interior.size else None
+        if self._factor is None:
+            self.schur = l_kk
+        else:
+            self.schur = l_kk.copy()
+            block = max(8, int(max_block_bytes // (8 * self.interior.size)))
+            for start in range(0, self.keep.size, block):
+                cols = slice(start, min(start + block, self.keep.size))
+                x = self._factor.solve(self._l_ik[:, cols].toarray())
+                self.schur[:, cols] -= l_ki @ x
+        self.n_solves = 0 if self._factor is None else self._factor.n_solves
+
+    def extend(self, z_keep: np.ndarray) -> np.ndarray:
+        """Harmonic extension of kept values to all vertices.
+
+        Parameters
+        ----------
+        z_keep : (K,) numpy.ndarray of complex128
+
+        Returns
+        -------
+        (V,) numpy.ndarray of complex128
+        """
+        n = self.keep.size + self.interior.size
+        z = np.empty(n, dtype=np.complex128)
+        z[self.keep] = z_keep
+        if self._factor is not None:
+            rhs = -(self._l_ik @ np.column_stack([z_keep.real, z_keep.imag]))
+            x = self._factor.solve(rhs)
+            z[self.interior] = x[:, 0] + 1j * x[:, 1]
+            self.n_solves = self._factor.n_solves
+        return z
+
+
+def deflation_basis(n: int) -> np.ndarray:
+    """Orthonormal basis of the vectors with zero sum (the complement of translations).
+
+    Returns
+    -------
+    (n, n - 1) numpy.ndarray of float64
+        Columns 2..n of the Householder reflector that maps ``1 / sqrt(n)`` to e_1.
+    """
+    u0 = np.full(n, 1.0 / np.sqrt(n))
+    v = u0.copy()
+    v[0] -= 1.0
+    v /= np.linalg.norm(v)
+    h = np.eye(n) - 2.0 * np.outer(v, v)
+    return h[:, 1:]
+
+
+def dense_smallest(operator: np.ndarray, *, hermitian: bool, count: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs of a dense operator with zero row sums, translations deflated.
+
+    Parameters
+    ----------
+    operator : (K, K) numpy.ndarray of complex128
+        ``k S / 2 - M_KK`` (B = identity on the kept, all-boundary, set).
+    hermitian : bool
+    count : int
+        How many of the smallest (by real part) to return.
+
+    Returns
+    -------
+    values : (count,) numpy.ndarray of complex128, increasing real part
+    vectors : (K, count) numpy.ndarray of complex128, zero-mean unit columns
+    """
+    with _blas_limit(operator.shape[0]):
+        return _dense_smallest(operator, hermitian, count)
+
+
+def _dense_smallest(operator: np.ndarray, hermitian: bool, count: int) -> tuple[np.ndarray, np.ndarray]:
+    q = deflation_basis(operator.shape[0])
+    reduced = q.T @ operator @ q
+    count = min(count, reduced.shape[0])
+    if hermitian:
+        reduced = 0.5 * (reduced + reduced.conj().T)
+        vals, vecs = la.eigh(reduced, subset_by_index=[0, count - 1])
+        vals = vals.astype(np.complex128)
+    else:
+        # Eigenvalues only (about 3x cheaper than with vectors), then each wanted vector by
+        # inverse iteration with one LU at a shift just off the eigenvalue.
+        vals = la.eigvals(reduced)
+        vals = vals[np.argsort(vals.real)[:count]]
+        eye = np.eye(reduced.shape[0])
+        vecs = np.empty((reduced.shape[0], count), dtype=np.complex128)
+        for c, lam in enumerate(vals):
+            shift = lam + 1e-10 * max(abs(lam), np.abs(reduced).max())
+            lu = la.lu_factor(reduced - shift * eye, check_finite=False)
+            v = np.ones(reduced.shape[0], dtype=np.complex128)
+            for _ in range(3):
+                v = la.lu_solve(lu, v, check_finite=False)
+                v /= np.linalg.norm(v)
+            vecs[:, c] = v
+    vectors = q @ vecs
+    return vals, vectors / np.linalg.norm(vectors, axis=0)
+
+
+def dense_real_pencil(a: np.ndarray, b: np.ndarray, *, hermitian: bool, imag_tol: float = 1e-8
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Real positive eigenvalues mu of ``a z = mu b z`` on zero-sum vectors, largest first.
+
+    Parameters
+    ----------
+    a : (K, K) numpy.ndarray of complex128
+        The area matrix M_KK.
+    b : (K, K) numpy.ndarray of float64
+        ``S / 2``, positive definite on zero-sum vectors when L is symmetric.
+    hermitian : bool
+    imag_tol : float
+        Eigenvalues with ``|Im mu| > imag_tol * |mu|`` do not count as real.
+
+    Returns
+    -------
+    mus : (m,) numpy.ndarray of float64, decreasing, all > 0
+    vectors : (K, m) numpy.ndarray of complex128, zero-mean unit columns
+
+    Raises
+    ------
+    SolverError
+        No finite real positive eigenvalue, or b is not definite (Hermitian case).
+    """
+    with _blas_limit(a.shape[0]):
+        return _dense_real_pencil(a, b, hermitian, imag_tol)
+
+
+def _dense_real_pencil(a: np.ndarray, b: np.ndarray, hermitian: bool, imag_tol: float
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    q = deflation_basis(a.shape[0])
+    ar, br = q.T @ a @ q, q.T @ b @ q
+    if hermitian:
+        try:
+            vals, vecs = la.eigh(0.5 * (ar + ar.conj().T), 0.5 * (br + br.T))
+        except la.LinAlgError:
+            raise SolverError("the reduced Dirichlet matrix is not positive definite (negative total weights?); "
+                              "k_opt cannot be computed directly. Use k_search='line'.") from None
+        vals = vals.astype(np.complex128)
+    else:
+        vals, vecs = la.eig(ar, br)
+    finite = np.isfinite(vals)
+    real = finite & (np.abs(vals.imag) <= imag_tol * np.maximum(np.abs(vals), np.finfo(float).tiny))
+    cand = np.flatnonzero(real & (vals.real > 0))
+    if cand.size == 0:
+        raise SolverError("no real k > 0 makes the conformal energy vanish (the area/Dirichlet pencil has no real "
+                          "positive eigenvalue); use k_search='line', or check that the outer loop runs "
+                          "counter-clockwise as seen from the normals.")
+    cand = cand[np.argsort(-vals.real[cand])]
+    z = q @ vecs[:, cand]
+    return vals.real[cand], z / np.linalg.norm(z, axis=0)
