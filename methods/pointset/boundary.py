@@ -41,6 +41,7 @@ __all__ = [
     "bridge_successors",
     "cycles",
     "find_boundary",
+    "no_boundary_error",
     "DEFAULT_MIN_LOOP_SIZE",
 ]
 
@@ -258,6 +259,24 @@ def cycles(succ: np.ndarray, nodes: np.ndarray) -> list[np.ndarray]:
     return found
 
 
+def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int) -> NoBoundaryError:
+    """The error for "no loop", worded by how many points passed the angle criterion.
+
+    Few candidates: the surface is closed. Many that do not close into a loop: the
+    boundary is too ragged or sparse for balls of this size.
+    """
+    if n_candidates < 4 * min_loop_size:
+        return NoBoundaryError(
+            f"no boundary found ({n_candidates} isolated point(s) pass the {angle_deg:g}-degree angle "
+            "criterion): closed surface: cut it open before flattening."
+        )
+    return NoBoundaryError(
+        f"{n_candidates} points pass the {angle_deg:g}-degree angle criterion but no boundary loop closes: "
+        "the boundary is too ragged or sparsely sampled; sample the boundary curve more densely, or raise "
+        "k_nn or ball_eps_factor."
+    )
+
+
 def _perimeter(points: np.ndarray, loop: np.ndarray) -> float:
     p = points[loop]
     return float(np.linalg.norm(p - np.roll(p, -1, axis=0), axis=1).sum())
@@ -265,7 +284,7 @@ def _perimeter(points: np.ndarray, loop: np.ndarray) -> float:
 
 def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndarray, coords: np.ndarray, *,
                   angle_deg: float = 120.0, decimate: int = 1,
-                  min_loop_size: int = DEFAULT_MIN_LOOP_SIZE) -> BoundaryLoops:
+                  min_loop_size: int = DEFAULT_MIN_LOOP_SIZE, require_loop: bool = True) -> BoundaryLoops:
     """Boundary points and loops of a point set from its geodesic balls.
 
     Parameters
@@ -284,6 +303,9 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         Keep every ``decimate``-th point of each loop (1 keeps all; Fig. 7d uses 2).
     min_loop_size : int
         Smaller cycles are dropped as sampling gaps.
+    require_loop : bool
+        Raise when no loop is found; when False, return empty ``loops`` instead (the
+        caller may retry with wider balls).
 
     Returns
     -------
@@ -294,7 +316,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     InvalidInputError
         Parameters out of range.
     NoBoundaryError
-        No loop found: the surface looks closed.
+        No loop found (``require_loop``): see :func:`no_boundary_error` for the message.
     """
     if not 0.0 < angle_deg < 360.0:
         raise InvalidInputError(f"boundary_angle_deg must lie in (0, 360), got {angle_deg}.")
@@ -324,11 +346,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     kept = [c for c in all_cycles if c.size >= min_loop_size
             and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * float(np.median(ball_radius[c]))]
     n_dropped_loops += len(all_cycles) - len(kept)
-    if not kept:
-        raise NoBoundaryError(
-            f"no boundary loop found ({int(candidates.sum())} isolated boundary candidate(s) at "
-            f"{angle_deg:g} degrees): the surface looks closed; cut it open before flattening."
-        )
+    if not kept and require_loop:
+        raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size)
     kept.sort(key=lambda c: _perimeter(points, c), reverse=True)
     in_loops = int(sum(c.size for c in kept))
     loops = [c[::int(decimate)] for c in kept]

@@ -16,7 +16,7 @@ from datasets_gen.errors import DuplicatePointsError, InvalidInputError
 from datasets_gen.surface import MIN_POINTS, find_duplicate_points, validate_normals, validate_points
 
 from ..base import StageTimer
-from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary
+from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary, no_boundary_error
 from .dem import DEFAULT_MAX_BALL, DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, require_connected, spatial_order, symmetric_adjacency
@@ -43,6 +43,9 @@ DEM_VARIANTS = {
     "robust": {"projection": "midpoint", "front_weight": True, "smoothing": "linear"},
     "paper": {"projection": "length", "front_weight": False, "smoothing": "average"},
 }
+
+#: When no boundary loop closes, the boundary stage is retried on balls this much wider.
+_RETRY_BALL_SCALE = 1.6
 
 #: Keys of ``FrontEnd.timings``, in execution order.
 STAGES = ("knn", "normals", "dem", "weights", "boundary")
@@ -233,7 +236,6 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
                           ball_eps_factor=float(ball_eps_factor), dem=dem, max_ball=int(max_ball),
                           projection=variant["projection"], front_weight=variant["front_weight"])
     mask = balls.mask
-    del adjacency
 
     with timer("weights"):
         if weights == "tangent":
@@ -248,8 +250,25 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
                 r_x[sl] = reconstruction_error(offsets, w[sl])
 
     with timer("boundary"):
-        bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, angle_deg=float(boundary_angle_deg),
-                            decimate=int(boundary_decimate), min_loop_size=int(min_loop_size))
+        bnd_args = dict(angle_deg=float(boundary_angle_deg), decimate=int(boundary_decimate),
+                        min_loop_size=int(min_loop_size), require_loop=False)
+        bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
+        retried = False
+        if not bnd.loops and bnd.candidates.sum() >= 4 * min_loop_size:
+            # Many boundary candidates but no closed loop: a ragged, sparsely sampled
+            # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
+            wide = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
+                             ball_eps_factor=_RETRY_BALL_SCALE * float(ball_eps_factor), dem=dem,
+                             max_ball=int(_RETRY_BALL_SCALE**2 * max_ball) + 1,
+                             projection=variant["projection"], front_weight=variant["front_weight"])
+            wide_bnd = find_boundary(p, frame_normals, wide.indices, wide.coords, **bnd_args)
+            del wide
+            retried = True
+            if wide_bnd.loops:
+                bnd = wide_bnd
+        if not bnd.loops:
+            raise no_boundary_error(int(bnd.candidates.sum()), float(boundary_angle_deg), int(min_loop_size))
+        del adjacency
         loops = [_from_sorted(loop, order) for loop in bnd.loops]
         loops = [np.roll(loop, -int(np.argmin(loop))) for loop in loops]  # deterministic start
 
@@ -264,7 +283,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         "n_truncated_balls": int(balls.n_truncated),
         "negative_weights": negative_weight_stats(w, mask, bnd.candidates),
         "reconstruction_error": {"mean": float(rel.mean()), "max": float(rel.max()), "unit": "l^2"},
-        "boundary": bnd.diagnostics,
+        "boundary": dict(bnd.diagnostics, retried_with_wider_balls=retried),
     }
     del mask
 
