@@ -141,7 +141,11 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     Stages: Euclidean kNN graph and mean spacing ``l`` (``knn``); PCA normals oriented
     along a minimum spanning tree, or the given ones checked (``normals``); DEM geodesic
     balls with tangent coordinates (``dem``); W^tan or 3D LLE weights and ``L = I - W``
-    (``weights``); boundary loops by the angle criterion (``boundary``).
+    (``weights``); boundary loops by the angle criterion (``boundary``). All stages run
+    on the points in kd-tree order (cache locality) and results come back in input order.
+    When many points pass the angle criterion but no loop closes (a ragged, sparsely
+    sampled boundary), the boundary stage alone is retried once on balls 1.6x wider
+    (``diagnostics["boundary"]["retried_with_wider_balls"]``).
 
     Parameters
     ----------
@@ -199,7 +203,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     InconsistentNormalsError
         Given normals are inconsistently oriented or not normal to the points.
     NoBoundaryError
-        No boundary loop: a closed surface.
+        No boundary loop: a closed surface, or (worded differently) a boundary too
+        ragged to close even on the wider balls.
     """
     pts, given = _validate(points, normals, k_nn, weights, dem, dem_variant)
     variant = DEM_VARIANTS[dem_variant]
