@@ -1,8 +1,9 @@
 """The k line search of Sec. 4.2 (Eq. 16), independent of how a map is computed at k.
 
-``E(k) = q(k)^2 + r * sum_loops |t(u_k)|`` where ``q(k)`` is the normalised conformal
+``E(k) = q(k)^2 + r * sum_loops | |t(u_k)| - 1 |`` where ``q(k)`` is the normalised conformal
 energy ``z^H (k L / 2 - M) z / z^H B z`` of the map u_k found at that k (SCP or DNCP) and
-t the turning numbers of the boundary loops (see :mod:`.turning`). Below k_opt the map
+t the turning numbers of the boundary loops (see :mod:`.turning`; for a disk the
+penalty is the paper's ``r |t|`` minus the constant r, which keeps q^2 resolvable). Below k_opt the map
 spins (t >= 2) or its energy is negative; above k_opt it is regular and q > 0 grows. The
 search therefore
 
@@ -12,7 +13,10 @@ search therefore
    weights like the cotangent ones whose k_opt is at or just below 1);
 2. bisects on "good" until the bracket is narrow (relative 1e-4), because the t = 1
    bowl is often far narrower than the geometric step;
-3. minimises E over that bracket with bounded Brent (``scipy.optimize.minimize_scalar``).
+3. minimises E over that bracket with bounded Brent (``scipy.optimize.minimize_scalar``);
+4. polishes: if regular maps with q < 0 and q > 0 straddle the minimiser, the zero of q
+   between them is found to machine precision (``scipy.optimize.brentq``). Near k_opt a
+   pinned (DNCP) map can move by ~1e3 x (k - k_opt), so k must be exact.
 
 Each step of t adds r to E, so the minimiser cannot slide back into a spinning bowl.
 """
@@ -24,7 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import brentq, minimize_scalar
 
 from datasets_gen.errors import ConvergenceError, InvalidInputError
 
@@ -67,7 +71,7 @@ class KPoint:
 
 
 def penalized_energy(point: KPoint, r: float = DEFAULT_R) -> float:
-    """Eq. 16: ``q^2 + r * sum |t|``."""
+    """Eq. 16 up to a constant: ``q^2 + r * sum | |t| - 1 |``."""
     return point.energy ** 2 + r * turning_penalty(point.turning)
 
 
@@ -206,4 +210,29 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
         raise ConvergenceError(f"every map evaluated in [{lo:g}, {hi:g}] spins (turning numbers != 1); "
                                "try k_search='direct'.")
     best = min(regular, key=lambda p: penalized_energy(p, r))
+    best = _polish_root(ev, regular + [best], best) if best.energy != 0.0 else best
     return KSearchResult(k_opt=best.k, best=best, bracket=(lo, hi), landscape=landscape, n_evaluations=len(cache))
+
+
+def _polish_root(ev: Callable[[float], KPoint], regular: list[KPoint], best: KPoint) -> KPoint:
+    """The zero of q between the closest regular maps of opposite energy sign around ``best``."""
+    below = [p for p in regular if p.energy < 0 and p.k < best.k] if best.energy > 0 else []
+    above = [p for p in regular if p.energy > 0 and p.k > best.k] if best.energy < 0 else []
+    if best.energy > 0 and below:
+        lo, hi = max(below, key=lambda p: p.k).k, best.k
+    elif best.energy < 0 and above:
+        lo, hi = best.k, min(above, key=lambda p: p.k).k
+    else:
+        return best
+
+    def q(kk: float) -> float:
+        p = ev(kk)
+        # A spinning map inside the interval ends the polish at the side it lies on.
+        return p.energy if p.regular else (1.0 if p.k > best.k else -1.0) * abs(best.energy)
+
+    try:
+        k_root = brentq(q, lo, hi, xtol=1e-15 * hi, rtol=4 * np.finfo(float).eps, maxiter=60)
+    except (ValueError, RuntimeError):
+        return best
+    p = ev(k_root)
+    return p if p.regular and abs(p.energy) <= abs(best.energy) else best

@@ -25,7 +25,7 @@ from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
 from .ksearch import DEFAULT_R, KPoint, line_search
 from .operators import area_matrix, boundary_indicator, check_loops, conformal_operator, is_symmetric, rayleigh_energy
 from .ordering import nested_dissection
-from .reduction import BoundaryReduction, dense_real_pencil, dense_smallest
+from .reduction import BoundaryReduction, blas_limit, dense_real_pencil, dense_smallest
 from .sparse_eigen import SparseFactor, smallest_eigenpair
 from .turning import is_regular_turning, loop_turning_numbers
 
@@ -210,13 +210,15 @@ class ConformalProblem:
         z_k = np.empty(keep.size, dtype=np.complex128)
         z_k[ip] = pin_values
         try:
-            z_k[free] = la.solve(op[np.ix_(free, free)], -op[np.ix_(free, ip)] @ pin_values)
+            with blas_limit(keep.size):
+                z_k[free] = la.solve(op[np.ix_(free, free)], -op[np.ix_(free, ip)] @ pin_values)
         except la.LinAlgError:
             raise SolverError(f"the DNCP system is singular at k = {k:g}; move the pins apart or change k.") from None
         self.counts["linear_solves"] += 1
         w = np.zeros(keep.size)
         w[: self.boundary.size] = 1.0
-        energy = rayleigh_energy(z_k, sp.csr_matrix(op), w)
+        zc = z_k - np.dot(w, z_k) / w.sum()
+        energy = float(np.real(np.vdot(zc, op @ zc))) / float(np.dot(w, np.abs(zc) ** 2))
         turning = loop_turning_numbers(z_k, self._local_loops(keep))
         return KPoint(k=k, energy=energy, turning=turning, state=(z_k, None))
 

@@ -27,7 +27,7 @@ from datasets_gen.errors import SolverError
 
 from .sparse_eigen import SparseFactor
 
-__all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real_pencil"]
+__all__ = ["BoundaryReduction", "blas_limit", "deflation_basis", "dense_smallest", "dense_real_pencil"]
 
 #: Dense problems smaller than this run single-threaded: LAPACK gains nothing from threads
 #: at boundary sizes of a few hundred, and on a shared 2-core machine the threads' spinning
@@ -35,7 +35,8 @@ __all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real
 SINGLE_THREAD_BELOW = 1500
 
 
-def _blas_limit(size: int):
+def blas_limit(size: int):
+    """Context: single-threaded BLAS for dense problems below :data:`SINGLE_THREAD_BELOW`."""
     return threadpool_limits(1, user_api="blas") if size < SINGLE_THREAD_BELOW else nullcontext()
 
 
@@ -138,7 +139,7 @@ def dense_smallest(operator: np.ndarray, *, hermitian: bool, count: int = 3) -> 
     values : (count,) numpy.ndarray of complex128, increasing real part
     vectors : (K, count) numpy.ndarray of complex128, zero-mean unit columns
     """
-    with _blas_limit(operator.shape[0]):
+    with blas_limit(operator.shape[0]):
         return _dense_smallest(operator, hermitian, count)
 
 
@@ -193,7 +194,7 @@ def dense_real_pencil(a: np.ndarray, b: np.ndarray, *, hermitian: bool, imag_tol
     SolverError
         No finite real positive eigenvalue, or b is not definite (Hermitian case).
     """
-    with _blas_limit(a.shape[0]):
+    with blas_limit(a.shape[0]):
         return _dense_real_pencil(a, b, hermitian, imag_tol)
 
 

@@ -35,6 +35,8 @@ class SparseFactor:
     perm : (V,) numpy.ndarray of int64, optional
         Symmetric elimination order (e.g. :func:`~methods.spectral.ordering.nested_dissection`);
         SuperLU's minimum degree on ``A^T + A`` otherwise.
+    hermitian : bool
+        Factor without row pivoting, so that :meth:`negative_pivots` gives the inertia.
 
     Raises
     ------
@@ -42,13 +44,14 @@ class SparseFactor:
         The matrix is (numerically) singular.
     """
 
-    def __init__(self, matrix: sp.spmatrix, perm: np.ndarray | None = None) -> None:
+    def __init__(self, matrix: sp.spmatrix, perm: np.ndarray | None = None, hermitian: bool = False) -> None:
         a = sp.csc_matrix(matrix)
         self.perm = perm
         self.n_solves = 0
-        # Diagonal pivoting first (the matrices are Hermitian or nearly so); a small
-        # threshold still lets SuperLU pivot away from a tiny diagonal.
-        opts = dict(diag_pivot_thresh=0.01, options=dict(SymmetricMode=True))
+        # Diagonal pivots only for Hermitian matrices: then the factorisation is an
+        # LDL^H in disguise and its pivots give the inertia. Otherwise a small threshold
+        # lets SuperLU pivot away from a tiny diagonal.
+        opts = dict(diag_pivot_thresh=0.0 if hermitian else 0.01, options=dict(SymmetricMode=True))
         try:
             if perm is None:
                 self._lu = sla.splu(a, permc_spec="MMD_AT_PLUS_A", **opts)
@@ -155,6 +158,42 @@ def _residual(k_mat, b_mat, z: np.ndarray, lam: complex) -> float:
     return float(np.linalg.norm(r) / max(scale, np.finfo(float).tiny))
 
 
+def _isolate_smallest(factor_at, sigma: float, below: int, scale: float, max_steps: int):
+    """Shift just below the smallest eigenvalue of a Hermitian pencil, by inertia counts.
+
+    ``below`` eigenvalues lie under ``sigma``. Step down until none does, then bisect
+    until exactly one eigenvalue lies between the two shifts; shift-inverting at the
+    lower one then converges to the smallest eigenvalue whatever the spinning modes
+    between it and zero (computing all of them instead took 4000 ARPACK steps).
+    """
+    hi, n_hi = sigma, below
+    step = max(abs(sigma), 1e-3 * scale)
+    for _ in range(8 * max_steps):
+        lo = sigma - step
+        f_lo = factor_at(lo)
+        n_lo = f_lo.negative_pivots()
+        if n_lo is None:
+            break
+        if n_lo == 0:
+            for _ in range(8 * max_steps):
+                if n_hi <= 1:
+                    return lo, f_lo
+                mid = 0.5 * (lo + hi)
+                f_mid = factor_at(mid)
+                n_mid = f_mid.negative_pivots()
+                if n_mid is None:
+                    break
+                if n_mid == 0:
+                    lo, f_lo = mid, f_mid
+                else:
+                    hi, n_hi = mid, n_mid
+            return lo, f_lo
+        hi, n_hi = lo, n_lo
+        step *= 4.0
+    raise ConvergenceError("could not bracket the smallest eigenvalue by inertia (pivoting or a very indefinite "
+                           "energy); start the k search closer to k_opt.")
+
+
 def smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: bool, perm: np.ndarray | None = None,
                        allow_negative: bool = False, check_inertia: bool = True, nev: int = 2, tol: float = 1e-12,
                        seed: int = 0, max_shifts: int = 8) -> EigenResult:
@@ -184,7 +223,8 @@ def smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: boo
     seed : int
         Seed of the ARPACK start vector.
     max_shifts : int
-        Shifts tried while looking for the bottom of the spectrum (Hermitian case).
+        Scale of the number of inertia counts allowed while isolating the smallest of
+        several negative eigenvalues (Hermitian case).
 
     Returns
     -------
@@ -196,8 +236,7 @@ def smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: boo
         Negative eigenvalues (the energy is unbounded below at this k) and
         ``allow_negative`` is False; a singular factorisation; a backward error above 1e-8.
     ConvergenceError
-        ARPACK did not converge, or the bottom of the spectrum was not reached within
-        ``max_shifts`` shifts.
+        ARPACK did not converge, or the smallest eigenvalue could not be isolated.
     """
     k_mat = sp.csr_matrix(k_mat, dtype=np.complex128)
     b_mat = sp.csr_matrix(b_mat, dtype=np.float64)
@@ -207,30 +246,25 @@ def smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: boo
     # Just below zero: K is singular (translations) and, on developable surfaces, has a
     # second zero eigenvalue; a tiny negative shift makes K - sigma B definite there.
     sigma = -1e-8 * scale
-    n_fact, n_solves = 0, 0
-    for _ in range(max_shifts):
-        factor = SparseFactor(k_mat - sigma * b_mat, perm)
-        n_fact += 1
-        below = factor.negative_pivots() if hermitian and check_inertia else None
-        if below and not allow_negative:
-            raise SolverError(
-                f"the conformal energy is indefinite: {below} eigenvalue(s) below zero at this k, so the map "
-                "would spin (turning number > 1). Use k_search='line' or 'direct', or unnormalized weights."
-            )
-        want = nev if not below else min(n - 3, below + nev)
-        lam, vecs = _nearest(k_mat, b_mat, factor, sigma, want, tol, seed)
-        n_solves += factor.n_solves
-        if hermitian:
-            lam = lam.real.astype(np.complex128)
-            found_below = int(np.sum(lam.real < sigma))
-            if below is not None and found_below < below:
-                # Eigenvalues far below sigma were missed: shift below the lowest found.
-                sigma = float(lam.real.min()) - max(abs(float(lam.real.min())), 1e-6 * scale)
-                continue
-        break
-    else:
-        raise ConvergenceError(f"the bottom of the spectrum was not reached after {max_shifts} shifts; the energy is "
-                               "strongly indefinite at this k. Start the k search closer to k_opt.")
+    counter = {"factorizations": 0}
+
+    def factor_at(shift: float) -> SparseFactor:
+        counter["factorizations"] += 1
+        return SparseFactor(k_mat - shift * b_mat, perm, hermitian=hermitian)
+
+    factor = factor_at(sigma)
+    below = factor.negative_pivots() if hermitian and check_inertia else None
+    if below and not allow_negative:
+        raise SolverError(
+            f"the conformal energy is indefinite: {below} eigenvalue(s) below zero at this k, so the map "
+            "would spin (turning number > 1). Use k_search='line' or 'direct', or unnormalized weights."
+        )
+    if below:
+        sigma, factor = _isolate_smallest(factor_at, sigma, below, scale, max_shifts)
+    lam, vecs = _nearest(k_mat, b_mat, factor, sigma, nev, tol, seed)
+    if hermitian:
+        lam = lam.real.astype(np.complex128)
+    n_solves, n_fact = factor.n_solves, counter["factorizations"]
     z = vecs[:, 0]
     value = complex(lam[0])
     if not allow_negative and value.real < -1e-8 * scale:

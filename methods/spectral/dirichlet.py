@@ -1,0 +1,144 @@
+"""Spectral Dirichlet embeddings: the two smallest non-trivial eigenvectors of ``A f = lambda B f``.
+
+LEM (``L f = lambda D f``), LLE (``L^T L f = lambda f``) and SDP (``L f = lambda B f``
+with B the boundary indicator, Sec. 4.1) differ only in A and B. Rows of A sum to zero,
+so the constant vector is an eigenvector with eigenvalue 0; it is removed explicitly
+(the iteration runs on ``P (A - sigma B)^{-1} B P``, P subtracting the mean), never by
+skipping a fixed number of eigenvectors. B may be singular (SDP): shift-invert only needs
+``A - sigma B`` to be invertible.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as sla
+
+from datasets_gen.errors import ConvergenceError, SolverError
+
+from .sparse_eigen import SparseFactor
+
+__all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize"]
+
+
+def fix_signs(vectors: np.ndarray) -> np.ndarray:
+    """Flip each column so that its entry of largest magnitude is positive (deterministic output)."""
+    idx = np.argmax(np.abs(vectors), axis=0)
+    signs = np.sign(vectors[idx, np.arange(vectors.shape[1])])
+    signs[signs == 0] = 1.0
+    return vectors * signs
+
+
+def _real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two real vectors spanning the two smallest eigen-directions (a complex pair gives Re, Im)."""
+    order = np.argsort(vals.real)
+    vals, vecs = vals[order], vecs[:, order]
+    first = vecs[:, 0]
+    if abs(vals[0].imag) > 1e-9 * max(abs(vals[0]), 1e-300):
+        # Complex conjugate pair: Re and Im span the real invariant plane of both.
+        pair = np.column_stack([first.real, first.imag])
+        return np.array([vals[0].real, vals[0].real]), pair
+    second = vecs[:, 1]
+    pair = np.column_stack([first.real if np.abs(first.real).max() >= np.abs(first.imag).max() else first.imag,
+                            second.real if np.abs(second.real).max() >= np.abs(second.imag).max() else second.imag])
+    return vals[:2].real, pair
+
+
+def smallest_nontrivial_pair(a_mat: sp.spmatrix, b_mat: sp.spmatrix, *, perm: np.ndarray | None = None,
+                             nev: int = 4, tol: float = 1e-10, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The two eigenpairs of ``A f = lambda B f`` with smallest real part, constants excluded.
+
+    Parameters
+    ----------
+    a_mat : (N, N) scipy.sparse matrix of float64
+        Rows sum to zero (a Laplacian or ``L^T L``); may be non-symmetric.
+    b_mat : (N, N) scipy.sparse matrix of float64
+        Positive semi-definite (a degree matrix, the identity or a boundary indicator),
+        with ``A - sigma B`` invertible for small negative sigma.
+    perm : (N,) numpy.ndarray of int64, optional
+        Fill-reducing elimination order.
+    nev : int
+        Eigenvalues computed (at least 3).
+    tol : float
+        ARPACK relative tolerance.
+    seed : int
+        Seed of the ARPACK start vector.
+
+    Returns
+    -------
+    eigenvalues : (2,) numpy.ndarray of float64
+        Real parts, ascending.
+    vectors : (N, 2) numpy.ndarray of float64
+        Zero-mean columns of unit 2-norm, signs fixed by :func:`fix_signs`.
+
+    Raises
+    ------
+    SolverError
+        Singular shifted matrix, or an eigenvalue with negative real part (the energy is
+        not bounded below: bad weights).
+    ConvergenceError
+        ARPACK did not converge.
+    """
+    n = a_mat.shape[0]
+    a = sp.csc_matrix(a_mat, dtype=np.float64)
+    b = sp.csc_matrix(b_mat, dtype=np.float64)
+    scale = max(float(abs(a).sum()) / n, 1e-300) / max(float(abs(b).sum()) / n, 1e-300)
+    sigma = -1e-6 * scale
+    factor = SparseFactor(a - sigma * b, perm)
+
+    def op(x: np.ndarray) -> np.ndarray:
+        x = x - x.mean()
+        y = factor.solve(b @ x)
+        return y - y.mean()
+
+    linop = sla.LinearOperator((n, n), matvec=op, dtype=np.float64)
+    v0 = np.random.default_rng(seed).standard_normal(n)
+    try:
+        mu, vecs = sla.eigs(linop, k=min(nev, n - 2), which="LM", tol=tol, v0=v0 - v0.mean(),
+                            maxiter=max(1000, 20 * n))
+    except sla.ArpackNoConvergence:
+        raise ConvergenceError("the eigen-solver (ARPACK, shift-invert) did not converge; try more neighbours "
+                               "(k_nn) or larger reg_eps.") from None
+    keep = np.abs(mu) > 1e-12 * np.abs(mu).max()
+    vals = sigma + 1.0 / mu[keep]
+    vals, pair = _real_pair(vals, vecs[:, keep])
+    if vals[0] < -1e-8 * scale:
+        raise SolverError(f"the Dirichlet problem has a negative eigenvalue ({vals[0]:.3e}): the energy is not "
+                          "bounded below with these weights. Try a larger reg_eps or other weights.")
+    pair = pair - pair.mean(axis=0)
+    norms = np.linalg.norm(pair, axis=0)
+    if np.any(norms == 0) or not np.all(np.isfinite(pair)):
+        raise SolverError("the Dirichlet eigenvectors are degenerate (zero or non-finite).")
+    return vals, fix_signs(pair / norms)
+
+
+def b_orthonormalize(pair: np.ndarray, b_diag: np.ndarray) -> np.ndarray:
+    """Make two coordinate functions B-orthonormal: ``f_u^T B f_v = 0``, ``f^T B f = 1``.
+
+    Both are first centred in the B inner product (translations do not count), then
+    Gram-Schmidt orthogonalised. The two axes then have equal B-weighted spread, which
+    removes the shear of independent eigenvectors (Sec. 4.2, Fig. 8b).
+
+    Parameters
+    ----------
+    pair : (N, 2) numpy.ndarray of float64
+    b_diag : (N,) numpy.ndarray of float64
+        Diagonal of B (non-negative, not all zero).
+
+    Returns
+    -------
+    (N, 2) numpy.ndarray of float64
+
+    Raises
+    ------
+    SolverError
+        The two functions are linearly dependent on the support of B.
+    """
+    w = b_diag / b_diag.sum()
+    f = pair - w @ pair
+    gram = f.T @ (b_diag[:, None] * f)
+    try:
+        chol = np.linalg.cholesky(gram)
+    except np.linalg.LinAlgError:
+        raise SolverError("the two eigenvectors are dependent on the boundary; cannot make them B-orthonormal.") from None
+    return fix_signs(f @ np.linalg.inv(chol).T)

@@ -1,0 +1,141 @@
+"""ConformalProblem: SCP/DNCP at fixed k, direct and line-searched k_opt, both back ends."""
+
+from __future__ import annotations
+
+import igl
+import numpy as np
+import pytest
+
+from datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
+from methods.spectral import ConformalProblem
+
+
+def identity_uv(case):
+    return case.points[:, :2]
+
+
+def test_flat_disk_gives_identity_despite_double_zero_eigenvalue(plane, uv_rms):
+    # Translations and the identity map both have eigenvalue 0 (four zeros in real 2V
+    # form); deflating translations must still return the identity, not a constant.
+    for b in ("boundary", igl.massmatrix(plane.points, plane.faces, igl.MASSMATRIX_TYPE_VORONOI)):
+        prob = ConformalProblem(plane.lap, plane.loops, b_matrix=b, points=plane.points)
+        sol = prob.solve("scp")
+        assert abs(sol.eigenvalue) < 1e-9
+        assert uv_rms(sol.uv, identity_uv(plane)) < 1e-9
+        assert sol.diagnostics["n_eigen_solves"] == 1 and sol.diagnostics["n_factorizations"] == 1
+
+
+def test_holes_multiple_loops(holes, uv_rms):
+    prob = ConformalProblem(holes.lap, holes.loops, points=holes.points)
+    for k_search in ("none", "line", "direct"):
+        sol = prob.solve("scp", k_search)
+        assert sorted(sol.turning.tolist()) == [-1, -1, -1, 1]
+        assert uv_rms(sol.uv, identity_uv(holes)) < 1e-8
+        assert abs(sol.k - 1.0) < 1e-9
+
+
+def test_backends_agree(saddle, uv_rms):
+    prob = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points)
+    a = prob.scp(1.0, backend="sparse")
+    b = prob.scp(1.0, backend="boundary")
+    assert np.isclose(a.eigenvalue.real, b.eigenvalue.real, rtol=1e-6)
+    assert uv_rms(a.uv, b.uv) < 1e-8
+    pins = (saddle.loops[0][0], saddle.loops[0][40])
+    c = prob.dncp(1.0, pins, backend="sparse")
+    d = prob.dncp(1.0, pins, backend="boundary")
+    assert np.allclose(c.z, d.z, atol=1e-9)
+    assert np.isclose(c.z[pins[1]], 1.0) and np.isclose(c.z[pins[0]], 0.0)
+
+
+def test_line_and_direct_agree_and_dncp_loses_its_pins(saddle, uv_rms):
+    prob = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points)
+    direct = prob.solve("scp", "direct")
+    line = prob.solve("scp", "line")
+    assert abs(line.k - direct.k) < 1e-10
+    assert 0.999 < direct.k <= 1.0  # cotangent: E_D >= A, so k_opt <= 1, and nearly 1
+    assert uv_rms(line.uv, direct.uv) < 1e-8
+    landscape = line.diagnostics["landscape"]
+    assert len(landscape["k"]) == line.diagnostics["n_k_evaluations"]
+    assert any(max(map(abs, t)) > 1 for t in landscape["t"])  # the search saw spinning maps
+    loop = saddle.loops[0]
+    for pins in [(loop[0], loop[len(loop) // 2]), (loop[3], loop[9]), (loop[10], loop[-20])]:
+        d = prob.solve("dncp", "line", pins=pins)
+        assert abs(d.k - direct.k) < 1e-10
+        assert uv_rms(d.uv, direct.uv) < 1e-8
+
+
+@pytest.mark.parametrize("k_search", ["line", "direct"])
+def test_k_opt_scales_inversely_with_the_laplacian(saddle, k_search):
+    base = ConformalProblem(saddle.lap, saddle.loops).solve("scp", k_search).k
+    scaled = ConformalProblem(saddle.lap / 3.0, saddle.loops).solve("scp", k_search).k
+    assert np.isclose(scaled, 3.0 * base, rtol=1e-9)
+
+
+def test_k_opt_does_not_depend_on_b(saddle):
+    mass = igl.massmatrix(saddle.points, saddle.faces, igl.MASSMATRIX_TYPE_VORONOI)
+    k_b = ConformalProblem(saddle.lap, saddle.loops).solve("scp", "direct").k
+    # mass B: the line search runs on the sparse back end, through indefinite k < k_opt
+    prob = ConformalProblem(saddle.lap, saddle.loops, b_matrix=mass, points=saddle.points)
+    sol = prob.solve("scp", "line")
+    assert sol.diagnostics["backend"] == "sparse"
+    assert abs(sol.k - k_b) < 1e-9
+
+
+def test_normalized_weights_need_and_get_a_larger_k(saddle, uv_rms):
+    lap = saddle.weights_laplacian("cotangent", normalized=True)
+    prob = ConformalProblem(lap, saddle.loops, points=saddle.points)
+    assert not prob.hermitian
+    with pytest.raises(SolverError, match="indefinite"):
+        prob.solve("scp", "none")
+    sol = prob.solve("scp", "line")
+    # row sums of cotangent weights are about 2 (1.7 inside a 60-deg lattice, less at the boundary)
+    assert 1.3 < sol.k < 4.0 and sol.turning.tolist() == [1]
+    # non-Hermitian sparse and dense solves agree at the same k
+    dense = prob.scp(sol.k * 1.05, backend="boundary")
+    sparse = prob.scp(sol.k * 1.05, backend="sparse")
+    assert np.isclose(dense.eigenvalue, sparse.eigenvalue, rtol=1e-6)
+    assert uv_rms(sparse.uv, dense.uv) < 1e-7
+
+
+def test_indefinite_energy_is_refused_not_returned(saddle):
+    prob = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points)
+    with pytest.raises(SolverError, match="indefinite"):
+        prob.scp(0.5, backend="sparse")
+    with pytest.raises(SolverError, match="indefinite"):
+        prob.scp(0.5, backend="boundary")
+    low = prob.scp(0.5, backend="sparse", allow_negative=True)
+    dense_low = prob.scp(0.5, backend="boundary", allow_negative=True)
+    assert low.eigenvalue.real < 0 and np.isclose(low.eigenvalue.real, dense_low.eigenvalue.real, rtol=1e-6)
+    assert abs(low.turning[0]) > 1  # the minimiser spins
+
+
+def test_search_failures_are_reported(saddle):
+    prob = ConformalProblem(saddle.lap, saddle.loops)
+    with pytest.raises(ConvergenceError, match="no t = 1 crossing in the k bracket"):
+        prob.solve("scp", "line", bracket=(0.2, 0.5))
+    with pytest.raises(ConvergenceError, match="no t = 1 crossing in the k bracket"):
+        prob.solve("dncp", "line", pins=(saddle.loops[0][0], saddle.loops[0][30]), bracket=(0.2, 0.5))
+
+
+def test_reversed_loops_give_the_mirror_image(saddle, uv_rms):
+    prob = ConformalProblem(saddle.lap, saddle.loops)
+    flipped = ConformalProblem(saddle.lap, [loop[::-1] for loop in saddle.loops])
+    a, b = prob.solve("scp", "direct"), flipped.solve("scp", "direct")
+    assert np.isclose(a.k, b.k, rtol=1e-10)
+    assert uv_rms(b.uv, a.uv) < 1e-8
+    # same loops in the same order, so the flipped map encloses negative area
+    assert np.vdot(b.z, prob.area @ b.z).real < 0 < np.vdot(a.z, prob.area @ a.z).real
+
+
+def test_bad_arguments(saddle):
+    with pytest.raises(UnknownNameError):
+        ConformalProblem(saddle.lap, saddle.loops, b_matrix="identity")
+    with pytest.raises(InvalidInputError, match="sum to zero"):
+        ConformalProblem(saddle.lap + 0.1 * np.eye(1)[0, 0] * igl.massmatrix(saddle.points, saddle.faces), saddle.loops)
+    prob = ConformalProblem(saddle.lap, saddle.loops)
+    with pytest.raises(UnknownNameError):
+        prob.solve("lscm")
+    with pytest.raises(UnknownNameError):
+        prob.solve("scp", "golden")
+    with pytest.raises(InvalidInputError, match="two distinct"):
+        prob.solve("dncp", "none", pins=(3, 3))

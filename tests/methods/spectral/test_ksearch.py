@@ -1,0 +1,74 @@
+"""The k line search on synthetic landscapes with a known optimum, and its failure paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import ConvergenceError, InvalidInputError
+from methods.spectral.ksearch import KPoint, line_search, penalized_energy
+
+
+def staircase(k_opt: float, width: float = 0.05):
+    """q = k - k_opt; the map spins (t = 2, 3, ...) below k_opt - width, regular above."""
+
+    def evaluate(k: float) -> KPoint:
+        t = 1 if k >= k_opt - width else 2 + int((k_opt - width - k) / width)
+        return KPoint(k=k, energy=k - k_opt, turning=np.array([t]))
+
+    return evaluate
+
+
+@pytest.mark.parametrize("k_opt", [0.37, 0.99995, 1.0, 3.46, 40.0])
+def test_finds_known_optimum_up_or_down(k_opt):
+    res = line_search(staircase(k_opt, width=0.01 * k_opt))
+    assert abs(res.k_opt - k_opt) <= 1e-12 * k_opt
+    assert res.best.regular and abs(res.best.energy) <= 1e-12 * k_opt
+    lo, hi = res.bracket
+    assert lo < k_opt <= hi
+    land = res.landscape
+    assert len(land["k"]) == len(land["E"]) == len(land["q"]) == len(land["t"]) == res.n_evaluations
+    assert np.isclose(land["E"][0], penalized_energy(staircase(k_opt, 0.01 * k_opt)(1.0)))
+
+
+def test_narrow_bowl_is_found():
+    # regular only within 1e-5 of the optimum, as for cotangent DNCP on a disk
+    res = line_search(staircase(0.99996, width=1e-5))
+    assert abs(res.k_opt - 0.99996) < 1e-12
+
+
+def test_penalty_blocks_lower_spinning_bowls():
+    # A spinning map (t = 2) with energy exactly zero at k = 0.5 must not win.
+    def evaluate(k):
+        if abs(k - 0.5) < 0.2:
+            return KPoint(k=k, energy=0.0, turning=np.array([2]))
+        return staircase(1.2, 0.1)(k)
+
+    res = line_search(evaluate)
+    assert abs(res.k_opt - 1.2) < 1e-10
+
+
+def test_bracket_without_crossing_raises():
+    with pytest.raises(ConvergenceError, match="no t = 1 crossing in the k bracket"):
+        line_search(staircase(2.0), bracket=(0.5, 1.0))
+    with pytest.raises(ConvergenceError, match="lower the bracket"):
+        line_search(staircase(2.0), bracket=(2.5, 3.0))
+    res = line_search(staircase(2.0), bracket=(1.0, 3.0))
+    assert abs(res.k_opt - 2.0) < 1e-12
+
+
+def test_no_crossing_anywhere_raises():
+    def always_spinning(k):
+        return KPoint(k=k, energy=-1.0, turning=np.array([3]))
+
+    with pytest.raises(ConvergenceError, match="no t = 1 crossing found stepping up"):
+        line_search(always_spinning, max_steps=10)
+
+
+def test_bad_arguments():
+    with pytest.raises(InvalidInputError):
+        line_search(staircase(1.0), k0=0.0)
+    with pytest.raises(InvalidInputError):
+        line_search(staircase(1.0), growth=1.0)
+    with pytest.raises(InvalidInputError):
+        line_search(staircase(1.0), bracket=(2.0, 1.0))
