@@ -1,0 +1,36 @@
+"""``lle``: locally linear embedding, minimising ``f^T L^T L f`` (Roweis & Saul; the paper's Sec. 2, Fig. 4)."""
+
+from __future__ import annotations
+
+import scipy.sparse as sp
+
+from datasets_gen.surface import Surface
+
+from ..base import Method, Parameterization, StageTimer
+from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..registry import register
+from ..spectral.dirichlet import smallest_nontrivial_pair
+
+
+@register
+class Lle(Method):
+    """LLE: the two smallest non-constant eigenvectors of ``(I - W)^T (I - W)``.
+
+    ``weights="tangent"`` uses W^tan (Eq. 13, Fig. 4b), ``"lle3d"`` the classic 3D weights
+    (Fig. 4a). Positive semi-definite even though W is not symmetric.
+    """
+
+    name = "lle"
+    description = "locally linear embedding on W^tan or 3D LLE weights (points only; Sec. 2, Fig. 4)"
+    defaults = {**FRONTEND_DEFAULTS, "weights": "tangent"}
+    param_grid = {"weights": ["tangent", "lle3d"]}
+
+    def run(self, surface: Surface, **params) -> Parameterization:
+        timer = StageTimer()
+        front = run_frontend(surface, params, timer, weights=params["weights"])
+        with timer("solve"):
+            lap = front.L
+            vals, pair = smallest_nontrivial_pair((lap.T @ lap).tocsc(), sp.identity(lap.shape[0], format="csc"))
+            uv = scale_to_spacing(pair, front)
+        diag = dict(frontend_diagnostics(front), eigenvalues=vals.tolist())
+        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
