@@ -10,7 +10,9 @@ search therefore
 1. evaluates k0 = 1; if the map there is *good* (regular turning and q >= 0) it steps
    down geometrically until it is not, otherwise up until it is; the last two k bracket
    the transition (the paper searches forward from k = 1; stepping down is needed for
-   weights like the cotangent ones whose k_opt is at or just below 1);
+   weights like the cotangent ones whose k_opt is at or just below 1). When a step up
+   turns a regular map with q < 0 into a spinning one, the step is bisected first: the
+   good region can be narrower than a step (DNCP pinned on a hole: about 5e-4 wide);
 2. bisects on "good" until the bracket is narrow (relative 1e-4), because the t = 1
    bowl is often far narrower than the geometric step;
 3. minimises E over that bracket with bounded Brent (``scipy.optimize.minimize_scalar``);
@@ -180,6 +182,13 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
             if p_next.good != p.good:
                 lo, hi = sorted((k, k_next))
                 break
+            if step > 1 and p.regular and not p_next.regular:
+                # A regular map with q < 0 turned into a spinning one within one step:
+                # the good region may be narrower than the step (DNCP pinned on a hole).
+                found = _good_between(ev, k, k_next)
+                if found is not None:
+                    lo, hi = found
+                    break
             k, p = k_next, p_next
         else:
             direction = "down" if step < 1 else "up"
@@ -212,6 +221,27 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
     best = min(regular, key=lambda p: penalized_energy(p, r))
     best = _polish_root(ev, regular + [best], best) if best.energy != 0.0 else best
     return KSearchResult(k_opt=best.k, best=best, bracket=(lo, hi), landscape=landscape, n_evaluations=len(cache))
+
+
+def _good_between(ev: Callable[[float], KPoint], lo: float, hi: float, max_halvings: int = 60
+                  ) -> tuple[float, float] | None:
+    """(not-good k, good k) inside [lo, hi], where lo is regular with q < 0 and hi spins.
+
+    Bisects: a regular map with q < 0 moves the lower end up, a spinning one the upper end
+    down, until a good map turns up. None when the interval shrinks to nothing first.
+    """
+    for _ in range(max_halvings):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            return None
+        p = ev(mid)
+        if p.good:
+            return lo, mid
+        if p.regular:
+            lo = mid
+        else:
+            hi = mid
+    return None
 
 
 def _polish_root(ev: Callable[[float], KPoint], regular: list[KPoint], best: KPoint) -> KPoint:

@@ -71,6 +71,7 @@ def test_k_opt_scales_inversely_with_the_laplacian(saddle, k_search):
     assert np.isclose(scaled, 3.0 * base, rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_k_opt_does_not_depend_on_b(saddle):
     mass = igl.massmatrix(saddle.points, saddle.faces, igl.MASSMATRIX_TYPE_VORONOI)
     k_b = ConformalProblem(saddle.lap, saddle.loops).solve("scp", "direct").k

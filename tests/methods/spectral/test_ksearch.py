@@ -72,3 +72,15 @@ def test_bad_arguments():
         line_search(staircase(1.0), growth=1.0)
     with pytest.raises(InvalidInputError):
         line_search(staircase(1.0), bracket=(2.0, 1.0))
+
+
+def test_good_region_narrower_than_a_step_above_a_regular_start():
+    # Regular with q < 0 at k = 1, regular only up to 1.0005 above k_opt = 1.0002, then
+    # spinning: the geometric step (x1.25) jumps over the good region, so it is bisected.
+    def evaluate(k):
+        t = 1 if k <= 1.0005 else 3
+        return KPoint(k=k, energy=k - 1.0002, turning=np.array([t, -1]))
+
+    res = line_search(evaluate)
+    assert abs(res.k_opt - 1.0002) < 1e-12
+    assert res.best.turning.tolist() == [1, -1]

@@ -1,0 +1,84 @@
+"""The ``dncp-opt`` plugin: pin independence at k_opt (Fig. 10), k_opt ~ 1, failure paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import ConvergenceError, InvalidInputError
+from methods.registry import get_method
+
+DNCP = get_method("dncp-opt")
+SCP = get_method("scp")
+
+
+def three_pin_pairs(surface) -> list[str]:
+    loop = surface.boundary_loops[0]
+    n = len(loop)
+    return ["farthest", f"{loop[0]},{loop[n // 3]}", f"{loop[5]},{loop[12]}"]
+
+
+@pytest.mark.parametrize("name", ["saddle", pytest.param("saddle-jittered", marks=pytest.mark.slow),
+                                  pytest.param("bump", marks=pytest.mark.slow)])
+def test_cotangent_dncp_opt_is_scp_whatever_the_pins(surfaces, rms, name):
+    s = surfaces[name]
+    scp_opt = SCP(s, k_search="line")
+    scp_plain = SCP(s)
+    plain_dncp = DNCP(s, pins=three_pin_pairs(s)[2], k_search="none")
+    for pins in three_pin_pairs(s):
+        res = DNCP(s, pins=pins)
+        k = res.diagnostics["k_opt"]
+        assert abs(k - 1.0) <= 0.02
+        assert abs(k - scp_opt.diagnostics["k_opt"]) < 1e-9
+        # the same zero-energy map as SCP at k_opt, and within 1e-3 of plain SCP (k = 1)
+        assert rms(res.uv, scp_opt.uv) <= 1e-6
+        assert rms(res.uv, scp_plain.uv) <= 1e-3
+    # plain DNCP (k = 1) with two close pins is visibly worse: the optimisation matters
+    assert rms(plain_dncp.uv, scp_plain.uv) > 10 * rms(DNCP(s).uv, scp_plain.uv)
+
+
+def test_uniform_k_opt_is_near_one(surfaces):
+    for name in ("saddle", "cap", "holes"):
+        res = DNCP(surfaces[name], weights="uniform")
+        assert abs(res.diagnostics["k_opt"] - 1.0) <= 0.02, name
+
+
+def test_direct_k_matches_line(surfaces, rms):
+    s = surfaces["cap"]
+    line = DNCP(s)
+    direct = DNCP(s, k_search="direct")
+    assert abs(line.diagnostics["k_opt"] - direct.diagnostics["k_opt"]) < 1e-9
+    assert rms(line.uv, direct.uv) < 1e-7
+    assert rms(direct.uv, s.exact_uv) < 5e-4  # stereographic
+
+
+def test_holes_and_pins_on_a_hole(surfaces, rms):
+    s = surfaces["holes"]
+    hole = s.boundary_loops[1]
+    res = DNCP(s, pins=f"{hole[0]},{hole[len(hole) // 2]}")
+    assert rms(res.uv, s.exact_uv) < 1e-8
+    assert res.diagnostics["pins"] == [int(hole[0]), int(hole[len(hole) // 2])]
+
+
+def test_failures_are_explicit(surfaces):
+    s = surfaces["saddle"]
+    with pytest.raises(InvalidInputError, match="pins"):
+        DNCP(s, pins="3")
+    with pytest.raises(InvalidInputError, match="pins"):
+        DNCP(s, pins="7,7")
+    with pytest.raises(InvalidInputError, match="pins"):
+        DNCP(s, pins="left,right")
+
+
+def test_no_crossing_in_bracket_raises(surfaces):
+    from methods.mesh.conformal_setup import build_mesh_problem, resolve_pins
+    from methods.base import StageTimer
+
+    s = surfaces["saddle"]
+    prob, loops, _ = build_mesh_problem(s, StageTimer(), weights="cotangent", normalized=False, uniform_at=None,
+                                        b_matrix="boundary")
+    pins = resolve_pins("farthest", s.points, loops)
+    with pytest.raises(ConvergenceError, match="no t = 1 crossing"):
+        prob.solve("dncp", "line", pins=pins, bracket=(1.5, 3.0))
+    sol = prob.solve("dncp", "line", pins=pins, bracket=(0.9, 1.1))
+    assert np.isclose(sol.k, prob.solve("scp", "direct").k, rtol=1e-10)

@@ -1,0 +1,106 @@
+"""The ``scp`` plugin: agreement with scp-igl, analytic maps, weights, failure paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import MissingFacesError, SolverError, UnknownNameError
+from datasets_gen.registry import make_surface
+from methods.geometry2d import signed_area_2d
+from methods.registry import get_method
+
+SCP = get_method("scp")
+SCP_IGL = get_method("scp-igl")
+
+
+@pytest.mark.parametrize("name", ["saddle", "cap", "cylinder", "holes", "bump"])
+def test_mass_b_matches_scp_igl(surfaces, rms, name):
+    # igl.spectra.lscm solves the same pencil with the Voronoi mass matrix as B; the
+    # cylinder patch is developable (four zero eigenvalues in the real 2V form).
+    s = surfaces[name]
+    ours = SCP(s, b_matrix="mass")
+    ref = SCP_IGL(s)
+    assert rms(ours.uv, ref.uv) <= 1e-6
+    assert ours.diagnostics["regular_boundary"]
+
+
+def test_cap_is_close_to_stereographic(surfaces, rms):
+    s = surfaces["cap"]
+    assert s.exact_map_kind == "conformal"
+    assert rms(SCP(s).uv, s.exact_uv) < 5e-4
+
+
+def test_cylinder_is_close_to_the_unrolling(surfaces, rms):
+    s = surfaces["cylinder"]
+    assert s.exact_map_kind == "isometric"
+    res = SCP(s)
+    assert rms(res.uv, s.exact_uv) < 1e-4
+    # output scale: the boundary encloses the 3D area, pi * radius * height for a half cylinder
+    assert np.isclose(signed_area_2d(res.uv[s.boundary_loops[0]]), 2 * np.pi, rtol=1e-3)
+
+
+def test_holes_is_the_identity(surfaces, rms):
+    s = surfaces["holes"]
+    res = SCP(s)
+    assert rms(res.uv, s.exact_uv) < 1e-9
+    assert res.diagnostics["n_boundary_loops"] == 4
+    assert sorted(res.diagnostics["turning_numbers"]) == [-1, -1, -1, 1]
+
+
+@pytest.mark.parametrize("k_search", ["line", "direct"])
+def test_k_search_on_cotangent_stays_at_one(surfaces, rms, k_search):
+    s = surfaces["saddle"]
+    res = SCP(s, k_search=k_search)
+    assert abs(res.diagnostics["k_opt"] - 1.0) < 1e-3
+    assert rms(res.uv, SCP(s).uv) < 1e-3
+
+
+@pytest.mark.parametrize("weights,normalized", [("uniform", False), ("uniform", True), ("hybrid", False),
+                                                pytest.param("cotangent", True, marks=pytest.mark.slow),
+                                                pytest.param("authalic", True, marks=pytest.mark.slow),
+                                                pytest.param("mean-value", True, marks=pytest.mark.slow)])
+def test_other_weights_give_regular_maps(surfaces, fold_count, weights, normalized):
+    s = surfaces["saddle-jittered"]
+    res = SCP(s, weights=weights, normalized=normalized)
+    assert res.diagnostics["turning_numbers"] == [1]
+    assert res.diagnostics["k_search"] == ("none" if weights == "uniform" and not normalized else "line")
+    if weights in ("uniform", "cotangent", "hybrid"):
+        # (normalized mean-value and authalic maps may fold: "not particularly desirable", Sec. 5)
+        assert fold_count(s, res.uv) == 0
+    if normalized:
+        assert res.diagnostics["k_opt"] > 1.2  # row sums of these weights are > 1
+
+
+def test_hybrid_removes_foldovers(fold_count):
+    # Random-point Delaunay mesh of a tall narrow bump: many negative cotangent weights on
+    # the steep flank, where cotangent SCP folds over (Fig. 12).
+    s = make_surface("bump", 5000, sampling="random", seed=0, h=1.5, s=0.15)
+    cot = SCP(s)
+    hyb = SCP(s, weights="hybrid")
+    assert fold_count(s, cot.uv) > 20
+    assert hyb.diagnostics["n_uniform_rows"] > 100
+    assert fold_count(s, hyb.uv) == 0
+    assert hyb.diagnostics["turning_numbers"] == [1]
+
+
+def test_failures_are_explicit(surfaces):
+    s = surfaces["saddle"]
+    with pytest.raises(SolverError, match="indefinite"):
+        SCP(s, weights="cotangent", normalized=True, k_search="none")
+    with pytest.raises(UnknownNameError, match="b_matrix"):
+        SCP(s, b_matrix="lumped")
+    with pytest.raises(UnknownNameError, match="weights|kind"):
+        SCP(s, weights="harmonic")
+    with pytest.raises(MissingFacesError):
+        SCP(s.points_only())
+
+
+def test_diagnostics_are_json_serialisable(surfaces):
+    import json
+
+    res = SCP(surfaces["saddle"], k_search="line")
+    json.dumps(res.diagnostics)
+    land = res.diagnostics["landscape"]
+    assert set(land) == {"k", "E", "q", "t"} and len(land["k"]) == res.diagnostics["n_k_evaluations"]
+    assert {"topology", "weights", "solve", "total"} <= set(res.timings)
