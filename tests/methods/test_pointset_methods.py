@@ -71,7 +71,7 @@ def test_ocp_has_no_foldovers(dataset, sampling):
     assert m["foldovers"] == 0
     assert np.allclose(np.abs(m["turning_numbers"]), 1.0, atol=1e-9)
     if dataset == "cap":
-        # Measured 2.0e-3 (grid) and 1.2e-3 (jittered) at 5k; the issue's target is 1e-3.
+        # Measured at 5k points: 2.0e-3 (grid), 7.8e-4 (jittered); the issue asks 1e-3 for both.
         assert m["exact_error"] <= 2.5e-3
 
 
