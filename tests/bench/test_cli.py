@@ -116,3 +116,29 @@ def test_argparse_errors_are_one_line(capsys):
         main(["flatten"])
     assert exc.value.code == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_inspect_writes_frontend_json(real_dir, tmp_path):
+    import json
+
+    out = tmp_path / "lilium.json"
+    assert main(["inspect", str(real_dir / "lilium.obj"), "--points-only", "-o", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["n_points"] == 3389 and report["mean_spacing"] > 0
+    loops = report["boundary_loops"]
+    assert len(loops) == 1 and len(set(loops[0])) == len(loops[0]) > 20
+    assert set(report["negative_weight_fraction"]) >= {"interior", "boundary"}
+    assert report["reconstruction_error"]["max"] >= report["reconstruction_error"]["mean"] >= 0
+
+
+def test_flatten_point_cloud_with_ocp(tmp_path, write_obj):
+    from datasets_gen.registry import make_surface
+
+    surface = make_surface("bump", 1500, sampling="jittered", seed=0)
+    src = write_obj(tmp_path / "bump.obj", surface.points, surface.faces)
+    out = tmp_path / "bump_uv.obj"
+    assert main(["flatten", str(src), "--points-only", "--param", "k_search=line", "k_nn=8", "-o", str(out)]) == 0
+    v, vt, f = _read_obj(out)
+    assert len(vt) == surface.n_points and len(f) == 0  # a point set: no faces written
+    *_, signed, _ = jacobian_singular_values(surface.points, surface.faces, vt)
+    assert count_foldovers(signed) == 0
