@@ -78,7 +78,8 @@ def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: i
     verts = uv[faces[shown]]
     qc = np.nan_to_num(arrays.qc[shown], nan=norm.vmax, posinf=norm.vmax)
     # Edges in the face colour hide the hairline seams antialiasing leaves between triangles.
-    tris = PolyCollection(splat(verts, len(faces)), array=qc, cmap=QC_CMAP, norm=norm, edgecolors="face", linewidths=0.15)
+    tris = PolyCollection(splat(verts, len(faces)), array=qc, cmap=QC_CMAP, norm=norm, edgecolors="face", linewidths=0.15,
+                          antialiased=False)
     ax.add_collection(tris)
     flipped = verts[arrays.flipped[shown]]
     if len(flipped):
