@@ -1,11 +1,11 @@
 """The k line search of Sec. 4.2 (Eq. 16), independent of how a map is computed at k.
 
-``E(k) = q(k)^2 + r * sum_loops | |t(u_k)| - 1 |`` where ``q(k)`` is the normalised conformal
-energy ``z^H (k L / 2 - M) z / z^H B z`` of the map u_k found at that k (SCP or DNCP) and
-t the turning numbers of the boundary loops (see :mod:`.turning`; for a disk the
-penalty is the paper's ``r |t|`` minus the constant r, which keeps q^2 resolvable). Below k_opt the map
-spins (t >= 2) or its energy is negative; above k_opt it is regular and q > 0 grows. The
-search therefore
+``E(k) = q(k)^2 + r * sum_loops | |t(u_k)| - 1 |`` where ``q(k)`` is the normalised
+conformal energy ``z^H (k L / 2 - M) z / z^H B z`` of the map u_k found at that k (SCP
+or DNCP) and t the turning numbers of the boundary loops (see :mod:`.turning`; for a
+disk the penalty is the paper's ``r |t|`` minus the constant r, which keeps q^2
+resolvable). Below k_opt the map spins (t >= 2) or its energy is negative; above k_opt
+it is regular and q > 0 grows. The search therefore
 
 1. evaluates k0 = 1; if the map there is *good* (regular turning and q >= 0) it steps
    down geometrically until it is not, otherwise up until it is; the last two k bracket

@@ -25,8 +25,9 @@ from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
 from .ksearch import DEFAULT_R, KPoint, line_search
 from .operators import area_matrix, boundary_indicator, check_loops, conformal_operator, is_symmetric, rayleigh_energy
 from .ordering import nested_dissection
-from .reduction import BoundaryReduction, blas_limit, dense_real_pencil, dense_smallest
+from .reduction import BoundaryReduction, dense_real_pencil, dense_smallest
 from .sparse_eigen import SparseFactor, smallest_eigenpair
+from .threads import single_threaded_blas
 from .turning import is_regular_turning, loop_turning_numbers
 
 __all__ = ["ConformalProblem", "ConformalSolution", "K_SEARCH_MODES"]
@@ -210,7 +211,7 @@ class ConformalProblem:
         z_k = np.empty(keep.size, dtype=np.complex128)
         z_k[ip] = pin_values
         try:
-            with blas_limit(keep.size):
+            with single_threaded_blas():
                 z_k[free] = la.solve(op[np.ix_(free, free)], -op[np.ix_(free, ip)] @ pin_values)
         except la.LinAlgError:
             raise SolverError(f"the DNCP system is singular at k = {k:g}; move the pins apart or change k.") from None
@@ -243,10 +244,11 @@ class ConformalProblem:
             pos[free] = np.arange(free.size)
             sub_perm = pos[perm]
             sub_perm = sub_perm[sub_perm >= 0]
-        factor = SparseFactor(op[free][:, free], sub_perm)
-        z = np.empty(self.n, dtype=np.complex128)
-        z[pins] = pin_values
-        z[free] = factor.solve(-(op[free][:, pins] @ pin_values))
+        with single_threaded_blas():
+            factor = SparseFactor(op[free][:, free], sub_perm)
+            z = np.empty(self.n, dtype=np.complex128)
+            z[pins] = pin_values
+            z[free] = factor.solve(-(op[free][:, pins] @ pin_values))
         self.counts["factorizations"] += 1
         self.counts["linear_solves"] += 1
         self.counts["triangular_solves"] += factor.n_solves

@@ -16,29 +16,16 @@ only z_K. This is the back end of the k searches with B = boundary indicator.
 
 from __future__ import annotations
 
-from contextlib import nullcontext
-
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
-from threadpoolctl import threadpool_limits
 
 from datasets_gen.errors import SolverError
 
 from .sparse_eigen import SparseFactor
+from .threads import single_threaded_blas
 
-__all__ = ["BoundaryReduction", "blas_limit", "deflation_basis", "dense_smallest", "dense_real_pencil"]
-
-#: Dense problems smaller than this run single-threaded: LAPACK gains nothing from threads
-#: at boundary sizes of a few hundred, and on a shared 2-core machine the threads' spinning
-#: made a 280 x 280 complex eigen-solve 10x slower (1.2 s instead of 0.11 s).
-SINGLE_THREAD_BELOW = 1500
-
-
-def blas_limit(size: int):
-    """Context: single-threaded BLAS for dense problems below :data:`SINGLE_THREAD_BELOW`."""
-    return threadpool_limits(1, user_api="blas") if size < SINGLE_THREAD_BELOW else nullcontext()
-
+__all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real_pencil"]
 
 class BoundaryReduction:
     """Schur complement of a Laplacian onto a kept vertex set.
@@ -73,15 +60,17 @@ class BoundaryReduction:
         self._l_ik = sp.csc_matrix(lap[self.interior][:, self.keep])
         l_ki = sp.csr_matrix(lap[self.keep][:, self.interior])
         l_kk = lap[self.keep][:, self.keep].toarray()
-        self._factor = SparseFactor(lap[self.interior][:, self.interior], perm_interior) if self.interior.size else None
+        if self.interior.size:
+            with single_threaded_blas():
+                self._factor = SparseFactor(lap[self.interior][:, self.interior], perm_interior)
+        else:
+            self._factor = None
         if self._factor is None:
             self.schur = l_kk
         else:
             self.schur = l_kk.copy()
             block = max(8, int(max_block_bytes // (8 * self.interior.size)))
-            # Single-threaded BLAS in SuperLU's multi-RHS solve: on a loaded 2-core machine
-            # its threads made 231 right-hand sides at 5k vertices take 1.5 s instead of 0.07 s.
-            with threadpool_limits(1, user_api="blas"):
+            with single_threaded_blas():  # see methods.spectral.threads
                 for start in range(0, self.keep.size, block):
                     cols = slice(start, min(start + block, self.keep.size))
                     x = self._factor.solve(self._l_ik[:, cols].toarray())
@@ -104,7 +93,8 @@ class BoundaryReduction:
         z[self.keep] = z_keep
         if self._factor is not None:
             rhs = -(self._l_ik @ np.column_stack([z_keep.real, z_keep.imag]))
-            x = self._factor.solve(rhs)
+            with single_threaded_blas():
+                x = self._factor.solve(rhs)
             z[self.interior] = x[:, 0] + 1j * x[:, 1]
             self.n_solves = self._factor.n_solves
         return z
@@ -142,7 +132,7 @@ def dense_smallest(operator: np.ndarray, *, hermitian: bool, count: int = 3) -> 
     values : (count,) numpy.ndarray of complex128, increasing real part
     vectors : (K, count) numpy.ndarray of complex128, zero-mean unit columns
     """
-    with blas_limit(operator.shape[0]):
+    with single_threaded_blas():
         return _dense_smallest(operator, hermitian, count)
 
 
@@ -197,7 +187,7 @@ def dense_real_pencil(a: np.ndarray, b: np.ndarray, *, hermitian: bool, imag_tol
     SolverError
         No finite real positive eigenvalue, or b is not definite (Hermitian case).
     """
-    with blas_limit(a.shape[0]):
+    with single_threaded_blas():
         return _dense_real_pencil(a, b, hermitian, imag_tol)
 
 

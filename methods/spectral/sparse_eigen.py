@@ -23,6 +23,8 @@ import scipy.sparse.linalg as sla
 
 from datasets_gen.errors import ConvergenceError, SolverError
 
+from .threads import single_threaded_blas
+
 __all__ = ["SparseFactor", "EigenResult", "smallest_eigenpair"]
 
 
@@ -238,6 +240,14 @@ def smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: boo
     ConvergenceError
         ARPACK did not converge, or the smallest eigenvalue could not be isolated.
     """
+    with single_threaded_blas():  # see methods.spectral.threads
+        return _smallest_eigenpair(k_mat, b_mat, hermitian=hermitian, perm=perm, allow_negative=allow_negative,
+                                   check_inertia=check_inertia, nev=nev, tol=tol, seed=seed, max_shifts=max_shifts)
+
+
+def _smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: bool, perm: np.ndarray | None = None,
+                       allow_negative: bool = False, check_inertia: bool = True, nev: int = 2, tol: float = 1e-12,
+                       seed: int = 0, max_shifts: int = 8) -> EigenResult:
     k_mat = sp.csr_matrix(k_mat, dtype=np.complex128)
     b_mat = sp.csr_matrix(b_mat, dtype=np.float64)
     n = k_mat.shape[0]
