@@ -70,7 +70,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         methods=args.methods, datasets=args.datasets, sizes=args.sizes, seeds=args.seeds,
         samplings=args.samplings, noise=args.noise)
     table = run_sweep(suite, args.out, scheduler=args.scheduler, workers=args.workers,
-                      progress=not args.no_progress)
+                      progress=not args.no_progress, isolate=args.isolate)
     print(summary_table(table))
     print(f"\nresults: {Path(args.out) / 'results.parquet'} and results.csv")
     if not args.no_report:
@@ -181,6 +181,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")
     run.add_argument("--scheduler", help="address of a running Dask scheduler")
     run.add_argument("--workers", type=int, help="start a local Dask cluster with N workers")
+    run.add_argument("--isolate", action="store_true",
+                     help="run each cell in a fresh process and record its peak memory (scaling runs)")
     run.add_argument("--benchmark-json", nargs="+", help="pytest-benchmark JSON files to include in the report")
     run.add_argument("--no-report", action="store_true", help="skip building the report")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -24,6 +24,25 @@ def _serial(cells: list[Cell]) -> Iterator[tuple[dict, dict | None]]:
         yield compute_cell(cell)
 
 
+def _compute_with_peak(cell: Cell) -> tuple[dict, dict | None]:
+    import resource
+
+    row, arrays = compute_cell(cell)
+    row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    return row, arrays
+
+
+def _isolated(cells: list[Cell]) -> Iterator[tuple[dict, dict | None]]:
+    """Each cell in a fresh process: its peak resident memory is then the cell's own."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    context = multiprocessing.get_context("spawn")
+    for cell in cells:
+        with ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
+            yield pool.submit(_compute_with_peak, cell).result()
+
+
 def _dask(cells: list[Cell], scheduler: str | None, workers: int | None) -> Iterator[tuple[dict, dict | None]]:
     from .dask_backend import dask_results
 
@@ -31,7 +50,7 @@ def _dask(cells: list[Cell], scheduler: str | None, workers: int | None) -> Iter
 
 
 def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, workers: int | None = None,
-              progress: bool = True, diagnostics: bool = True) -> pd.DataFrame:
+              progress: bool = True, diagnostics: bool = True, isolate: bool = False) -> pd.DataFrame:
     """Run the cells of ``suite`` that ``results_dir`` does not hold yet.
 
     Each finished cell is written at once (see :class:`bench.storage.ResultStore`); a
@@ -49,6 +68,9 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
         Show a progress bar on stderr.
     diagnostics : bool
         Also store per-surface weight histograms and detected boundaries for the report.
+    isolate : bool
+        Run each cell in a fresh process (in-process runs only) and record its peak
+        resident memory as ``peak_rss_mb``; costs an interpreter start per cell.
 
     Returns
     -------
@@ -65,6 +87,8 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
                                       scheduler=scheduler or (f"local-dask:{workers}" if workers else "in-process")))
     if scheduler or workers:
         results: Iterable = _dask(todo, scheduler, workers)
+    elif isolate:
+        results = _isolated(todo)
     else:
         results = _serial(todo)
     bar = tqdm(total=len(todo), desc=f"parambench {suite.name}", unit="cell", disable=not progress,
