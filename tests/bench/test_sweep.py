@@ -90,3 +90,12 @@ def test_killed_run_keeps_finished_cells(tmp_path):
     assert len(table) == 8 and table.cell_id.is_unique and set(table.status) == {"ok"}
     for name, mtime in kept.items():
         assert (out / "cells" / name).stat().st_mtime_ns == mtime  # not recomputed
+
+
+def test_isolated_cells_record_their_peak_memory_and_same_values(tmp_path):
+    suite = TINY.with_overrides(datasets=["plane"], methods=["scp-igl"])
+    isolated = run_sweep(suite, str(tmp_path / "iso"), progress=False, isolate=True)
+    serial = run_sweep(suite, str(tmp_path / "serial"), progress=False)
+    assert isolated.loc[0, "peak_rss_mb"] > 50  # a whole interpreter with numpy and libigl
+    cols = ["cell_id", "qc_mean", "qc_max", "exact_error"]
+    pd.testing.assert_frame_equal(isolated[cols], serial[cols])

@@ -1,0 +1,35 @@
+"""Time against size: point-set methods end to end against ``scp-igl`` on the same surface.
+
+Sizes come from ``PARAMBENCH_BENCH_SIZES`` (comma-separated, default ``10000,100000``;
+add 1000000 for the full scaling study, which ``parambench run --suite scale --isolate``
+also covers with peak memory). Each benchmark stores the stage timings, the size and the
+ratio to ``scp-igl`` on the ground-truth mesh of the same points, timed in the same process.
+The issue's target: ``ocp`` at 100k points no slower than ``scp-igl`` (ratio <= 1).
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from bench.run_cell import surface_for
+from bench.benchmarks.timing import best_of, run_or_skip
+from methods.registry import get_method
+
+SIZES = [int(s) for s in os.environ.get("PARAMBENCH_BENCH_SIZES", "10000,100000").split(",") if s.strip()]
+METHODS = ["scp-igl", "scp", "sdp", "ocp"]
+CASES = [(n, m) for n in SIZES for m in METHODS]
+
+
+@pytest.mark.parametrize("n_points,method_name", CASES, ids=[f"{n}-{m}" for n, m in CASES])
+def test_scaling_bump(benchmark, n_points, method_name):
+    surface = surface_for("bump", n_points, "jittered", 0.0, 0)
+    method = get_method(method_name)
+    given = surface if method.needs_faces else surface.points_only()
+    benchmark.group = f"scaling-{n_points}"
+    base_time = best_of(lambda: get_method("scp-igl")(surface), repeat=1)
+    result = benchmark.pedantic(lambda: run_or_skip(lambda: method(given)), rounds=1, iterations=1)
+    benchmark.extra_info.update(n_points=surface.n_points, stage_timings=result.timings,
+                                time_ratio_vs_scp_igl=benchmark.stats.stats.min / base_time,
+                                k_opt=result.diagnostics.get("k_opt"))
