@@ -1,0 +1,318 @@
+"""A point-set Laplacian whose quadratic form is the Dirichlet energy, boundary term included.
+
+Why: OCP's ``L = I - W^tan`` (Sec. 4.2) has rows that reproduce linear functions at
+*every* point, boundary points included. For a map z its energy ``z^H L z`` is then
+missing the boundary term of Green's identity,
+
+    int_S |grad u|^2 = - int_S u Lap u + oint_dS u d_nu u,
+
+which for a (harmonic) conformal map is the whole Dirichlet energy. The single global k
+of Eq. 15 compensates only on average (k_opt ~ 10-25 on the benchmark shapes) and the map
+keeps a few per cent of extra conformal distortion, most of it near the boundary.
+
+This module builds, from the front end's DEM balls,
+
+    (L u)_i = s_i [(I - W) u]_i + [b_i . G_i u]        (b_i = 0 off the boundary)
+
+* interior rows: W reproduces quadratics in the tangent plane (constraints sum w = 1,
+  sum w t = 0, sum w (t_x^2 - t_y^2) = 0, sum w t_x t_y = 0, minimum weighted norm), so
+  ``[(I - W) f]_i = -(q_i / 4) Lap f`` exactly for quadratic f with ``q_i = sum_j w_ij |t_j|^2``
+  (Eq. 14 with a known per-point k_i = q_i / 2); the row scale ``s_i = 4 a_i / q_i`` turns
+  it into ``-a_i Lap f``, a_i the area per point;
+* boundary rows: W reproduces linear functions only (a half ball cannot carry the
+  isotropy constraints without large negative weights), scaled the same way (a_i halved:
+  half a cell), plus the Neumann term: the outward normal derivative from the
+  least-squares tangent-plane gradient ``G_i``, times the outward "edge normal"
+  ``b_i = R_{-90} (t_next - t_prev) / 2`` built from the two loop neighbours (for a planar
+  boundary polygon ``sum_i x_i . b_i`` is exactly its area, so ``1/2 z^H L z`` equals the
+  boundary area term of Eq. 7 for a linear map).
+
+Rows sum to zero. The matrix is not symmetric, but on a planar region every linear map
+is an exact zero-energy solution of ``(L / 2 - M) z = 0`` (M: boundary area matrix), so
+k_opt = 1 there and is close to 1 on curved surfaces: the k search of Eq. 16 then only
+corrects the estimate of the area per point.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from datasets_gen.errors import InvalidInputError
+
+__all__ = [
+    "DEFAULT_AREA_FACTOR",
+    "DEFAULT_GAUSS_WIDTH",
+    "moment_weights",
+    "gradient_stencils",
+    "boundary_edge_normals",
+    "stencil_matrix",
+    "neumann_laplacian",
+]
+
+#: Area per sample in units of the mean kNN spacing l squared (K = 8). Measured as
+#: (mesh area / N) / l^2 on the bump, cap and holes at 5k points: 0.58-0.63 for grid,
+#: jittered and blue-noise samplings, 0.73-0.77 for uniform random ones.
+DEFAULT_AREA_FACTOR = 0.65
+
+#: Width of the Gaussian weighting of ball members, as a fraction of the squared ball
+#: radius: omega_j = exp(-|t_j|^2 / (width * max_j |t_j|^2)).
+DEFAULT_GAUSS_WIDTH = 0.5
+
+_MOMENTS = {"linear": 3, "quadratic": 5}
+
+
+def _check_balls(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    coords = np.asarray(coords, dtype=np.float64)
+    mask = np.asarray(mask, dtype=bool)
+    if coords.ndim != 3 or coords.shape[2] != 2 or mask.shape != coords.shape[:2]:
+        raise InvalidInputError(f"coords must be (N, B, 2) and mask (N, B); got {coords.shape} and {mask.shape}.")
+    if not np.all(np.isfinite(coords[mask])):
+        raise InvalidInputError("tangent coordinates contain NaN or inf.")
+    return np.where(mask[..., None], coords, 0.0), mask
+
+
+def _gaussian(coords: np.ndarray, mask: np.ndarray, width: float) -> np.ndarray:
+    r2 = (coords**2).sum(-1)
+    h2 = np.maximum(r2.max(axis=1, keepdims=True), np.finfo(float).tiny)
+    return np.exp(-r2 / (width * h2)) * mask
+
+
+def moment_weights(coords: np.ndarray, mask: np.ndarray, order: str = "quadratic", *,
+                   width: float = DEFAULT_GAUSS_WIDTH, reg: float = 1e-10) -> np.ndarray:
+    """Minimum-norm reconstruction weights with prescribed tangent-plane moments.
+
+    Solves, per centre, ``min sum_j w_j^2 / omega_j`` subject to ``sum_j w_j = 1``,
+    ``sum_j w_j t_j = 0`` and, for ``order="quadratic"``, ``sum_j w_j (t_x^2 - t_y^2) = 0``
+    and ``sum_j w_j t_x t_y = 0`` (an isotropic second moment), with Gaussian
+    ``omega_j``. Closed form ``w = Omega A^T (A Omega A^T)^{-1} e_1``, batched.
+
+    Parameters
+    ----------
+    coords : (N, B, 2) numpy.ndarray of float64
+        Tangent coordinates of the ball members relative to their centre (padding ignored).
+    mask : (N, B) numpy.ndarray of bool
+        True for real members.
+    order : {"linear", "quadratic"}
+    width : float
+        Gaussian width (fraction of the squared ball radius).
+    reg : float
+        Relative Tikhonov term on the moment matrix (degenerate balls).
+
+    Returns
+    -------
+    (N, B) numpy.ndarray of float64
+        Weights, zero at padding, each row summing to 1.
+
+    Raises
+    ------
+    InvalidInputError
+        Bad shapes, non-finite coordinates, unknown order, or a ball with fewer members
+        than constraints.
+    """
+    if order not in _MOMENTS:
+        raise InvalidInputError(f"order must be one of {', '.join(_MOMENTS)}, got {order!r}.")
+    t, m = _check_balls(coords, mask)
+    n_con = _MOMENTS[order]
+    if np.any(m.sum(axis=1) < n_con):
+        raise InvalidInputError(f"{order} moment weights need balls of at least {n_con} members; "
+                                "increase ball_k.")
+    tx, ty = t[..., 0], t[..., 1]
+    rows = [m.astype(np.float64), tx, ty]
+    if order == "quadratic":
+        rows += [tx * tx - ty * ty, 2.0 * tx * ty]
+    a = np.stack(rows, axis=1)  # (N, c, B)
+    om = _gaussian(t, m, width)
+    aoa = np.einsum("ncb,nb,ndb->ncd", a, om, a)
+    aoa += reg * np.trace(aoa, axis1=1, axis2=2)[:, None, None] * np.eye(n_con)
+    rhs = np.zeros((a.shape[0], n_con, 1))
+    rhs[:, 0, 0] = 1.0
+    lam = np.linalg.solve(aoa, rhs)[..., 0]
+    w = om * np.einsum("ncb,nc->nb", a, lam)
+    return w / w.sum(axis=1, keepdims=True)
+
+
+def gradient_stencils(coords: np.ndarray, mask: np.ndarray, *, width: float | None = None,
+                      reg: float = 1e-10) -> np.ndarray:
+    """Weighted least-squares tangent-plane gradient at each centre.
+
+    ``grad u(x_i) ~ sum_j P[i, :, j] (u_j - u_i)``, exact for linear u.
+
+    Parameters
+    ----------
+    coords : (N, B, 2) numpy.ndarray of float64
+    mask : (N, B) numpy.ndarray of bool
+    width : float, optional
+        Gaussian width as in :func:`moment_weights`; None (default): equal weights.
+    reg : float
+        As in :func:`moment_weights`.
+
+    Returns
+    -------
+    (N, 2, B) numpy.ndarray of float64
+        Zero at padding.
+
+    Raises
+    ------
+    InvalidInputError
+        Bad shapes or non-finite coordinates.
+    """
+    t, m = _check_balls(coords, mask)
+    om = m.astype(np.float64) if width is None else _gaussian(t, m, width)
+    mom = np.einsum("nb,nbp,nbq->npq", om, t, t)
+    mom += reg * np.trace(mom, axis1=1, axis2=2)[:, None, None] * np.eye(2)
+    return np.linalg.solve(mom, np.transpose(t * om[..., None], (0, 2, 1)))
+
+
+def boundary_edge_normals(ball_indices: np.ndarray, coords: np.ndarray, loops: Sequence[np.ndarray]
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """Outward edge normals ``b_i`` of the boundary points, in each point's tangent frame.
+
+    ``b_i = R_{-90} (t_next - t_prev) / 2`` from the DEM coordinates of the loop
+    neighbours (the boundary lies to the right when walking a loop in its orientation:
+    outer counter-clockwise, holes clockwise, seen from the normals). When a loop
+    neighbour is not in the ball, ``b_i`` is the unit vector away from the ball's centroid
+    times the mean 3D distance to the two loop neighbours... expressed via the ball; see
+    the code.
+
+    Parameters
+    ----------
+    ball_indices : (N, B) numpy.ndarray of int64
+        Ball members, -1 padding.
+    coords : (N, B, 2) numpy.ndarray of float64
+        Their tangent coordinates.
+    loops : sequence of (L_i,) numpy.ndarray of int64
+        Oriented boundary loops.
+
+    Returns
+    -------
+    points : (n_b,) numpy.ndarray of int64
+        Boundary points, loop after loop.
+    normals : (n_b, 2) numpy.ndarray of float64
+        Their ``b_i`` (length ~ boundary length per point).
+    """
+    pts, vecs = [], []
+    for loop in loops:
+        loop = np.asarray(loop, dtype=np.int64)
+        prv, nxt = np.roll(loop, 1), np.roll(loop, -1)
+        members = ball_indices[loop]
+        has_n, has_p = members == nxt[:, None], members == prv[:, None]
+        t = coords[loop]
+        tau = t[np.arange(loop.size), has_n.argmax(axis=1)] - t[np.arange(loop.size), has_p.argmax(axis=1)]
+        b = 0.5 * np.column_stack([tau[:, 1], -tau[:, 0]])
+        # Fallback (loop neighbour outside the ball): away from the ball's centroid, with
+        # the length of the typical chord of this loop.
+        ok = has_n.any(axis=1) & has_p.any(axis=1)
+        if not ok.all():
+            valid = members >= 0
+            cen = (t * valid[..., None]).sum(axis=1) / np.maximum(valid.sum(axis=1), 1)[:, None]
+            away = -cen / np.maximum(np.linalg.norm(cen, axis=1), np.finfo(float).tiny)[:, None]
+            length = np.median(np.linalg.norm(b[ok], axis=1)) if ok.any() else 1.0
+            b[~ok] = length * away[~ok]
+        pts.append(loop)
+        vecs.append(b)
+    return np.concatenate(pts), np.concatenate(vecs)
+
+
+def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int) -> sp.csr_matrix:
+    """Sparse ``S`` with ``(S u)_i = sum_j values[i, j] (u[ball[i, j]] - u_i)`` (rows sum to 0).
+
+    Parameters
+    ----------
+    ball_indices : (N, B) numpy.ndarray of int64
+        -1 padding.
+    values : (N, B) numpy.ndarray of float64
+    n : int
+
+    Returns
+    -------
+    (n, n) scipy.sparse.csr_matrix of float64
+    """
+    mask = ball_indices >= 0
+    rows = np.broadcast_to(np.arange(ball_indices.shape[0])[:, None], ball_indices.shape)
+    off = sp.csr_matrix((values[mask], (rows[mask], ball_indices[mask])), shape=(n, n))
+    return (off - sp.diags(np.asarray(off.sum(axis=1)).ravel())).tocsr()
+
+
+def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Sequence[np.ndarray],
+                      mean_spacing: float, *, interior: str = "quadratic", boundary: str = "linear",
+                      tangent_w: sp.spmatrix | None = None, area_factor: float = DEFAULT_AREA_FACTOR,
+                      width: float = DEFAULT_GAUSS_WIDTH) -> sp.csr_matrix:
+    """The Laplacian ``s_i (I - W)_i + b_i . G_i`` described in the module docstring.
+
+    Parameters
+    ----------
+    ball_indices : (N, B) numpy.ndarray of int64
+        DEM ball members (-1 padding), e.g. ``FrontEnd.ball_indices``.
+    coords : (N, B, 2) numpy.ndarray of float64
+        Their tangent coordinates (``FrontEnd.tangent_coords``).
+    loops : sequence of (L_i,) numpy.ndarray of int64
+        Oriented boundary loops (``FrontEnd.boundary_loops``).
+    mean_spacing : float
+        l; the area per point is ``area_factor * l^2`` (halved at boundary points).
+    interior : {"quadratic", "tangent"}
+        Weights of the interior rows: :func:`moment_weights` of order 2, or the given
+        ``tangent_w`` (W^tan).
+    boundary : {"linear", "tangent"}
+        Weights of the boundary rows: :func:`moment_weights` of order 1, or ``tangent_w``.
+    tangent_w : (N, N) scipy.sparse matrix, optional
+        W^tan, required when either option is "tangent".
+    area_factor : float
+    width : float
+        Gaussian width of the moment weights (the gradient uses equal weights).
+
+    Returns
+    -------
+    (N, N) scipy.sparse.csr_matrix of float64
+        Rows sum to zero; scaled so that ``1/2 u^T L u`` approximates the Dirichlet
+        energy (k_opt ~ 1 in :class:`~methods.spectral.ConformalProblem`).
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown options, missing ``tangent_w``, non-positive spacing or area factor, bad
+        shapes.
+    """
+    if interior not in ("quadratic", "tangent") or boundary not in ("linear", "tangent"):
+        raise InvalidInputError(f"interior must be 'quadratic' or 'tangent' and boundary 'linear' or 'tangent'; "
+                                f"got {interior!r}, {boundary!r}.")
+    if (interior == "tangent" or boundary == "tangent") and tangent_w is None:
+        raise InvalidInputError("tangent_w (W^tan) is needed for 'tangent' rows.")
+    if not (mean_spacing > 0 and area_factor > 0):
+        raise InvalidInputError("mean_spacing and area_factor must be positive.")
+    ball_indices = np.asarray(ball_indices, dtype=np.int64)
+    mask = ball_indices >= 0
+    t, mask = _check_balls(coords, mask)
+    n = ball_indices.shape[0]
+    bpts, bvec = boundary_edge_normals(ball_indices, t, loops)
+    on_boundary = np.zeros(n, dtype=bool)
+    on_boundary[bpts] = True
+
+    w = np.zeros(ball_indices.shape)
+    if "tangent" in (interior, boundary):
+        rows = np.broadcast_to(np.arange(n)[:, None], ball_indices.shape)
+        w_tan = np.zeros(ball_indices.shape)
+        w_tan[mask] = np.asarray(sp.csr_matrix(tangent_w)[rows[mask], ball_indices[mask]]).ravel()
+    inner = ~on_boundary
+    w[inner] = (moment_weights(t[inner], mask[inner], "quadratic", width=width) if interior == "quadratic"
+                else w_tan[inner])
+    w[on_boundary] = (moment_weights(t[on_boundary], mask[on_boundary], "linear", width=width)
+                      if boundary == "linear" else w_tan[on_boundary])
+
+    # Eq. 14 with a known k_i: [(I - W) f]_i = -(q_i / 4) Lap f for quadratic f.
+    q = (w * (t**2).sum(-1)).sum(axis=1)
+    q_ref = np.median(q[inner]) if inner.any() else np.median(q)
+    q = np.maximum(q, 0.25 * q_ref)  # half balls with negative weights: keep the scale sane
+    area = np.full(n, area_factor * mean_spacing**2)
+    area[on_boundary] *= 0.5
+    scale = 4.0 * area / q
+    lap = -stencil_matrix(ball_indices, w * scale[:, None], n)
+
+    grad = gradient_stencils(t[on_boundary], mask[on_boundary])  # (n_b, 2, B)
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[bpts] = np.arange(bpts.size)
+    flux = np.zeros(ball_indices.shape)
+    flux[on_boundary] = np.einsum("nc,ncb->nb", bvec[pos[on_boundary]], grad)
+    return (lap + stencil_matrix(ball_indices, flux, n)).tocsr()

@@ -1,0 +1,68 @@
+"""ocp on points alone against cotangent SCP on the ground-truth mesh (5k points).
+
+Figures measured when these bounds were set (energy="neumann", k_search="line"; QC mean
+of ocp evaluated on the ground-truth mesh, relative to scp-igl):
+
+    shape   grid     jittered   (foldovers 0 everywhere)
+    bump    +0.03 %  +0.03 %
+    saddle  +0.02 %  +0.06 %
+    cap     +0.00 %  +0.01 %    stereographic error 6.7e-5 / 3.8e-4 of the diameter
+    holes   +0.00 %  +0.00 %    exact error 2e-7 / 6e-8 (planar: the identity is exact)
+
+energy="paper" (I - W^tan, Sec. 4.2) gave +0.8 to +6.7 % on the same cases.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.metrics import evaluate
+from datasets_gen.registry import make_surface
+from methods import get_method
+
+N_POINTS = 5000
+#: Honest bound: the worst measured case is +0.06 %.
+QC_TOLERANCE = 0.002
+
+
+def _run(shape: str, sampling: str, **params):
+    surf = make_surface(shape, N_POINTS, sampling=sampling, seed=0)
+    kw = dict(exact_uv=surf.exact_uv, boundary_loops=surf.boundary_loops, diameter=surf.diameter)
+    ref = evaluate(surf.points, surf.faces, get_method("scp-igl")(surf).uv, **kw)
+    res = get_method("ocp")(surf.points_only(), **params)
+    return evaluate(surf.points, surf.faces, res.uv, **kw), ref, res
+
+
+def _check(ev, ref):
+    assert ev["foldovers"] == 0
+    assert ev["qc_mean"] <= ref["qc_mean"] * (1 + QC_TOLERANCE)
+
+
+def test_cap_jittered_matches_scp_and_stereographic_map():
+    ev, ref, res = _run("cap", "jittered")
+    _check(ev, ref)
+    assert ev["exact_error"] <= 5e-4  # issue target 1e-3; measured 3.8e-4
+    assert abs(res.diagnostics["k_opt"] - 1.0) < 0.05  # the energy is at the conformal scale
+    assert res.diagnostics["energy"] == "neumann"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sampling", ["grid", "jittered"])
+@pytest.mark.parametrize("shape", ["bump", "saddle", "cap", "holes"])
+def test_ocp_within_bound_of_cotangent_scp(shape, sampling):
+    if (shape, sampling) == ("cap", "jittered"):
+        pytest.skip("covered by the fast test")
+    ev, ref, _ = _run(shape, sampling)
+    _check(ev, ref)
+    if shape == "cap":
+        assert ev["exact_error"] <= 5e-4
+    if shape == "holes":  # planar with holes: the identity is an exact zero-energy map
+        assert ev["exact_error"] <= 1e-5
+
+
+def test_paper_energy_is_kept():
+    """energy="paper" is Sec. 4.2 as before: k_opt far above 1 and a few per cent more QC."""
+    ev, ref, res = _run("cap", "jittered", energy="paper")
+    assert ev["foldovers"] == 0
+    assert res.diagnostics["k_opt"] > 5
+    assert ev["qc_mean"] > ref["qc_mean"] * 1.003  # measured +0.76 %
