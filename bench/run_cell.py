@@ -22,7 +22,7 @@ from .memory import PeakMemory
 from .metrics import evaluate, per_face_qc, uv_delaunay_faces
 from .storage import ResultStore
 
-__all__ = ["compute_cell", "run_cell", "store_cell", "surface_for", "METRIC_COLUMNS", "ARTIFACT_MAX_POINTS"]
+__all__ = ["compute_cell", "failed_row", "run_cell", "store_cell", "surface_for", "METRIC_COLUMNS", "ARTIFACT_MAX_POINTS"]
 
 METRIC_COLUMNS = ("qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
                   "area_distortion", "turning_numbers", "exact_error", "n_eval_faces")
@@ -53,6 +53,13 @@ def _empty_row(cell: Cell) -> dict:
                eval_mesh="", time_total=None, timings="{}", diagnostics="{}", k_opt=None,
                peak_memory_mb=None, artifact="")
     row.update({c: None for c in METRIC_COLUMNS})
+    return row
+
+
+def failed_row(cell: Cell, error_type: str, message: str) -> dict:
+    """The row of a cell that failed outside the method (e.g. its process died)."""
+    row = _empty_row(cell)
+    row.update(status="failed", error_type=error_type, error=message)
     return row
 
 

@@ -36,11 +36,18 @@ def _isolated(cells: list[Cell]) -> Iterator[tuple[dict, dict | None]]:
     """Each cell in a fresh process: its peak resident memory is then the cell's own."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    from .run_cell import failed_row
 
     context = multiprocessing.get_context("spawn")
     for cell in cells:
         with ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
-            yield pool.submit(_compute_with_peak, cell).result()
+            try:
+                yield pool.submit(_compute_with_peak, cell).result()
+            except BrokenProcessPool:
+                yield failed_row(cell, "WorkerDied", "the cell's process died (killed, or out of memory); "
+                                 "run it alone or on a larger machine."), None
 
 
 def _dask(cells: list[Cell], scheduler: str | None, workers: int | None) -> Iterator[tuple[dict, dict | None]]:
