@@ -20,7 +20,8 @@ from .errors import (
     TooFewPointsError,
 )
 
-__all__ = ["Surface", "validate_points", "validate_faces", "validate_normals", "MIN_POINTS"]
+__all__ = ["Surface", "validate_points", "validate_faces", "validate_normals", "find_duplicate_points",
+           "require_unique_points", "MIN_POINTS"]
 
 #: Fewer points than this cannot define a surface patch with an interior.
 MIN_POINTS = 4
@@ -90,6 +91,24 @@ def find_duplicate_points(points: np.ndarray, rel_tol: float = DUPLICATE_TOL) ->
     diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     tol = max(rel_tol * diag, np.finfo(float).tiny)
     return cKDTree(points).query_pairs(tol, output_type="ndarray").astype(np.int64)
+
+
+def require_unique_points(points: np.ndarray, name: str | None = None) -> None:
+    """Raise if two points coincide (see :func:`find_duplicate_points`).
+
+    Raises
+    ------
+    DuplicatePointsError
+        With the number of pairs and the first pair's indices.
+    """
+    dup = find_duplicate_points(points)
+    if dup.size:
+        i, j = (int(v) for v in dup[0])
+        prefix = f"{name}: " if name else ""
+        raise DuplicatePointsError(
+            f"{prefix}{len(dup)} pair(s) of duplicate points (first: {i} and {j}); "
+            "merge them first (e.g. pymeshlab meshing_remove_duplicate_vertices) and retry."
+        )
 
 
 def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) -> np.ndarray:
@@ -227,13 +246,7 @@ class Surface:
 
     def __post_init__(self) -> None:
         pts = validate_points(self.points)
-        dup = find_duplicate_points(pts)
-        if dup.size:
-            i, j = (int(v) for v in dup[0])
-            raise DuplicatePointsError(
-                f"{self.name}: {len(dup)} pair(s) of duplicate points (first: {i} and {j}); "
-                "merge them first (e.g. pymeshlab meshing_remove_duplicate_vertices) and retry."
-            )
+        require_unique_points(pts, self.name)
         object.__setattr__(self, "points", pts)
         n = pts.shape[0]
         if self.faces is not None:

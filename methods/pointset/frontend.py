@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import DuplicatePointsError, InvalidInputError
-from datasets_gen.surface import MIN_POINTS, find_duplicate_points, validate_normals, validate_points
+from datasets_gen.errors import InvalidInputError
+from datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
 
 from ..base import StageTimer
 from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary, no_boundary_error
@@ -120,13 +120,7 @@ def _validate(points: Any, normals: Any, k_nn: int, weights: str, dem: str,
     if int(k_nn) != k_nn or k_nn < 2:
         raise InvalidInputError(f"k_nn must be an integer >= 2, got {k_nn}.")
     pts = validate_points(points, min_points=max(MIN_POINTS, int(k_nn) + 1))
-    dup = find_duplicate_points(pts)
-    if dup.size:
-        i, j = (int(v) for v in dup[0])
-        raise DuplicatePointsError(
-            f"{len(dup)} pair(s) of duplicate points (first: {i} and {j}); merge them first "
-            "(e.g. pymeshlab meshing_remove_duplicate_vertices) and retry."
-        )
+    require_unique_points(pts)
     nrm = None if normals is None else validate_normals(normals, pts.shape[0])
     return pts, nrm
 
