@@ -8,7 +8,11 @@ boundary loops and B, and picks a back end per call:
   (cotangent SCP, the fast path) and whenever B is not supported on the boundary.
 * ``"boundary"``: the exact reduction of :mod:`.reduction` (one real factorisation of
   the interior block, one solve per boundary vertex, then a dense boundary-sized problem
-  per k). Used for the k searches and ``k_search="direct"``.
+  per k). Used for the k searches on small boundaries and ``k_search="direct"``.
+* ``"subspace"``: SCP's k search on a few dozen smooth boundary functions
+  (:mod:`.subspace`: one solve per function, then an m x m problem per k), the map
+  then solved exactly at k_opt by the sparse back end. Used for the SCP k search when
+  the boundary has more than ``subspace_from`` vertices.
 """
 
 from __future__ import annotations
@@ -27,13 +31,14 @@ from .operators import area_matrix, boundary_indicator, check_loops, conformal_o
 from .ordering import nested_dissection
 from .reduction import BoundaryReduction, dense_real_pencil, dense_smallest
 from .sparse_eigen import SparseFactor, smallest_eigenpair
+from .subspace import DEFAULT_MODES, BoundarySubspace
 from .threads import single_threaded_blas
 from .turning import is_regular_turning, loop_turning_numbers
 
 __all__ = ["ConformalProblem", "ConformalSolution", "K_SEARCH_MODES"]
 
 K_SEARCH_MODES = ("none", "line", "direct")
-BACKENDS = ("auto", "sparse", "boundary")
+BACKENDS = ("auto", "sparse", "boundary", "subspace")
 
 
 @dataclass
@@ -89,6 +94,11 @@ class ConformalProblem:
         The caller knows ``k L / 2 - M`` is positive semi-definite for k >= this value
         (1 for cotangent weights: per triangle the Dirichlet energy of a linear map is at
         least its image's area). The inertia check of the fixed-k SCP solve is then skipped.
+    subspace_from : int
+        With more boundary vertices than this, the SCP k search runs on a boundary
+        subspace (``backend="subspace"``) under ``backend="auto"``.
+    subspace_modes : int
+        Fourier modes of that subspace (:func:`methods.spectral.subspace.boundary_basis`).
 
     Raises
     ------
@@ -100,7 +110,8 @@ class ConformalProblem:
 
     def __init__(self, laplacian: sp.spmatrix, loops: Sequence[np.ndarray], b_matrix="boundary",
                  points: np.ndarray | None = None, max_boundary_dense: int = 4000,
-                 psd_from_k: float | None = None) -> None:
+                 psd_from_k: float | None = None, subspace_from: int = 300,
+                 subspace_modes: int = DEFAULT_MODES) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -132,11 +143,26 @@ class ConformalProblem:
         self.points = None if points is None else np.asarray(points, dtype=np.float64)
         self.max_boundary_dense = int(max_boundary_dense)
         self.psd_from_k = psd_from_k
-        self.counts = {"eigen_solves": 0, "linear_solves": 0, "factorizations": 0, "triangular_solves": 0}
+        self.subspace_from = int(subspace_from)
+        self.subspace_modes = int(subspace_modes)
+        self._counts = {"eigen_solves": 0, "linear_solves": 0, "factorizations": 0, "triangular_solves": 0}
+        self._retired_solves = 0
         self._perm: np.ndarray | None = None
         self._reductions: dict[tuple, BoundaryReduction] = {}
 
     # ------------------------------------------------------------------ helpers
+    @property
+    def counts(self) -> dict[str, int]:
+        """Solver work so far: eigen-solves, linear solves, factorisations, triangular solves."""
+        out = dict(self._counts)
+        out["triangular_solves"] += self._retired_solves + sum(r.n_solves for r in self._reductions.values())
+        return out
+
+    def _release_reductions(self) -> None:
+        """Drop the interior factorisations (memory) but keep their solve counts."""
+        self._retired_solves += sum(r.n_solves for r in self._reductions.values())
+        self._reductions.clear()
+
     def operator(self, k: float) -> sp.csr_matrix:
         """The sparse conformal operator ``k L / 2 - M``."""
         return conformal_operator(self.laplacian, self.area, k)
@@ -160,8 +186,7 @@ class ConformalProblem:
                 sub = self.laplacian[interior][:, interior]
                 perm = nested_dissection(self.points[interior], sub)
             red = BoundaryReduction(self.laplacian, keep, perm)
-            self.counts["factorizations"] += 1
-            self.counts["triangular_solves"] += red.n_solves
+            self._counts["factorizations"] += 1
             self._reductions[extra] = red
         return self._reductions[extra]
 
@@ -175,9 +200,17 @@ class ConformalProblem:
             raise UnknownNameError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}.")
         if backend == "boundary":
             return True
-        if backend == "sparse":
+        if backend in ("sparse", "subspace"):
             return False
         return self.b_on_boundary and self.boundary.size <= self.max_boundary_dense
+
+    def _use_subspace(self, backend: str) -> bool:
+        """SCP k search on the boundary subspace?"""
+        if backend == "subspace":
+            if not self.b_on_boundary:
+                raise InvalidInputError("the subspace back end needs B on the boundary (b_matrix='boundary').")
+            return True
+        return backend == "auto" and self.b_on_boundary and self.boundary.size > self.subspace_from
 
     def _pins(self, pins: Sequence[int], pin_values: Sequence[complex]) -> tuple[np.ndarray, np.ndarray]:
         p = np.asarray(pins, dtype=np.int64).ravel()
@@ -194,7 +227,7 @@ class ConformalProblem:
         m_kk = self.area[red.keep][:, red.keep].toarray()
         op = (0.5 * k) * red.schur - m_kk
         vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=1)
-        self.counts["eigen_solves"] += 1
+        self._counts["eigen_solves"] += 1
         z_k = vecs[:, 0]
         turning = loop_turning_numbers(z_k, self._local_loops(red.keep))
         return KPoint(k=k, energy=float(vals[0].real), turning=turning, state=(z_k, complex(vals[0])))
@@ -215,7 +248,7 @@ class ConformalProblem:
                 z_k[free] = la.solve(op[np.ix_(free, free)], -op[np.ix_(free, ip)] @ pin_values)
         except la.LinAlgError:
             raise SolverError(f"the DNCP system is singular at k = {k:g}; move the pins apart or change k.") from None
-        self.counts["linear_solves"] += 1
+        self._counts["linear_solves"] += 1
         w = np.zeros(keep.size)
         w[: self.boundary.size] = 1.0
         zc = z_k - np.dot(w, z_k) / w.sum()
@@ -223,14 +256,56 @@ class ConformalProblem:
         turning = loop_turning_numbers(z_k, self._local_loops(keep))
         return KPoint(k=k, energy=energy, turning=turning, state=(z_k, None))
 
+    def _scp_subspace_search(self, line_kwargs: dict) -> tuple[ConformalSolution, dict]:
+        """k_opt by the line search on the boundary subspace, then the exact map there."""
+        red = self._reduction()
+        sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes)
+        result = line_search(sub.evaluate, **line_kwargs)
+        self._counts["eigen_solves"] += result.n_evaluations + 1
+        point, info = sub.refine(result.best.k)
+        backend = "subspace"
+        if point.regular:
+            z = red.extend(point.state[0])
+            # The interior factorisation is done with; free it before anything else.
+            self._release_reductions()
+        else:
+            self._release_reductions()
+            point = self._scp_sparse_regular(result.best.k)
+            z, backend = point.state[0], "subspace+sparse"
+        sol = ConformalSolution(z=z, k=point.k, energy=point.energy, turning=point.turning,
+                                eigenvalue=point.state[1], diagnostics={"backend": backend})
+        diag = {"landscape": result.landscape, "bracket": list(result.bracket),
+                "n_k_evaluations": result.n_evaluations, "subspace_size": sub.size,
+                "subspace_k_opt": float(result.best.k), "subspace_energy": float(result.best.energy), **info}
+        return sol, diag
+
+    def _scp_sparse_regular(self, k: float, max_steps: int = 6) -> KPoint:
+        """Exact SCP at k, nudged upwards if it still spins just below the exact transition.
+
+        The fallback when the refined subspace map at k_opt is not regular: the
+        subspace's k_opt is an approximation, so when the exact map there is not regular
+        or its energy is clearly negative, k grows by 1e-4, 2e-4, 4e-4, ... relative.
+        """
+        p = self._scp_sparse(k, True)
+        step = 1e-4
+        for _ in range(max_steps):
+            if p.regular and p.energy >= -1e-6 * abs(k):
+                return p
+            p = self._scp_sparse(k * (1.0 + step), True)
+            step *= 2.0
+        if not p.regular:
+            raise SolverError(f"the exact SCP map near the subspace k_opt = {k:.6g} is not regular (turning numbers "
+                              f"{p.turning.tolist()}); use backend='boundary' for an exact k search.")
+        return p
+
     # ------------------------------------------------------------- sparse solves
     def _scp_sparse(self, k: float, allow_negative: bool) -> KPoint:
         known_psd = self.psd_from_k is not None and k >= self.psd_from_k
         res = smallest_eigenpair(self.operator(k), self.b, hermitian=self.hermitian, perm=self._order(),
                                  allow_negative=allow_negative, check_inertia=not known_psd)
-        self.counts["eigen_solves"] += 1
-        self.counts["factorizations"] += res.n_factorizations
-        self.counts["triangular_solves"] += res.n_solves
+        self._counts["eigen_solves"] += 1
+        self._counts["factorizations"] += res.n_factorizations
+        self._counts["triangular_solves"] += res.n_solves
         turning = loop_turning_numbers(res.vector, self.loops)
         return KPoint(k=k, energy=float(res.value.real), turning=turning, state=(res.vector, res.value))
 
@@ -249,9 +324,9 @@ class ConformalProblem:
             z = np.empty(self.n, dtype=np.complex128)
             z[pins] = pin_values
             z[free] = factor.solve(-(op[free][:, pins] @ pin_values))
-        self.counts["factorizations"] += 1
-        self.counts["linear_solves"] += 1
-        self.counts["triangular_solves"] += factor.n_solves
+        self._counts["factorizations"] += 1
+        self._counts["linear_solves"] += 1
+        self._counts["triangular_solves"] += factor.n_solves
         energy = rayleigh_energy(z, op, self.b)
         return KPoint(k=k, energy=energy, turning=loop_turning_numbers(z, self.loops), state=(z, None))
 
@@ -287,7 +362,7 @@ class ConformalProblem:
         red = self._reduction(extra)
         m_kk = self.area[red.keep][:, red.keep].toarray()
         mus, vecs = dense_real_pencil(m_kk, 0.5 * red.schur, hermitian=self.hermitian)
-        self.counts["eigen_solves"] += 1
+        self._counts["eigen_solves"] += 1
         local = self._local_loops(red.keep)
         n_cand = mus.size if max_candidates is None else min(mus.size, max_candidates)
         for i in range(n_cand):
@@ -360,7 +435,7 @@ class ConformalProblem:
             The k used when ``k_search="none"``.
         pins, pin_values
             DNCP's pinned vertices and their positions (complex).
-        backend : {"auto", "sparse", "boundary"}
+        backend : {"auto", "sparse", "boundary", "subspace"}
         r, growth, bracket, xatol
             See :func:`methods.spectral.ksearch.line_search`.
 
@@ -402,6 +477,9 @@ class ConformalProblem:
                                         diagnostics={"backend": "boundary"})
             else:
                 sol = self.dncp(k_opt, pins_a, vals, backend=backend)
+        elif mode == "scp" and self._use_subspace(backend):
+            sol, extra = self._scp_subspace_search(dict(growth=growth, r=r, bracket=bracket, xatol=xatol))
+            diag.update(extra)
         else:
             use_b = self._use_boundary(backend)
             if mode == "scp":

@@ -45,6 +45,7 @@ class BoundaryReduction:
     ----------
     keep, interior : numpy.ndarray of int64
     schur : (K, K) numpy.ndarray of float64
+        Computed on first access.
     n_solves : int
         Right-hand sides solved so far.
     """
@@ -58,24 +59,56 @@ class BoundaryReduction:
         mask[self.keep] = False
         self.interior = np.flatnonzero(mask)
         self._l_ik = sp.csc_matrix(lap[self.interior][:, self.keep])
-        l_ki = sp.csr_matrix(lap[self.keep][:, self.interior])
-        l_kk = lap[self.keep][:, self.keep].toarray()
+        self._l_ki = sp.csr_matrix(lap[self.keep][:, self.interior])
+        self._l_kk = sp.csr_matrix(lap[self.keep][:, self.keep])
+        self._max_block_bytes = int(max_block_bytes)
+        self._schur: np.ndarray | None = None
         if self.interior.size:
             with single_threaded_blas():
                 self._factor = SparseFactor(lap[self.interior][:, self.interior], perm_interior)
         else:
             self._factor = None
+
+    @property
+    def boundary_block(self) -> sp.csr_matrix:
+        """(K, K) scipy.sparse.csr_matrix of float64: L_KK."""
+        return self._l_kk
+
+    @property
+    def n_solves(self) -> int:
+        """Right-hand sides solved with the interior factorisation so far."""
+        return 0 if self._factor is None else self._factor.n_solves
+
+    @property
+    def schur(self) -> np.ndarray:
+        """(K, K) numpy.ndarray of float64: the dense S, computed on first use (one solve per kept vertex)."""
+        if self._schur is None:
+            self._schur = self.apply_schur(np.eye(self.keep.size))
+        return self._schur
+
+    def apply_schur(self, x: np.ndarray) -> np.ndarray:
+        """``S x = L_KK x - L_KI L_II^{-1} L_IK x`` without forming S.
+
+        Parameters
+        ----------
+        x : (K, m) numpy.ndarray of float64
+
+        Returns
+        -------
+        (K, m) numpy.ndarray of float64
+            Costs m solves with the interior factorisation, in blocks bounded by
+            ``max_block_bytes``.
+        """
+        x = np.asarray(x, dtype=np.float64)
+        out = np.asarray(self._l_kk @ x, dtype=np.float64)
         if self._factor is None:
-            self.schur = l_kk
-        else:
-            self.schur = l_kk.copy()
-            block = max(8, int(max_block_bytes // (8 * self.interior.size)))
-            with single_threaded_blas():  # see methods.spectral.threads
-                for start in range(0, self.keep.size, block):
-                    cols = slice(start, min(start + block, self.keep.size))
-                    x = self._factor.solve(self._l_ik[:, cols].toarray())
-                    self.schur[:, cols] -= l_ki @ x
-        self.n_solves = 0 if self._factor is None else self._factor.n_solves
+            return out
+        block = max(8, int(self._max_block_bytes // (8 * self.interior.size)))
+        with single_threaded_blas():  # see methods.spectral.threads
+            for start in range(0, x.shape[1], block):
+                cols = slice(start, min(start + block, x.shape[1]))
+                out[:, cols] -= self._l_ki @ self._factor.solve(np.ascontiguousarray(self._l_ik @ x[:, cols]))
+        return out
 
     def extend(self, z_keep: np.ndarray) -> np.ndarray:
         """Harmonic extension of kept values to all vertices.
@@ -96,7 +129,6 @@ class BoundaryReduction:
             with single_threaded_blas():
                 x = self._factor.solve(rhs)
             z[self.interior] = x[:, 0] + 1j * x[:, 1]
-            self.n_solves = self._factor.n_solves
         return z
 
 

@@ -1,0 +1,94 @@
+"""The boundary-subspace k search against the exact dense one, and its building blocks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from datasets_gen.errors import InvalidInputError
+from datasets_gen.registry import make_surface
+from methods.base import StageTimer
+from methods.plugins.ocp import ocp_laplacian
+from methods.pointset.plugin_support import FRONTEND_DEFAULTS, run_frontend
+from methods.spectral import ConformalProblem
+from methods.spectral.reduction import BoundaryReduction
+from methods.spectral.subspace import BoundarySubspace, boundary_basis
+
+
+def _ocp_problem(shape: str, n: int) -> ConformalProblem:
+    surf = make_surface(shape, n, sampling="jittered", seed=0).points_only()
+    front = run_frontend(surf, dict(FRONTEND_DEFAULTS), StageTimer())
+    return ConformalProblem(ocp_laplacian(front, "neumann"), front.boundary_loops, points=front.points)
+
+
+@pytest.fixture(scope="module")
+def bump_ocp() -> ConformalProblem:
+    return _ocp_problem("bump", 4000)
+
+
+@pytest.fixture(scope="module")
+def holes_ocp() -> ConformalProblem:
+    return _ocp_problem("holes", 4000)
+
+
+def test_basis_is_orthonormal_zero_sum_and_spans_the_coordinates(saddle):
+    loops = saddle.loops
+    q = boundary_basis(loops, saddle.points, n_modes=16)
+    assert np.allclose(q.T @ q, np.eye(q.shape[1]), atol=1e-12)
+    assert np.allclose(q.sum(axis=0), 0.0, atol=1e-10)
+    xyz = saddle.points[np.concatenate(loops)]
+    xyz = xyz - xyz.mean(axis=0)
+    # The coordinate functions lie in the span: projecting them loses nothing.
+    assert np.linalg.norm(xyz - q @ (q.T @ xyz)) <= 1e-10 * np.linalg.norm(xyz)
+
+
+def test_apply_schur_equals_the_dense_schur_complement(holes):
+    keep = np.concatenate(holes.loops)
+    red = BoundaryReduction(holes.lap, keep)
+    x = np.random.default_rng(0).standard_normal((keep.size, 5))
+    fast = red.apply_schur(x)
+    dense = BoundaryReduction(holes.lap, keep).schur @ x
+    assert np.allclose(fast, dense, rtol=0, atol=1e-10 * np.abs(dense).max())
+
+
+@pytest.mark.parametrize("case", ["bump_ocp", "holes_ocp"])
+def test_subspace_search_matches_the_exact_dense_search(case, request, uv_rms):
+    problem = request.getfixturevalue(case)
+    exact = problem.solve("scp", "line", backend="boundary")
+    problem._reductions.clear()
+    fast = problem.solve("scp", "line", backend="subspace")
+    assert fast.diagnostics["backend"] == "subspace"
+    assert abs(fast.k / exact.k - 1) < 1e-4
+    assert np.array_equal(fast.turning, exact.turning)
+    assert uv_rms(fast.uv, exact.uv) < 1e-4
+    # The subspace stays small: a few dozen functions, not one per boundary vertex.
+    assert fast.diagnostics["subspace_size"] < problem.boundary.size / 3
+    assert fast.diagnostics["boundary_residual"] < 1e-6
+
+
+def test_refine_reaches_the_exact_boundary_eigenvector(bump_ocp):
+    red = bump_ocp._reduction()
+    sub = BoundarySubspace(red, bump_ocp.area, bump_ocp.loops, bump_ocp.points)
+    k = 1.02
+    ritz = sub.evaluate(k)
+    point, info = sub.refine(k)
+    m_kk = bump_ocp.area[red.keep][:, red.keep].toarray()
+    op = 0.5 * k * red.schur - m_kk
+    lam, vecs = np.linalg.eig(op)
+    # Skip the translation (eigenvalue 0); take the smallest real part among the others.
+    i = int(np.argmin(np.where(np.abs(lam) < 1e-9, np.inf, lam.real)))
+    assert abs(point.energy - lam[i].real) <= 1e-5 * abs(lam[i].real)
+    z, ref = point.state[0], vecs[:, i]
+    z, ref = z - z.mean(), ref - ref.mean()
+    cos = abs(np.vdot(z, ref)) / (np.linalg.norm(z) * np.linalg.norm(ref))
+    assert 1 - cos < 1e-8
+    # The refinement does better than the search basis alone.
+    assert abs(point.energy - lam[i].real) < abs(ritz.energy - lam[i].real)
+    assert info["refine_steps"] >= 1
+
+
+def test_subspace_needs_the_boundary_b(saddle):
+    problem = ConformalProblem(saddle.lap, saddle.loops, b_matrix=sp.identity(saddle.points.shape[0]))
+    with pytest.raises(InvalidInputError, match="boundary"):
+        problem.solve("scp", "line", backend="subspace")
