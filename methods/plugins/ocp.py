@@ -73,7 +73,9 @@ class Ocp(Method):
 
     ``k_search="line"``: search forward from k = 1 until the boundary turning number is
     1, then minimise within that step (the paper's procedure; the landscape is kept).
-    ``"direct"``: k_opt as the largest generalised eigenvalue with a regular map.
+    ``"direct"``: k_opt as the largest (near-)real generalised eigenvalue of the
+    area/Dirichlet pencil with a regular map; it matches the line search to ~1e-7 in k
+    at a fifth to a third of its time (``bench/benchmarks/bench_ksearch.py``).
     ``energy``: the Laplacian L, see the module docstring ("paper" is Sec. 4.2 to the
     letter; "neumann", the default, adds the per-point scale of Eq. 14 and the boundary
     term of the Dirichlet energy). ``area_factor``: area per point / l^2 ("neumann*" only).
@@ -89,8 +91,10 @@ class Ocp(Method):
         front = run_frontend(surface, params, timer)
         with timer("laplacian"):
             lap = ocp_laplacian(front, params["energy"], params["area_factor"])
+        front = front.without_balls()
         with timer("solve"):
             problem = _conformal_problem(front, lap)
+            del lap
             sol = problem.solve("scp", params["k_search"])
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **problem.counts, "energy": params["energy"],

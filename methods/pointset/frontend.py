@@ -6,7 +6,7 @@ The point-set methods (LEM, LLE, SDP, OCP) call :func:`build_frontend` and use `
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -107,6 +107,14 @@ class FrontEnd:
     def n_points(self) -> int:
         """N."""
         return int(self.points.shape[0])
+
+    def without_balls(self) -> "FrontEnd":
+        """A copy without the per-ball data (balls, tangent coordinates, W, L): set to None.
+
+        Solvers that have built their operator call this before factorising, so that at
+        1M points the ~1.3 GB of ball data is not held through the factorisation.
+        """
+        return replace(self, ball_indices=None, tangent_coords=None, W=None, L=None)
 
 
 def _validate(points: Any, normals: Any, k_nn: int, weights: str, dem: str,

@@ -212,6 +212,7 @@ def dense_real_pencil(a: np.ndarray, b: np.ndarray, *, hermitian: bool, imag_tol
     Returns
     -------
     mus : (m,) numpy.ndarray of float64, decreasing, all > 0
+        Real parts of the (near-)real eigenvalues.
     vectors : (K, m) numpy.ndarray of complex128, zero-mean unit columns
 
     Raises

@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.spatial
 
-from bench.metrics import evaluate
+from bench.metrics import evaluate, similarity_align
 from datasets_gen.errors import InvalidInputError, MissingFacesError, NoBoundaryError
 from datasets_gen.registry import make_surface
 from datasets_gen.surface import Surface
@@ -61,6 +61,19 @@ def test_scp_tan_spins_and_ocp_does_not(dataset):
     fixed = get_method("ocp")(surface, energy="paper")  # Sec. 4.2 as printed: W^tan needs k_opt >> 1
     assert fixed.diagnostics["turning"][0] == 1 and fixed.diagnostics["k_opt"] > 1
     assert len(fixed.diagnostics["landscape"]["k"]) >= 3
+
+
+@pytest.mark.parametrize("dataset", ["bump", "saddle", "cap"])
+def test_ocp_direct_k_matches_the_line_search(dataset):
+    # W^tan-type Laplacians are not symmetric: the energy's zero crossing is a pencil
+    # eigenvalue with a small imaginary part, and k = Re mu must match the searched k.
+    surface = make_surface(dataset, 2000, sampling="jittered", seed=0).points_only()
+    line = get_method("ocp")(surface, k_search="line")
+    direct = get_method("ocp")(surface, k_search="direct")
+    assert abs(direct.diagnostics["k_opt"] / line.diagnostics["k_opt"] - 1) < 1e-5
+    assert direct.diagnostics["turning"] == [1]
+    aligned = similarity_align(direct.uv, line.uv)
+    assert np.sqrt(np.mean(np.sum((aligned - line.uv) ** 2, axis=1))) < 1e-4 * np.ptp(line.uv, axis=0).max()
 
 
 @pytest.mark.parametrize("dataset", ["bump", "saddle", "cap", "holes"])
