@@ -51,7 +51,7 @@ def _empty_row(cell: Cell) -> dict:
     row = cell.address()
     row.update(cell_id=cell.cell_id, n_points=None, n_faces=None, status="failed", error_type="", error="",
                eval_mesh="", time_total=None, timings="{}", diagnostics="{}", k_opt=None,
-               peak_memory_mb=None, artifact="")
+               peak_memory_mb=None, stage_memory_mb="{}", artifact="")
     row.update({c: None for c in METRIC_COLUMNS})
     return row
 
@@ -143,7 +143,9 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
         row.update(status="ok", eval_mesh=eval_kind, time_total=result.timings.get("total"),
                    timings=json.dumps(result.timings, sort_keys=True),
                    diagnostics=_jsonable_diagnostics(result.diagnostics),
-                   k_opt=result.diagnostics.get("k_opt"), peak_memory_mb=peak.delta_mb)
+                   k_opt=result.diagnostics.get("k_opt"), peak_memory_mb=peak.delta_mb,
+                   stage_memory_mb=json.dumps({k: round(v, 1) for k, v in peak.stage_peak_mb.items()},
+                                              sort_keys=True))
         if surface.n_points <= ARTIFACT_MAX_POINTS:
             arrays = _artifact(surface, result, faces, eval_kind)
     except ParambenchError as exc:

@@ -17,7 +17,7 @@ import numpy as np
 from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
 from datasets_gen.surface import Surface
 
-__all__ = ["Parameterization", "Method", "StageTimer"]
+__all__ = ["Parameterization", "Method", "StageTimer", "active_stage"]
 
 
 @dataclass(eq=False)
@@ -57,6 +57,19 @@ class Parameterization:
         self.uv = np.ascontiguousarray(uv)
 
 
+#: Names of the StageTimer stages running now, innermost last (read by memory samplers).
+_ACTIVE_STAGES: list[str] = []
+
+
+def active_stage() -> str | None:
+    """The innermost :class:`StageTimer` stage running now, or None.
+
+    A memory sampler in another thread (``bench.memory.PeakMemory``) calls this to
+    attribute the resident memory it sees to a stage.
+    """
+    return _ACTIVE_STAGES[-1] if _ACTIVE_STAGES else None
+
+
 class StageTimer:
     """Collects wall-clock seconds per named stage.
 
@@ -75,9 +88,11 @@ class StageTimer:
     @contextmanager
     def __call__(self, stage: str) -> Iterator[None]:
         start = time.perf_counter()
+        _ACTIVE_STAGES.append(stage)
         try:
             yield
         finally:
+            _ACTIVE_STAGES.pop()
             self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - start
 
 

@@ -27,7 +27,7 @@ from .load import CellArrays, Results, load_cell_arrays, load_dataset_arrays, lo
 from .pdf import write_pdf
 from .selection import PictureView, dataset_npz_candidates, picture_views
 from .tables import (benchmark_table, exponent_table, failures_table, metadata_table, overview_table,
-                     summarise, summary_tables)
+                     stage_memory_table, summarise, summary_tables)
 
 __all__ = ["build_report", "render_html", "EmptyResultsError", "FORMATS"]
 
@@ -206,6 +206,9 @@ def render_html(results: Results, benchmark_json=()) -> str:
         scaling.blocks.append(Note("No method was timed at two or more sizes of one surface: no fit.", "muted"))
     else:
         scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
+    memory = stage_memory_table(rows)
+    if memory is not None:
+        scaling.blocks.append(memory)
     sections.append(scaling)
 
     if stats is not None:

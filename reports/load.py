@@ -42,7 +42,7 @@ ROW_COLUMNS = (
     "cell_id", "dataset", "size", "sampling", "noise", "seed", "method", "params", "n_points", "n_faces",
     "status", "error_type", "error", "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction",
     "collapsed", "area_distortion", "turning_numbers", "exact_error", "n_eval_faces", "eval_mesh",
-    "time_total", "timings", "diagnostics", "k_opt", "peak_memory_mb", "artifact",
+    "time_total", "timings", "diagnostics", "k_opt", "peak_memory_mb", "stage_memory_mb", "artifact",
 )
 
 #: Columns coerced to float (NaN for null, for failed cells and for unparseable values).
@@ -54,7 +54,8 @@ NUMERIC_COLUMNS = (
 
 _TEXT_COLUMNS = ("cell_id", "dataset", "sampling", "method", "status", "error_type", "error", "eval_mesh",
                  "artifact")
-_JSON_COLUMNS = {"params": "{}", "timings": "{}", "diagnostics": "{}", "turning_numbers": "[]"}
+_JSON_COLUMNS = {"params": "{}", "timings": "{}", "diagnostics": "{}", "turning_numbers": "[]",
+                 "stage_memory_mb": "{}"}
 
 
 @dataclass

@@ -31,6 +31,7 @@ __all__ = [
     "metadata_table",
     "benchmark_table",
     "exponent_table",
+    "stage_memory_table",
     "format_number",
 ]
 
@@ -362,3 +363,43 @@ def exponent_table(fits: pd.DataFrame) -> Table:
                      Cell(f"{int(r.n_min)}–{int(r.n_max)}")])
     return Table(["Surface", "Method", "Exponent p", "Sizes", "Points"], body,
                  "Fitted exponents of time against points", "exponents", numeric={2, 3, 4})
+
+
+#: Stage columns of :func:`stage_memory_table`, in pipeline order; others follow sorted.
+_STAGE_ORDER = ("knn", "normals", "dem", "weights", "boundary", "laplacian", "topology", "weights_mesh", "solve",
+                "other")
+
+
+def stage_memory_table(rows: pd.DataFrame) -> Table | None:
+    """Peak resident memory per stage, for each method at the largest size of each surface.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Labelled rows with ``stage_memory_mb`` (canonical JSON of stage -> MiB).
+
+    Returns
+    -------
+    Table or None
+        None when no ok cell recorded stage memory (results from older versions).
+    """
+    ok = rows[(rows["status"] == "ok") & (rows["stage_memory_mb"].fillna("{}") != "{}")]
+    if ok.empty:
+        return None
+    ok = ok.assign(n=ok["n_points"].where(ok["n_points"] > 0, ok["size"]))
+    picked = ok.sort_values("n").groupby(["dataset", "sampling", "noise", "variant"], sort=True).tail(1)
+    memories = [json.loads(v) for v in picked["stage_memory_mb"]]
+    seen = set().union(*memories)
+    stages = [s for s in _STAGE_ORDER if s in seen] + sorted(seen - set(_STAGE_ORDER))
+    body = []
+    order = np.lexsort((picked["variant"].to_numpy(), picked["dataset"].to_numpy()))
+    for i in order:
+        r = picked.iloc[i]
+        mem = memories[i]
+        family = " · ".join(str(x) for x in (r["dataset"], r["sampling"]) if x)
+        body.append([Cell(family), Cell(str(r["variant"]), ("method",)), Cell(format_number(r["n"], "count"))]
+                    + [Cell(f"{mem[s]:.0f}" if s in mem else _MISSING) for s in stages]
+                    + [Cell(f"{max(mem.values()):.0f}")])
+    return Table(["Surface", "Method", "Points", *stages, "Peak"], body,
+                 "Peak resident memory (MiB) while each stage ran, at the largest size", "stage-memory",
+                 numeric=set(range(2, len(stages) + 4)))

@@ -3,7 +3,8 @@
 Sizes come from ``PARAMBENCH_BENCH_SIZES`` (comma-separated, default ``10000,100000``;
 add 1000000 for the full scaling study, which ``parambench run --suite scale --isolate``
 also covers with peak memory). Each benchmark stores the stage timings, the size and the
-ratio to ``scp-igl`` on the ground-truth mesh of the same points, timed in the same process.
+ratio to ``scp-igl`` on the ground-truth mesh of the same points, timed in the same process,
+and the peak resident memory of the process while each stage ran (``stage_peak_rss_mb``).
 The issue's target: ``ocp`` at 100k points no slower than ``scp-igl`` (ratio <= 1).
 """
 
@@ -13,6 +14,7 @@ import os
 
 import pytest
 
+from bench.memory import PeakMemory
 from bench.run_cell import surface_for
 from bench.benchmarks.timing import best_of, run_or_skip
 from methods.registry import get_method
@@ -29,7 +31,11 @@ def test_scaling_bump(benchmark, n_points, method_name):
     given = surface if method.needs_faces else surface.points_only()
     benchmark.group = f"scaling-{n_points}"
     base_time = best_of(lambda: get_method("scp-igl")(surface), repeat=1)
-    result = benchmark.pedantic(lambda: run_or_skip(lambda: method(given)), rounds=1, iterations=1)
+    peak = PeakMemory()
+    with peak.measure():
+        result = benchmark.pedantic(lambda: run_or_skip(lambda: method(given)), rounds=1, iterations=1)
     benchmark.extra_info.update(n_points=surface.n_points, stage_timings=result.timings,
+                                stage_peak_rss_mb={k: round(v, 1) for k, v in peak.stage_peak_mb.items()},
+                                peak_rss_mb=round(peak.peak_mb, 1),
                                 time_ratio_vs_scp_igl=benchmark.stats.stats.min / base_time,
                                 k_opt=result.diagnostics.get("k_opt"))

@@ -45,6 +45,10 @@ def test_sweep_rows_metrics_and_resume(tmp_path):
     plane = table[(table.dataset == "plane")]
     assert (plane["qc_mean"] < 1.0 + 1e-6).all() and (plane["exact_error"] < 1e-6).all()
     assert (table["foldovers"] == 0).all()
+    for row in table.itertuples():  # peak memory per stage: the method's own stages, plus "other"
+        memory = json.loads(row.stage_memory_mb)
+        assert memory and set(memory) <= set(json.loads(row.timings)) | {"other"}
+        assert all(v > 0 for v in memory.values())
     mtimes = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "cells").glob("*.json")}
     again = run_sweep(TINY, str(tmp_path), progress=False)
     assert len(again) == 4

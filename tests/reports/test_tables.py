@@ -7,7 +7,8 @@ import pytest
 from reports.labels import add_labels
 from reports.load import normalise_rows
 from reports.tables import (SUMMARY_METRICS, benchmark_table, best_mask, exponent_table, failures_table,
-                            format_number, metadata_table, overview_table, summarise, summary_tables)
+                            format_number, metadata_table, overview_table, stage_memory_table, summarise,
+                            summary_tables)
 
 
 def _row(method, seed, dataset="bump", status="ok", **metrics):
@@ -155,3 +156,21 @@ def test_values_that_print_alike_are_both_best():
     summary = summarise(add_labels(normalise_rows(pd.DataFrame(rows))))
     marked = summary.loc[best_mask(summary)["qc_mean"], "variant"]
     assert list(marked) == ["a", "b"]  # both print as 1.061
+
+
+def test_stage_memory_table_shows_the_largest_size_per_method():
+    rows = [_row("a", 0, size=100, n_points=100, stage_memory_mb='{"knn": 50.0, "solve": 80.0}'),
+            _row("a", 0, size=1000, n_points=1000, stage_memory_mb='{"knn": 60.0, "other": 40.0, "solve": 120.4}'),
+            _row("b", 0, size=1000, n_points=1000, stage_memory_mb='{"topology": 70.0, "solve": 90.0}'),
+            _row("c", 0, size=1000, n_points=1000, status="failed", error="x")]
+    rows[1]["cell_id"] += "-big"
+    rows[2]["cell_id"] += "-big"
+    table = stage_memory_table(add_labels(normalise_rows(pd.DataFrame(rows))))
+    assert table.columns == ["Surface", "Method", "Points", "knn", "topology", "solve", "other", "Peak"]
+    body = [[c.text for c in r] for r in table.rows]
+    assert body == [["bump · grid", "a", "1000", "60", "—", "120", "40", "120"],
+                    ["bump · grid", "b", "1000", "—", "70", "90", "—", "90"]]
+
+
+def test_stage_memory_table_is_none_without_records(hand_rows):
+    assert stage_memory_table(hand_rows) is None
