@@ -2,21 +2,29 @@
 
 numpy's tracemalloc hooks miss memory allocated inside compiled libraries (SuperLU,
 libigl), so the resident set size is sampled instead; on systems without /proc the
-peak is reported as NaN.
+peak is reported as NaN. A sampling thread cannot run while a compiled call holds the
+GIL (libigl's solvers do), so the process's high-water mark (``ru_maxrss``) is also
+read at every stage boundary: a stage that raised it is credited with the new mark.
 """
 
 from __future__ import annotations
 
 import os
+import resource
 import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-from methods.base import active_stage
+from methods.base import active_stage, add_stage_hook, remove_stage_hook
 
-__all__ = ["current_rss_mb", "PeakMemory"]
+__all__ = ["current_rss_mb", "high_water_mb", "PeakMemory"]
 
 _PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
+
+
+def high_water_mb() -> float:
+    """Peak resident set size of this process so far (``ru_maxrss``), in MiB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
 
 
 def current_rss_mb() -> float:
@@ -40,7 +48,8 @@ class PeakMemory:
     stage_peak_mb : dict of str to float
         Highest RSS (MiB, whole process) seen while each :class:`methods.base.StageTimer`
         stage was running (see :func:`methods.base.active_stage`); time outside any
-        stage counts as ``"other"``. Stages shorter than ``interval`` may be missed.
+        stage counts as ``"other"``. Sampled every ``interval``, and exact for a stage
+        that raised the process's high-water mark (read when the stage ends).
     """
 
     def __init__(self, interval: float = 0.01) -> None:
@@ -50,10 +59,11 @@ class PeakMemory:
         self.stage_peak_mb: dict[str, float] = {}
 
     def _sample(self) -> None:
-        rss = current_rss_mb()
-        stage = active_stage() or "other"
-        self.peak_mb = max(self.peak_mb, rss)
-        self.stage_peak_mb[stage] = max(self.stage_peak_mb.get(stage, 0.0), rss)
+        self._credit(active_stage() or "other", current_rss_mb())
+
+    def _credit(self, stage: str, value: float) -> None:
+        self.peak_mb = max(self.peak_mb, value)
+        self.stage_peak_mb[stage] = max(self.stage_peak_mb.get(stage, 0.0), value)
 
     @contextmanager
     def measure(self) -> Iterator["PeakMemory"]:
@@ -61,17 +71,31 @@ class PeakMemory:
         self.peak_mb = start
         self.stage_peak_mb = {}
         stop = threading.Event()
+        marks: list[float] = []
+        hwm_start = high_water_mb()
+
+        def hook(event: str, stage: str) -> None:
+            if event == "enter":
+                marks.append(high_water_mb())
+                return
+            before, now = marks.pop() if marks else hwm_start, high_water_mb()
+            if now > before:
+                self._credit(stage, now)
 
         def sample() -> None:
             while not stop.wait(self.interval):
                 self._sample()
 
         thread = threading.Thread(target=sample, daemon=True)
+        add_stage_hook(hook)
         thread.start()
         try:
             yield self
         finally:
             stop.set()
             thread.join()
+            remove_stage_hook(hook)
             self._sample()
+            if high_water_mb() > hwm_start:
+                self.peak_mb = max(self.peak_mb, high_water_mb())
             self.delta_mb = self.peak_mb - start

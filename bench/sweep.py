@@ -25,10 +25,10 @@ def _serial(cells: list[Cell]) -> Iterator[tuple[dict, dict | None]]:
 
 
 def _compute_with_peak(cell: Cell) -> tuple[dict, dict | None]:
-    import resource
+    from .memory import high_water_mb
 
     row, arrays = compute_cell(cell)
-    row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    row["peak_rss_mb"] = high_water_mb()
     return row, arrays
 
 

@@ -10,14 +10,14 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Iterator
+from typing import Any, Callable, ClassVar, Iterator
 
 import numpy as np
 
 from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
 from datasets_gen.surface import Surface
 
-__all__ = ["Parameterization", "Method", "StageTimer", "active_stage"]
+__all__ = ["Parameterization", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
 
 
 @dataclass(eq=False)
@@ -59,6 +59,23 @@ class Parameterization:
 
 #: Names of the StageTimer stages running now, innermost last (read by memory samplers).
 _ACTIVE_STAGES: list[str] = []
+#: Callables ``hook(event, stage)`` run at every stage's "enter" and "exit".
+_STAGE_HOOKS: list[Callable[[str, str], None]] = []
+
+
+def add_stage_hook(hook: Callable[[str, str], None]) -> None:
+    """Call ``hook("enter", stage)`` and ``hook("exit", stage)`` around every StageTimer stage.
+
+    Runs in the thread of the stage, so it sees the process state even while a compiled
+    library holds the GIL for the whole stage (a sampling thread would not).
+    """
+    _STAGE_HOOKS.append(hook)
+
+
+def remove_stage_hook(hook: Callable[[str, str], None]) -> None:
+    """Undo :func:`add_stage_hook` (no error if absent)."""
+    if hook in _STAGE_HOOKS:
+        _STAGE_HOOKS.remove(hook)
 
 
 def active_stage() -> str | None:
@@ -89,9 +106,13 @@ class StageTimer:
     def __call__(self, stage: str) -> Iterator[None]:
         start = time.perf_counter()
         _ACTIVE_STAGES.append(stage)
+        for hook in tuple(_STAGE_HOOKS):
+            hook("enter", stage)
         try:
             yield
         finally:
+            for hook in tuple(_STAGE_HOOKS):
+                hook("exit", stage)
             _ACTIVE_STAGES.pop()
             self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - start
 

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from bench.memory import PeakMemory, current_rss_mb
+from bench.memory import PeakMemory, current_rss_mb, high_water_mb
 from methods.base import StageTimer, active_stage
 
 
@@ -43,3 +43,16 @@ def test_memory_is_attributed_to_the_stage_that_allocated_it():
     assert peak.delta_mb >= 40
     assert current_rss_mb() > 0
 
+
+
+def test_a_stage_the_sampler_cannot_see_is_credited_from_the_high_water_mark():
+    # A sampler that never wakes stands for one blocked by a compiled call holding the GIL.
+    timer = StageTimer()
+    peak = PeakMemory(interval=3600.0)
+    extra_mb = high_water_mb() - current_rss_mb() + 100.0  # enough to raise the high-water mark
+    with peak.measure():
+        with timer("burst"):
+            block = np.ones(int(extra_mb * 2**20 / 8))
+            del block
+    assert peak.stage_peak_mb["burst"] >= high_water_mb() - 1.0
+    assert peak.peak_mb >= peak.stage_peak_mb["burst"]
