@@ -348,8 +348,10 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     max_deg = int(np.diff(indptr).max())
     # The compiled kernel releases the GIL, so plain threads run it in parallel
     # (cheaper to compile than numba's parallel=True).
-    # numba.get_num_threads() follows NUMBA_NUM_THREADS / numba.set_num_threads().
-    workers = max(1, numba.get_num_threads())
+    # NUMBA_NUM_THREADS (default: the number of cores). Read from the config, not from
+    # numba.get_num_threads(), which would start a threading layer this code never uses
+    # (and print a warning about TBB's version on every run).
+    workers = max(1, int(numba.config.NUMBA_NUM_THREADS))
     # Scratch per worker, stamped with row numbers (see _dem_range).
     seen = np.full((workers, n), -1, dtype=np.int64)
     frozen = np.full((workers, n), -1, dtype=np.int64)
