@@ -11,6 +11,7 @@ from ..base import Method, Parameterization, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
+from ..spectral.ordering import nested_dissection
 
 
 @register
@@ -37,7 +38,8 @@ class Sdp(Method):
         front = front.without_balls()  # ~1.3 GB at 1M points, not needed by the solve
         with timer("solve"):
             b_diag = front.boundary_mask.astype(np.float64)
-            vals, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc())
+            perm = nested_dissection(front.points, lap)
+            vals, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc(), perm=perm)
             if params["b_orthonormal"]:
                 pair = b_orthonormalize(pair, b_diag)
             uv = scale_to_spacing(pair, front)

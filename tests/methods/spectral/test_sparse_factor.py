@@ -1,0 +1,62 @@
+"""SparseFactor's mixed precision: single-precision factor, double-precision answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from datasets_gen.errors import UnknownNameError
+from methods.spectral.sparse_eigen import MIXED_PRECISION_FROM, SparseFactor
+
+
+def _grid_laplacian(side: int, shift: float = 1e-3) -> sp.csc_matrix:
+    one = sp.diags([-np.ones(side - 1), 2 * np.ones(side), -np.ones(side - 1)], [-1, 0, 1])
+    eye = sp.identity(side)
+    lap = sp.kron(one, eye) + sp.kron(eye, one)
+    # A non-symmetric perturbation, as in the point-set Laplacians.
+    skew = sp.kron(sp.diags([np.ones(side - 1), -np.ones(side - 1)], [-1, 1]), eye) * 0.1
+    return sp.csc_matrix(lap + skew + shift * sp.identity(side * side))
+
+
+def test_mixed_precision_solves_to_double_accuracy():
+    a = _grid_laplacian(120)
+    rhs = np.random.default_rng(0).standard_normal((a.shape[0], 3))
+    exact = SparseFactor(a, precision="double").solve(rhs)
+    mixed = SparseFactor(a, precision="mixed")
+    assert mixed.mixed
+    x = mixed.solve(rhs)
+    assert np.linalg.norm(x - exact) <= 1e-10 * np.linalg.norm(exact)
+    assert np.linalg.norm(a @ x - rhs) <= 1e-11 * np.linalg.norm(rhs)
+    # Complex right-hand sides go through the real factor part by part.
+    z = mixed.solve(rhs[:, 0] + 1j * rhs[:, 1])
+    assert np.allclose(z, exact[:, 0] + 1j * exact[:, 1], rtol=0, atol=1e-10 * np.abs(exact).max())
+
+
+def test_with_an_elimination_order_too():
+    a = _grid_laplacian(60)
+    perm = np.random.default_rng(1).permutation(a.shape[0])
+    rhs = np.random.default_rng(2).standard_normal(a.shape[0])
+    x = SparseFactor(a, perm, precision="mixed").solve(rhs)
+    assert np.linalg.norm(a @ x - rhs) <= 1e-11 * np.linalg.norm(rhs)
+
+
+def test_auto_keeps_double_precision_below_the_threshold_and_for_complex_matrices():
+    a = _grid_laplacian(30)
+    assert a.shape[0] < MIXED_PRECISION_FROM
+    assert not SparseFactor(a).mixed
+    assert not SparseFactor(sp.csc_matrix(a, dtype=np.complex128), precision="mixed").mixed
+
+
+def test_too_ill_conditioned_for_single_precision_falls_back_to_double():
+    # 1 - 1e-9 rounds to 1 in single precision: the float32 matrix is exactly singular.
+    a = sp.csc_matrix(np.array([[1.0, 1.0 - 1e-9], [1.0, 1.0]]))
+    f = SparseFactor(a, precision="mixed")
+    x = f.solve(np.array([1.0, 2.0]))
+    assert not f.mixed
+    assert np.allclose(a @ x, [1.0, 2.0], rtol=1e-6)
+
+
+def test_unknown_precision_is_refused():
+    with pytest.raises(UnknownNameError, match="precision"):
+        SparseFactor(_grid_laplacian(5), precision="half")
