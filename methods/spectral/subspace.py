@@ -4,7 +4,7 @@ With B supported on the boundary, every eigenvector of ``(k L / 2 - M) z = lambd
 is the harmonic extension of its boundary values z_K, which solve the boundary problem
 ``(k S / 2 - M_KK) z_K = lambda z_K`` (:mod:`.reduction`). Forming S costs one solve per
 boundary vertex and each k a dense eigen-solve of the boundary size: at 100k points
-(1,265 boundary points) that is about 2 minutes for a search. The map at k_opt is smooth
+(about 1,200 boundary points) that was about 2 minutes for a search. The map at k_opt is smooth
 along each loop, so its boundary values are well represented by a few dozen functions:
 
 * per loop, the constant and the Fourier modes ``cos(2 pi j s / l)``, ``sin(...)`` of the
