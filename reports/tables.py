@@ -401,5 +401,6 @@ def stage_memory_table(rows: pd.DataFrame) -> Table | None:
                     + [Cell(f"{mem[s]:.0f}" if s in mem else _MISSING) for s in stages]
                     + [Cell(f"{max(mem.values()):.0f}")])
     return Table(["Surface", "Method", "Points", *stages, "Peak"], body,
-                 "Peak resident memory (MiB) while each stage ran, at the largest size", "stage-memory",
+                 "Peak resident memory (MiB, whole process) while each stage ran, at the largest size "
+                 "(a cell's own figures with parambench run --isolate)", "stage-memory",
                  numeric=set(range(2, len(stages) + 4)))
