@@ -347,6 +347,12 @@ def benchmark_table(stats: pd.DataFrame) -> Table:
                  "pytest-benchmark statistics", "benchmarks", numeric=set(range(2, 8)))
 
 
+def _family(dataset, sampling, noise) -> str:
+    """Label of a surface family: "bump · jittered", with " · noise 0.1" when noisy."""
+    label = " · ".join(str(x) for x in (dataset, sampling) if x)
+    return label + (f" · noise {noise:g}" if noise and not (isinstance(noise, float) and math.isnan(noise)) else "")
+
+
 def exponent_table(fits: pd.DataFrame) -> Table:
     """Fitted exponents p of time = c * points**p, one row per surface family and variant.
 
@@ -357,8 +363,7 @@ def exponent_table(fits: pd.DataFrame) -> Table:
     """
     body = []
     for r in fits.itertuples():
-        family = " · ".join(str(x) for x in (r.dataset, r.sampling) if x) + (f" · noise {r.noise:g}" if r.noise else "")
-        body.append([Cell(family), Cell(str(r.variant), ("method",)), Cell(f"{r.exponent:.2f}"),
+        body.append([Cell(_family(r.dataset, r.sampling, r.noise)), Cell(str(r.variant), ("method",)), Cell(f"{r.exponent:.2f}"),
                      Cell(format_number(r.n_sizes, "count")),
                      Cell(f"{int(r.n_min)}–{int(r.n_max)}")])
     return Table(["Surface", "Method", "Exponent p", "Sizes", "Points"], body,
@@ -396,8 +401,7 @@ def stage_memory_table(rows: pd.DataFrame) -> Table | None:
     for i in order:
         r = picked.iloc[i]
         mem = memories[i]
-        family = " · ".join(str(x) for x in (r["dataset"], r["sampling"]) if x)
-        body.append([Cell(family), Cell(str(r["variant"]), ("method",)), Cell(format_number(r["n"], "count"))]
+        body.append([Cell(_family(r["dataset"], r["sampling"], r["noise"])), Cell(str(r["variant"]), ("method",)), Cell(format_number(r["n"], "count"))]
                     + [Cell(f"{mem[s]:.0f}" if s in mem else _MISSING) for s in stages]
                     + [Cell(f"{max(mem.values()):.0f}")])
     return Table(["Surface", "Method", "Points", *stages, "Peak"], body,

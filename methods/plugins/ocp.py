@@ -94,7 +94,6 @@ class Ocp(Method):
         front = front.without_balls()
         with timer("solve"):
             problem = _conformal_problem(front, lap)
-            del lap
             sol = problem.solve("scp", params["k_search"])
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **problem.counts, "energy": params["energy"],

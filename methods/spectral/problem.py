@@ -10,9 +10,10 @@ boundary loops and B, and picks a back end per call:
   the interior block, one solve per boundary vertex, then a dense boundary-sized problem
   per k). Used for the k searches on small boundaries and ``k_search="direct"``.
 * ``"subspace"``: SCP's k search on a few dozen smooth boundary functions
-  (:mod:`.subspace`: one solve per function, then an m x m problem per k), the map
-  then solved exactly at k_opt by the sparse back end. Used for the SCP k search when
-  the boundary has more than ``subspace_from`` vertices.
+  (:mod:`.subspace`: one solve per function, then an m x m problem per k); at k_opt
+  the boundary eigenvector is refined to full accuracy (Davidson steps) and extended
+  harmonically, with the sparse back end as the fallback when that map is not regular.
+  Used for the SCP k search when the boundary has more than ``subspace_from`` vertices.
 """
 
 from __future__ import annotations
@@ -263,13 +264,11 @@ class ConformalProblem:
         result = line_search(sub.evaluate, **line_kwargs)
         self._counts["eigen_solves"] += result.n_evaluations + 1
         point, info = sub.refine(result.best.k)
+        z = red.extend(point.state[0]) if point.regular else None
+        # The interior factorisation is done with; free it before any fallback factorises.
+        self._release_reductions()
         backend = "subspace"
-        if point.regular:
-            z = red.extend(point.state[0])
-            # The interior factorisation is done with; free it before anything else.
-            self._release_reductions()
-        else:
-            self._release_reductions()
+        if z is None:
             point = self._scp_sparse_regular(result.best.k)
             z, backend = point.state[0], "subspace+sparse"
         sol = ConformalSolution(z=z, k=point.k, energy=point.energy, turning=point.turning,

@@ -82,8 +82,7 @@ class SparseFactor:
                 self._lu = sla.splu(a.astype(np.float32), **self._opts)
                 return
             except RuntimeError:  # singular in single precision: too ill-conditioned for it
-                self._fall_back_to_double()
-                return
+                self.mixed, self._matrix = False, None
         self._lu = self._factor_double(a)
 
     def _factor_double(self, a: sp.csc_matrix):
