@@ -40,6 +40,8 @@ class SparseFactor:
     Parameters
     ----------
     matrix : (V, V) scipy.sparse matrix (real or complex)
+        In mixed precision a CSR or CSC matrix is kept by reference for the
+        refinement residuals: do not modify it while the factor is in use.
     perm : (V,) numpy.ndarray of int64, optional
         Symmetric elimination order (e.g. :func:`~methods.spectral.ordering.nested_dissection`);
         SuperLU's minimum degree on ``A^T + A`` otherwise.
@@ -62,15 +64,13 @@ class SparseFactor:
                  precision: str = "auto", refine_rtol: float = 1e-12, max_refine: int = 4) -> None:
         if precision not in ("auto", "double", "mixed"):
             raise UnknownNameError(f"precision must be 'auto', 'double' or 'mixed', got {precision!r}.")
-        a = sp.csc_matrix(matrix)
-        if perm is not None:
-            a = sp.csc_matrix(a[perm][:, perm])
+        real = not np.issubdtype(matrix.dtype, np.complexfloating)
         self.perm = perm
         self.n_solves = 0
-        real = not np.iscomplexobj(a.data)
-        self.mixed = real and (precision == "mixed" or (precision == "auto" and a.shape[0] >= MIXED_PRECISION_FROM))
-        # Refinement needs the double-precision matrix (in the permuted order).
-        self._matrix = a if self.mixed else None
+        self.mixed = real and (precision == "mixed" or (precision == "auto" and matrix.shape[0] >= MIXED_PRECISION_FROM))
+        # Refinement computes residuals with the caller's matrix in its own order: a
+        # reference, not a permuted double-precision copy (340 MB at 1M points).
+        self._matrix = (matrix if matrix.format in ("csr", "csc") else matrix.tocsr()) if self.mixed else None
         self._refine_rtol, self._max_refine = float(refine_rtol), int(max_refine)
         # Diagonal pivots only for Hermitian matrices: then the factorisation is an
         # LDL^H in disguise and its pivots give the inertia. Otherwise a small threshold
@@ -79,11 +79,19 @@ class SparseFactor:
                           diag_pivot_thresh=0.0 if hermitian else 0.01, options=dict(SymmetricMode=True))
         if self.mixed:
             try:
-                self._lu = sla.splu(a.astype(np.float32), **self._opts)
+                self._lu = sla.splu(self._permuted(matrix, np.float32), **self._opts)
                 return
             except RuntimeError:  # singular in single precision: too ill-conditioned for it
                 self.mixed, self._matrix = False, None
-        self._lu = self._factor_double(a)
+        self._lu = self._factor_double(self._permuted(matrix, None))
+
+    def _permuted(self, matrix: sp.spmatrix, dtype) -> sp.csc_matrix:
+        """The matrix in elimination order, as CSC (optionally cast)."""
+        a = sp.csr_matrix(matrix)
+        if self.perm is not None:
+            a = a[self.perm][:, self.perm]
+        a = sp.csc_matrix(a)
+        return a if dtype is None else a.astype(dtype)
 
     def _factor_double(self, a: sp.csc_matrix):
         try:
@@ -95,7 +103,7 @@ class SparseFactor:
     def _fall_back_to_double(self) -> None:
         self.mixed = False
         self._lu = None
-        self._lu = self._factor_double(self._matrix)
+        self._lu = self._factor_double(self._permuted(self._matrix, None))
         self._matrix = None
 
     @property
@@ -106,31 +114,33 @@ class SparseFactor:
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``A x = rhs`` for a vector or an (V, m) block of right-hand sides."""
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
-        if self.perm is None:
-            return self._solve_permuted(rhs)
-        x = self._solve_permuted(np.ascontiguousarray(rhs[self.perm]))
-        out = np.empty_like(x)
-        out[self.perm] = x
-        return out
+        return self._solve_mixed(rhs) if self.mixed else self._lu_solve(rhs)
 
-    def _solve_permuted(self, rhs: np.ndarray) -> np.ndarray:
-        if not self.mixed:
-            return self._lu.solve(rhs)
+    def _solve_mixed(self, rhs: np.ndarray) -> np.ndarray:
         if np.iscomplexobj(rhs):
-            return self._solve_permuted(rhs.real) + 1j * self._solve_permuted(rhs.imag)
+            return self._solve_mixed(rhs.real) + 1j * self._solve_mixed(rhs.imag)
         rhs = np.asarray(rhs, dtype=np.float64)
-        x = self._lu.solve(rhs.astype(np.float32)).astype(np.float64)
+        x = self._lu_solve(rhs.astype(np.float32)).astype(np.float64)
         norm_b = np.linalg.norm(rhs, axis=0)
         for _ in range(self._max_refine):
             r = rhs - self._matrix @ x
             if np.all(np.linalg.norm(r, axis=0) <= self._refine_rtol * norm_b):
                 return x
-            x += self._lu.solve(r.astype(np.float32)).astype(np.float64)
+            x += self._lu_solve(r.astype(np.float32))
         if np.all(np.linalg.norm(rhs - self._matrix @ x, axis=0) <= 1e-8 * norm_b):
             return x
         # Refinement stalls when the matrix is too ill-conditioned for single precision.
         self._fall_back_to_double()
-        return self._lu.solve(rhs)
+        return self._lu_solve(rhs)
+
+    def _lu_solve(self, rhs: np.ndarray) -> np.ndarray:
+        """One solve with the factors (whatever their precision), in the caller's order."""
+        if self.perm is None:
+            return self._lu.solve(rhs)
+        x = self._lu.solve(np.ascontiguousarray(rhs[self.perm]))
+        out = np.empty_like(x)
+        out[self.perm] = x
+        return out
 
     def negative_pivots(self) -> int | None:
         """Number of negative pivots, the inertia of a Hermitian matrix; None if rows were pivoted."""

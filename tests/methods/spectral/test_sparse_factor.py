@@ -37,8 +37,22 @@ def test_with_an_elimination_order_too():
     a = _grid_laplacian(60)
     perm = np.random.default_rng(1).permutation(a.shape[0])
     rhs = np.random.default_rng(2).standard_normal(a.shape[0])
-    x = SparseFactor(a, perm, precision="mixed").solve(rhs)
+    f = SparseFactor(a, perm, precision="mixed")
+    x = f.solve(rhs)
     assert np.linalg.norm(a @ x - rhs) <= 1e-11 * np.linalg.norm(rhs)
+    # Refinement steps are not counted as solves; a complex right-hand side is one.
+    f.solve(rhs + 1j * rhs)
+    assert f.n_solves == 2
+
+
+def test_refinement_stops_at_the_requested_tolerance():
+    a = _grid_laplacian(60)
+    rhs = np.random.default_rng(3).standard_normal(a.shape[0])
+    loose, tight = (SparseFactor(a, precision="mixed", refine_rtol=rtol) for rtol in (1e-6, 1e-13))
+    r_loose = np.linalg.norm(a @ loose.solve(rhs) - rhs) / np.linalg.norm(rhs)
+    r_tight = np.linalg.norm(a @ tight.solve(rhs) - rhs) / np.linalg.norm(rhs)
+    assert r_loose <= 1e-6 and r_tight <= 1e-13
+    assert r_tight < r_loose
 
 
 def test_auto_keeps_double_precision_below_the_threshold_and_for_complex_matrices():
