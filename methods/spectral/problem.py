@@ -184,8 +184,7 @@ class ConformalProblem:
                 mask = np.ones(self.n, dtype=bool)
                 mask[keep] = False
                 interior = np.flatnonzero(mask)
-                sub = self.laplacian[interior][:, interior]
-                perm = nested_dissection(self.points[interior], sub)
+                perm = nested_dissection(self.points[interior], self.laplacian[interior][:, interior])
             red = BoundaryReduction(self.laplacian, keep, perm)
             self._counts["factorizations"] += 1
             self._reductions[extra] = red
