@@ -56,6 +56,11 @@ def test_apply_schur_equals_the_dense_schur_complement(holes):
     dense = s @ x
     assert np.allclose(fast, dense, rtol=0, atol=1e-9 * np.abs(dense).max())
     assert np.allclose(red.schur, s, rtol=0, atol=1e-9 * np.abs(s).max())
+    # A tight memory bound splits the right-hand sides into blocks of 8 columns.
+    blocked = BoundaryReduction(holes.lap, keep, max_block_bytes=1)
+    x20 = np.random.default_rng(1).standard_normal((keep.size, 20))
+    assert np.allclose(blocked.apply_schur(x20), s @ x20, rtol=0, atol=1e-9 * np.abs(s @ x20).max())
+    assert blocked.n_solves == 20
 
 
 @pytest.mark.parametrize("case", ["bump_ocp", "holes_ocp"])
