@@ -40,8 +40,8 @@ class BoundaryReduction:
         Elimination order for L_II (indices into the interior list).
     max_block_bytes : int
         Memory bound for the work arrays of one block of right-hand sides. Wider blocks
-        solve faster per right-hand side (measured at 300k: 0.22 s for one, 0.09 s each
-        in a block of 32), but a mixed-precision solve holds about four double-size
+        solve faster per right-hand side (measured with a single-precision factor at
+        300k rows: 0.22 s for one, 0.09 s each in a block of 32), but a mixed-precision solve holds about four double-size
         arrays per column (right-hand side, solution, residual, single-precision
         copies), so its blocks are a quarter as wide (8 columns at 1M points).
 
