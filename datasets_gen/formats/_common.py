@@ -24,9 +24,6 @@ __all__ = ["RawMesh", "read_bytes", "file_error", "show", "strip_comments", "Tok
 #: one huge token would make numpy's fixed-width byte array as wide as itself per row.
 MAX_NUMBER_CHARS = 64
 
-_WHITESPACE = np.zeros(256, dtype=bool)
-_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True  # exactly the bytes ``bytes.split()`` splits on
-
 
 @dataclass(frozen=True)
 class RawMesh:
@@ -139,11 +136,11 @@ class Tokens:
 
     def __init__(self, path: Path, data: bytes, first_line: int = 1, separators: bytes = b"") -> None:
         self.path = path
-        if separators:
+        if any(sep in data for sep in separators):
             data = data.translate(bytes.maketrans(separators, b" " * len(separators)))
         self.tok = data.split()
         buf = np.frombuffer(data, dtype=np.uint8)
-        space = _WHITESPACE[buf]
+        space = (buf == 32) | ((buf >= 9) & (buf <= 13))  # exactly the bytes ``bytes.split()`` splits on
         starts = ~space
         starts[1:] &= space[:-1]
         pos = np.flatnonzero(starts)
@@ -219,8 +216,12 @@ class Tokens:
         long = np.flatnonzero(self.length[index] > MAX_NUMBER_CHARS)
         if long.size:
             k = int(index[long[0]])
-            raise self.error(k, f"{show(self.tok[k])} is not a {what}", "repair the file")
-        tokens = [self.tok[i] for i in index.tolist()]
+            raise self.error(k, f"{what} {show(self.tok[k])} is too long to be a number", "repair the file")
+        lo = int(index[0])
+        if index[-1] - lo == len(index) - 1 and np.all(np.diff(index) == 1):
+            tokens = self.tok[lo:lo + len(index)]  # a contiguous block: no per-token gather
+        else:
+            tokens = [self.tok[i] for i in index.tolist()]
         try:
             values = np.array(tokens, dtype=bytes).astype(dtype)
         except (ValueError, OverflowError):
@@ -255,7 +256,8 @@ def _first_unparsable(tokens: list, dtype) -> int:
     raise AssertionError("no unparsable token found")  # pragma: no cover - only called after a failure
 
 
-def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: int, where, path: Path) -> np.ndarray:
+def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: int, where, path: Path,
+                          written: np.ndarray | None = None) -> np.ndarray:
     """Check polygons and split each into a fan of triangles.
 
     Parameters
@@ -270,6 +272,9 @@ def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: in
         ``where(f)`` gives the location string (``"line 7"``) of polygon ``f``.
     path : pathlib.Path
         For messages.
+    written : (K,) numpy.ndarray of int64, optional
+        The indices as the file writes them (OBJ: 1-based or negative), for messages;
+        default ``indices``.
 
     Returns
     -------
@@ -292,7 +297,8 @@ def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: in
     out = np.flatnonzero((indices < 0) | (indices >= n_vertices))
     if out.size:
         f = int(face_of[out[0]])
-        raise file_error(path, where(f), f"face index {int(indices[out[0]])} is out of range "
+        shown = indices if written is None else written
+        raise file_error(path, where(f), f"face index {int(shown[out[0]])} is out of range "
                          f"(the file has {n_vertices} vertices)", "repair or remove that face")
     order = np.lexsort((indices, face_of))
     same = (face_of[order][1:] == face_of[order][:-1]) & (indices[order][1:] == indices[order][:-1])

@@ -85,4 +85,5 @@ def _faces(t: Tokens, lines: np.ndarray, v_lines: np.ndarray) -> np.ndarray:
     # a negative index counts back from the vertices defined before its face line
     defined = np.repeat(np.searchsorted(v_lines, lines), sizes)
     indices = np.where(raw > 0, raw - 1, defined + raw)
-    return polygons_to_triangles(indices, sizes, len(v_lines), lambda f: f"line {int(t.line_no[lines[f]])}", t.path)
+    return polygons_to_triangles(indices, sizes, len(v_lines), lambda f: f"line {int(t.line_no[lines[f]])}", t.path,
+                                 written=raw)

@@ -44,6 +44,8 @@ def read_off(path: Path, data: bytes) -> RawMesh:
         values, face indices out of range or repeated in a face.
     """
     t = Tokens(path, strip_comments(data))
+    if t.n_lines == 0:
+        raise file_error(path, None, "only comments or blank lines", "pass an OFF file with a mesh")
     keyword = t.tok[0]
     m = _KEYWORD.fullmatch(keyword)
     if m is None:
