@@ -1,7 +1,8 @@
 """OFF meshes: ``[ST][C][N]OFF``, counts, one vertex per line, one polygon per line.
 
 Vertex lines hold ``x y z`` then, when the keyword says so, ``nx ny nz`` (``N``) and any
-colour or texture values (``C``, ``ST``: parsed, ignored). Face lines hold ``n i_1 .. i_n``
+colour or texture values (``C``, ``ST``: parsed, ignored); ``NCOFF`` (VCG's writer) puts the
+colour before the normal. Face lines hold ``n i_1 .. i_n``
 (0-based) optionally followed by a colour. ``#`` starts a comment. The 4-D, n-D and binary
 variants are refused with a message.
 """
@@ -17,7 +18,7 @@ from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, show, s
 
 __all__ = ["read_off"]
 
-_KEYWORD = re.compile(rb"(ST)?(C)?(N)?(4)?(n)?OFF")
+_KEYWORD = re.compile(rb"(ST)?(C|N|CN|NC)?(4)?(n)?OFF")
 
 
 def read_off(path: Path, data: bytes) -> RawMesh:
@@ -51,9 +52,13 @@ def read_off(path: Path, data: bytes) -> RawMesh:
     if m is None:
         raise t.line_error(0, f"the file starts with {show(keyword)}, not an OFF keyword",
                            "the first line must be OFF, COFF, NOFF or CNOFF")
-    if m.group(4) or m.group(5):
+    if m.group(3) or m.group(4):
         raise t.line_error(0, f"{show(keyword)} (4-D or n-D OFF) is not supported", "save the mesh as 3-D OFF")
-    has_normals = m.group(3) is not None
+    letters = m.group(2) or b""
+    has_normals = b"N" in letters
+    # Geomview's order is x y z [normal] [colour]; VCG (MeshLab, pymeshlab) writes "NCOFF"
+    # with the colour first, so for that keyword the normal is the last three values.
+    normals_last = letters == b"NC"
     if t.count[0] > 1:  # counts on the keyword's line
         if t.tok[1] == b"BINARY":
             raise t.line_error(0, "binary OFF is not supported", "save the mesh as text OFF, PLY or OBJ")
@@ -76,12 +81,12 @@ def read_off(path: Path, data: bytes) -> RawMesh:
     if available > nv + nf:
         raise t.line_error(body + nv + nf, f"more lines than the {nv} vertices and {nf} faces declared",
                            "fix the counts or remove the extra lines")
-    points, normals = _vertices(t, np.arange(body, body + nv), has_normals)
+    points, normals = _vertices(t, np.arange(body, body + nv), has_normals, normals_last)
     faces = _faces(t, np.arange(body + nv, body + nv + nf), nv) if nf else None
     return RawMesh(points=points, faces=faces, normals=normals)
 
 
-def _vertices(t: Tokens, lines: np.ndarray, has_normals: bool):
+def _vertices(t: Tokens, lines: np.ndarray, has_normals: bool, normals_last: bool):
     width = 6 if has_normals else 3
     short = np.flatnonzero(t.count[lines] < width)
     if short.size:
@@ -96,7 +101,10 @@ def _vertices(t: Tokens, lines: np.ndarray, has_normals: bool):
     coords = t.spans(lines, 0, 3)
     points = values[coords - lo].reshape(-1, 3)
     t.check_finite(points, coords, "vertex coordinate")
-    normals = values[t.spans(lines, 3, 3) - lo].reshape(-1, 3) if has_normals else None
+    normals = None
+    if has_normals:
+        offset = t.count[lines] - 3 if normals_last else 3
+        normals = values[t.spans(lines, offset, 3) - lo].reshape(-1, 3)
     return points, normals
 
 

@@ -128,3 +128,148 @@ def test_chameleon_loads_as_points_with_normals():
     s = load_surface(pymeshlab_samples_dir() / "chameleon.pts")
     assert s.faces is None and s.n_points == 4594
     assert s.normals is not None and np.allclose(np.linalg.norm(s.normals, axis=1), 1)
+
+
+# --- every format round-trips exactly, including files other tools wrote -------------------------
+
+QUAD_FACES = np.array([[0, 1, 5], [1, 3, 4, 5], [4, 0, 5]], dtype=object)  # one quad
+QUAD_TRIS = np.array([[0, 1, 5], [1, 3, 4], [1, 4, 5], [4, 0, 5]])  # its fan
+
+
+def _ply_binary(path, order, normals=True):
+    """Binary PLY with mixed property types, an extra element and a quad face."""
+    head = [f"ply\nformat binary_{'little' if order == '<' else 'big'}_endian 1.0", "comment made by hand",
+            f"element vertex {len(POINTS)}", "property double x", "property float32 nx", "property double y",
+            "property uchar red", "property double z", "property float ny", "property float nz",
+            "element edge 1", "property int vertex1", "property int vertex2",
+            f"element face {len(QUAD_FACES)}", "property list uchar uint vertex_index", "property uchar flags",
+            "end_header"]
+    rec = np.zeros(len(POINTS), dtype=[("x", order + "f8"), ("nx", order + "f4"), ("y", order + "f8"),
+                                       ("red", "u1"), ("z", order + "f8"), ("ny", order + "f4"), ("nz", order + "f4")])
+    for k, c in enumerate("xyz"):
+        rec[c] = POINTS[:, k]
+        rec["n" + c] = NORMALS[:, k]
+    body = rec.tobytes() + np.array([2, 3], dtype=order + "i4").tobytes()
+    for f in QUAD_FACES:
+        body += bytes([len(f)]) + np.array(f, dtype=order + "u4").tobytes() + b"\x07"
+    if not normals:
+        head = [h for h in head if " n" not in h]
+        rec = rec[["x", "y", "red", "z"]]
+    path.write_bytes(("\n".join(head) + "\n").encode() + body)
+    return path
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_binary_ply_both_endians_polygons_and_extra_properties(tmp_path, order):
+    s = load_surface(_ply_binary(tmp_path / "b.ply", order))
+    assert np.array_equal(s.points, POINTS)
+    assert np.array_equal(s.faces, QUAD_TRIS)  # quad split as a fan from its first corner
+    assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None], atol=1e-7)
+
+
+def test_ascii_ply_mixed_record_and_vertex_index_name(tmp_path):
+    head = ["ply", "format ascii 1.0", f"element vertex {len(POINTS)}", "property double x", "property double y",
+            "property double z", "property uchar red", f"element face {len(QUAD_FACES)}",
+            "property uchar flags", "property list uchar int vertex_index", "end_header"]
+    rows = [f"{_fmt(p)} 200" for p in POINTS] + [f"1 {len(f)} {' '.join(map(str, f))}" for f in QUAD_FACES]
+    s = load_surface(_write(tmp_path / "m.ply", "\n".join(head + rows) + "\n"))
+    assert np.array_equal(s.points, POINTS) and np.array_equal(s.faces, QUAD_TRIS) and s.normals is None
+
+
+def test_obj_corner_forms_negative_indices_polygons_and_other_records(tmp_path):
+    lines = ["# comment", "mtllib x.mtl", "o thing", *(f"v {_fmt(p)}" for p in POINTS[:3]), "vt 0 0", "vt 1 0",
+             "vn 0 0 1", *(f"v {_fmt(p)} 0.5 0.5 0.5" for p in POINTS[3:]), "usemtl m", "s off", "g group",
+             "f 1/1 2/2/1 6//1",  # v/vt, v/vt/vn, v//vn
+             "f -5 -3 -2 -1",  # relative: vertices 2, 4, 5, 6 (1-based) -> 1, 3, 4, 5
+             "f 5/1/1 1 6 # trailing comment", "l 1 2"]
+    s = load_surface(_write(tmp_path / "m.obj", "\n".join(lines) + "\n"))
+    assert np.array_equal(s.points, POINTS)
+    assert np.array_equal(s.faces, QUAD_TRIS)
+    assert s.normals is None  # one vn for six v: not per-vertex data
+
+
+def test_off_variants_colours_comments_counts_on_keyword_line(tmp_path):
+    rows = [f"{_fmt(p)} {_fmt(n)} 0.1 0.2 0.3 1" for p, n in zip(POINTS, NORMALS)]
+    faces = [f"{len(f)} {' '.join(map(str, f))} 255 0 0" for f in QUAD_FACES]
+    text = "\n".join(["CNOFF 6 3 0  # counts on the keyword line", *rows, "", *faces]) + "\n"
+    s = load_surface(_write(tmp_path / "c.off", text))
+    assert np.array_equal(s.points, POINTS) and np.array_equal(s.faces, QUAD_TRIS)
+    assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None])
+    coff = "\n".join(["COFF", "6 3 0", *(f"{_fmt(p)} 10 20 30" for p in POINTS), *faces]) + "\n"
+    s = load_surface(_write(tmp_path / "d.off", coff))
+    assert np.array_equal(s.points, POINTS) and s.normals is None
+
+
+def test_binary_stl_keeps_first_appearance_order(tmp_path):
+    tri = POINTS[FACES].astype(np.float32)
+    rec = np.zeros(len(tri), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    rec["v"] = tri
+    # a binary file whose header starts with "solid" must still be read as binary
+    (tmp_path / "b.stl").write_bytes(b"solid but binary".ljust(80, b" ") + np.uint32(len(tri)).tobytes()
+                                     + rec.tobytes())
+    s = load_surface(tmp_path / "b.stl")
+    order = [0, 1, 5, 3, 4]  # corners in order of first appearance along the faces
+    assert np.array_equal(s.points, POINTS[order].astype(np.float32))
+    new_index = np.full(len(POINTS), -1)
+    new_index[order] = np.arange(len(order))
+    assert np.array_equal(s.faces, new_index[FACES])
+
+
+def test_xyz_commas_comments_blank_lines_and_extra_columns(tmp_path):
+    rows = [", ".join(repr(float(v)) for v in np.concatenate([p, n, [0.5]])) for p, n in zip(POINTS, NORMALS)]
+    s = load_surface(_write(tmp_path / "c.xyz", "# x, y, z, nx, ny, nz, w\n\n" + "\n\n".join(rows) + "\n"))
+    assert np.array_equal(s.points, POINTS)
+    assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None])
+
+
+def test_binary_expe_pts_round_trip(tmp_path):
+    head = "[Expe/PointSet/Binary/0.1]\nproperty position 12\nproperty radius 4\nproperty normal 12\n" \
+           f"property color 4\nnofpoints {len(POINTS)}\ndata\n"
+    rec = np.zeros(len(POINTS), dtype=[("p", "<f4", 3), ("r", "<f4"), ("n", "<f4", 3), ("c", "u1", 4)])
+    rec["p"], rec["n"], rec["r"] = POINTS, NORMALS, 1.0
+    (tmp_path / "e.pts").write_bytes(head.encode() + rec.tobytes())
+    s = load_surface(tmp_path / "e.pts")
+    assert np.array_equal(s.points, POINTS.astype(np.float32))
+    assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None], atol=1e-6)
+
+
+@pytest.mark.parametrize("ext", ["ply", "obj", "off", "stl", "xyz"])
+def test_files_written_by_pymeshlab(tmp_path, ext):
+    import pymeshlab
+
+    keep = [0, 1, 3, 4, 5]  # no unreferenced vertex, so pymeshlab's stored normals are all usable
+    points, faces = POINTS[keep], np.searchsorted(keep, FACES)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(points, faces))
+    path = tmp_path / f"pml.{ext}"
+    ms.save_current_mesh(str(path))
+    s = load_surface(path)
+    if ext == "stl":  # float32 corners
+        assert np.array_equal(s.points[s.faces], points[faces].astype(np.float32))
+        return
+    tol = 1e-5 if ext in ("off", "xyz") else 0  # pymeshlab prints OFF/XYZ with 6 digits
+    assert np.allclose(s.points, points, rtol=0, atol=tol)
+    if ext != "xyz":
+        assert np.array_equal(s.faces, faces)
+    if ext in ("obj", "off", "xyz"):  # these writers store normals (OFF as NCOFF, colour first)
+        stored = ms.current_mesh().vertex_normal_matrix()
+        assert np.allclose(s.normals, stored / np.linalg.norm(stored, axis=1)[:, None], atol=1e-5)
+    else:
+        assert s.normals is None
+
+
+@pytest.mark.parametrize("writer", ["writePLY", "writeOBJ", "writeOFF", "writeSTL-ascii", "writeSTL-binary"])
+def test_files_written_by_igl(tmp_path, writer):
+    import igl
+
+    ext = writer[5:8].lower()
+    path = tmp_path / f"igl.{ext}"
+    if writer.startswith("writeSTL"):
+        igl.writeSTL(str(path), POINTS, FACES, writer.endswith("binary"))
+    else:
+        getattr(igl, writer)(str(path), POINTS, FACES)
+    s = load_surface(path)
+    if ext == "stl":
+        assert np.allclose(s.points[s.faces], POINTS[FACES], atol=1e-6)
+    else:
+        assert np.allclose(s.points, POINTS, atol=1e-12) and np.array_equal(s.faces, FACES)
