@@ -237,7 +237,7 @@ class Tokens:
         bad = np.flatnonzero(~np.isfinite(np.ravel(values)))
         if bad.size:
             k = int(np.ravel(index)[bad[0]])
-            raise self.error(k, f"{what} {show(self.tok[k])} is not finite",
+            raise self.error(k, f"{what} {show(self.tok[k])} is NaN or infinite",
                              "remove or repair that row (rows are matched to the output by position)")
 
 
