@@ -221,6 +221,16 @@ def _binary_body(path: Path, data: bytes, offset: int, order: str, elements: lis
 def _binary_element(path: Path, data: bytes, offset: int, order: str, e: _Element):
     remaining = len(data) - offset
     lengths = _first_record_lengths(path, data, offset, order, e) if e.count else {}
+    record = sum(np.dtype(p.type).itemsize * (lengths.get(p.name, 0) if p.count_type else 1)
+                 + (np.dtype(p.count_type).itemsize if p.count_type else 0) for p in e.props)
+    smallest = sum(np.dtype(p.count_type or p.type).itemsize for p in e.props)  # every list empty
+    if e.count * smallest > remaining:
+        raise file_error(path, f"byte {offset}", f"the header declares {e.count} {e.name} records of at least "
+                         f"{smallest} bytes ({e.count * smallest} bytes) but only {remaining} remain",
+                         "the file is truncated or its counts are wrong: export it again")
+    if e.count * record > remaining and any(p.count_type for p in e.props):
+        # lists longer than the file (or of varying length): the record-by-record read finds where
+        return _binary_general(path, data, offset, order, e)
     fields = []
     for k, p in enumerate(e.props):
         if p.count_type is not None:
@@ -233,10 +243,6 @@ def _binary_element(path: Path, data: bytes, offset: int, order: str, e: _Elemen
     if fixed:
         records = np.frombuffer(data, dtype, count=e.count, offset=offset)
         fixed = all(np.all(records[f"n{k}"] == lengths.get(p.name, 0)) for k, p in enumerate(e.props) if p.count_type)
-    if not fixed and not any(p.count_type for p in e.props):
-        raise file_error(path, f"byte {offset}", f"the header declares {e.count} {e.name} records of "
-                         f"{dtype.itemsize} bytes ({e.count * dtype.itemsize} bytes) but only {remaining} remain",
-                         "the file is truncated or its counts are wrong: export it again")
     if not fixed:
         return _binary_general(path, data, offset, order, e)
     start = offset

@@ -182,6 +182,12 @@ CASES = [
     ("bin_trailing.ply", ply_binary("<", extra=b"\x01\x02garbage"), "byte"),
     ("bin_negative_list.ply", ply_binary("<", count_type="char", sizes=[3, -3, 3, 3]), "byte"),
     ("bin_list_lies.ply", ply_binary("<", sizes=[3, 200, 3, 3]), "byte"),
+    ("ascii_huge_list.ply", PLY_HEAD + OFF_V + OFF_F.replace("3 2 3 4", "4000000000 2 3 4"), "line 17"),
+    ("bin_huge_list.ply", ply_binary("<", count_type="int", sizes=[2 ** 31 - 1, 3, 3, 3]), "byte"),
+    # --- more OFF / OBJ
+    ("huge_face_size.off", "OFF\n5 4 0\n" + OFF_V + "4000000000 0 1 2\n" + OFF_F[8:], "line 8"),
+    ("negative_face_size.off", "OFF\n5 4 0\n" + OFF_V + "-3 0 1 2\n" + OFF_F[8:], "line 8"),
+    ("continuation.obj", OBJ_V + "f 1 2 \\\n 5\n", "line 6"),
     # --- STL
     ("count_more.stl", stl_binary(TRIS, count=5), "byte 80"),
     ("count_less.stl", stl_binary(TRIS, count=2), "byte 80"),

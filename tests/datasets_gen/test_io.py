@@ -273,3 +273,38 @@ def test_files_written_by_igl(tmp_path, writer):
         assert np.allclose(s.points[s.faces], POINTS[FACES], atol=1e-6)
     else:
         assert np.allclose(s.points, POINTS, atol=1e-12) and np.array_equal(s.faces, FACES)
+
+
+def _sample_files():
+    names = ["airplane.obj", "bone.ply", "bunny.obj", "cow.obj", "cube.obj", "colored_airplane.ply",
+             "bunny10k_textured.obj", "chameleon.pts"]
+    return [pymeshlab_samples_dir() / n for n in names] + [real_data_dir() / n for n in
+                                                              ("camelhead.off", "lilium.obj", "bump-domain.obj")]
+
+
+@pytest.mark.parametrize("path", _sample_files(), ids=lambda p: p.name)
+def test_our_readers_agree_with_pymeshlab_on_well_formed_files(path):
+    import pymeshlab
+
+    from datasets_gen.formats import read_file
+
+    if not path.is_file():
+        pytest.skip(f"{path} is not installed")
+    ours = read_file(path)
+    ms = pymeshlab.MeshSet()
+    ms.load_new_mesh(str(path))
+    theirs = ms.current_mesh()
+    assert np.allclose(ours.points, theirs.vertex_matrix(), rtol=0, atol=1e-6)  # pymeshlab keeps float32 here
+    if theirs.face_number():
+        assert np.array_equal(ours.faces, theirs.face_matrix())
+    else:
+        assert ours.faces is None
+
+
+@pytest.mark.parametrize("writer", [_obj, _off, _ply], ids=lambda w: w.__name__[1:])
+def test_windows_line_endings(tmp_path, writer):
+    path = writer(tmp_path / f"w.{writer.__name__[1:]}", normals=True)
+    path.write_bytes(path.read_bytes().replace(b"\n", b"\r\n"))
+    s = load_surface(path)
+    assert np.array_equal(s.points, POINTS) and np.array_equal(s.faces, FACES)
+    assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None])
