@@ -251,7 +251,7 @@ def _binary_element(path: Path, data: bytes, offset: int, order: str, e: _Elemen
         if p.count_type is None:
             out[p.name] = (records[f"p{k}"], None)
         else:
-            n = lengths[p.name]
+            n = lengths.get(p.name, 0)
             out[p.name] = (records[f"p{k}"].reshape(-1), np.full(e.count, n, dtype=np.int64))
     return out, offset + e.count * dtype.itemsize
 

@@ -308,3 +308,13 @@ def test_windows_line_endings(tmp_path, writer):
     s = load_surface(path)
     assert np.array_equal(s.points, POINTS) and np.array_equal(s.faces, FACES)
     assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None])
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_ply_with_zero_faces_is_a_point_cloud(tmp_path, fmt):
+    head = (f"ply\nformat {fmt} 1.0\nelement vertex {len(POINTS)}\nproperty double x\nproperty double y\n"
+            "property double z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n")
+    body = ("\n".join(_fmt(p) for p in POINTS) + "\n").encode() if fmt == "ascii" else POINTS.astype("<f8").tobytes()
+    (tmp_path / "c.ply").write_bytes(head.encode() + body)
+    s = load_surface(tmp_path / "c.ply")
+    assert s.faces is None and np.array_equal(s.points, POINTS)
