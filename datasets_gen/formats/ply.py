@@ -11,7 +11,6 @@ first record's lengths (triangle meshes), record by record otherwise.
 from __future__ import annotations
 
 import re
-import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 

@@ -86,7 +86,8 @@ def _expe(path: Path, data: bytes) -> RawMesh:
     points = records["position"].astype(np.float64)
     bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
     if bad.size:
-        raise file_error(path, f"byte {end.end() + offset * int(bad[0])}", f"point {int(bad[0])} has a NaN or "
-                         "infinite coordinate", "remove or repair that point (rows are matched to the output by position)")
+        raise file_error(path, f"byte {end.end() + offset * int(bad[0])}",
+                         f"point {int(bad[0])} has a NaN or infinite coordinate",
+                         "remove or repair that point (rows are matched to the output by position)")
     normals = records["normal"].astype(np.float64) if "normal" in names else None
     return RawMesh(points=points, normals=normals)

@@ -100,7 +100,8 @@ def _merge(path: Path, corners: np.ndarray, where) -> RawMesh:
     rank[np.argsort(first)] = np.arange(len(first))  # number vertices by first appearance
     faces = rank[inverse.ravel()].reshape(-1, 3)
     points = corners[np.sort(first)]
-    repeated = np.flatnonzero((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2]))
+    a, b, c = faces.T
+    repeated = np.flatnonzero((a == b) | (b == c) | (a == c))
     if repeated.size:
         raise file_error(path, where(int(repeated[0])), f"triangle {int(repeated[0])} has two equal corners",
                          "remove that degenerate triangle (e.g. pymeshlab meshing_remove_null_faces)")
