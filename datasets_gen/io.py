@@ -15,7 +15,7 @@ that users rely on:
   one ``vn`` per ``v``, XYZ/PTS text with six columns, binary Expe ``.pts`` with a normal
   property) and they are finite and non-zero (otherwise they are ignored with a warning);
   computed normals are never passed off as data.
-- Duplicate points are not merged: the Surface raises DuplicatePointsError.
+- Duplicate points are not merged here: row i stays vertex i (the Surface decides what to do with them).
 """
 
 from __future__ import annotations
