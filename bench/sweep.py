@@ -110,15 +110,17 @@ def plan_sweep(cells: list[Cell], stored: StoredCells, *, retry_failed: bool = T
                      counts["unreadable"])
 
 
-def _set_aside_unreadable(store: ResultStore, stored: StoredCells) -> None:
-    """Report each unreadable cell file on one line and move it aside so it is recomputed."""
+def _set_aside_unreadable(store: ResultStore, stored: StoredCells, cells: list[Cell]) -> None:
+    """Report each unreadable cell file on one line and move it aside (cells of this sweep are recomputed)."""
+    ours = {c.cell_id for c in cells}
     for i, (cell_id, why) in enumerate(sorted(stored.unreadable.items())):
         target = store.quarantine(cell_id)
+        fate = "the cell is recomputed" if cell_id in ours else "not a cell of this sweep, so not recomputed"
         if i < MAX_LISTED_UNREADABLE:
-            _note(f"cells/{cell_id}.json {why}; moved to {target.name}, the cell is recomputed.")
+            _note(f"cells/{cell_id}.json {why}; moved to {target.name}, {fate}.")
     hidden = len(stored.unreadable) - MAX_LISTED_UNREADABLE
     if hidden > 0:
-        _note(f"... and {hidden} more unreadable cell files, moved aside and recomputed.")
+        _note(f"... and {hidden} more unreadable cell files, moved aside (see cells/*.unreadable).")
 
 
 def _cell_labels(cells: list[Cell]) -> dict[str, str]:
@@ -219,7 +221,7 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
                      on_wait=lambda holder: _note(f"{results_dir} is in use ({holder}); waiting for it.")):
         store.remove_stale_temporaries()
         stored = store.scan()
-        _set_aside_unreadable(store, stored)
+        _set_aside_unreadable(store, stored, cells)
         plan = plan_sweep(cells, stored, retry_failed=retry_failed)
         _note(plan.describe())
         store.write_metadata(run_metadata(

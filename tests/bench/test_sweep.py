@@ -173,7 +173,8 @@ def test_sweep_refuses_a_folder_in_use_and_computes_nothing(tmp_path):
 
 @pytest.mark.parametrize("field, value, error", [
     ("methods", ("magic",), "UnknownNameError"), ("datasets", ("nowhere",), "UnknownNameError"),
-    ("sizes", (0,), "TooFewPointsError"), ("sizes", (99,), "TooFewPointsError"), ("sizes", (500.5,), "InvalidInputError"),
+    ("sizes", (0,), "TooFewPointsError"), ("sizes", (99,), "TooFewPointsError"),
+    ("sizes", (500.5,), "InvalidInputError"),
     ("seeds", (-1,), "InvalidInputError"), ("samplings", ("poisson",), "UnknownNameError"),
     ("noise", (-0.1,), "InvalidInputError"), ("noise", (float("inf"),), "InvalidInputError"),
     ("seeds", (), "InvalidInputError"),
