@@ -91,7 +91,7 @@ def duplicate_tolerance(points: np.ndarray, rel_tol: float = DUPLICATE_TOL) -> f
 
 def find_duplicate_points(points: np.ndarray, rel_tol: float = DUPLICATE_TOL, *, tol: float | None = None,
                           tree: cKDTree | None = None) -> np.ndarray:
-    """Pairs of points closer than ``rel_tol`` times the bounding-box diagonal.
+    """Pairs of points closer than ``rel_tol`` times the bounding-box diagonal (or ``tol``).
 
     Parameters
     ----------
@@ -164,8 +164,9 @@ def require_no_collapsed_edges(points: np.ndarray, faces: np.ndarray, name: str 
         prefix = f"{name}: " if name else ""
         raise DegenerateFacesError(
             f"{prefix}{int(np.unique(edge_keys[collapsed]).size)} edge(s) join coincident vertices "
-            f"(first: vertices {i} and {j} in face {first % len(faces)}); remove the null faces "
-            "(e.g. pymeshlab meshing_remove_null_faces after meshing_merge_close_vertices) and retry."
+            f"(first: vertices {i} and {j} in face {first % len(faces)}); merge each such pair and drop the "
+            "faces that collapse (e.g. pymeshlab meshing_merge_close_vertices, then meshing_remove_null_faces), "
+            "and retry."
         )
 
 
