@@ -173,7 +173,15 @@ class Method:
         Returns
         -------
         Parameterization
-            With ``timings["total"]`` set and ``params`` fully resolved.
+            With ``timings["total"]`` set and ``params`` fully resolved; one uv row per
+            input point. A point-set method runs on one point per group of coincident
+            points, and the copies get that point's uv
+            (:func:`methods.pointset.coincident.run_on_representatives`).
+
+        Warns
+        -----
+        CoincidentPointsWarning
+            A point-set method's input had coincident points (they were merged).
 
         Raises
         ------
@@ -189,7 +197,14 @@ class Method:
                 "use a point-set method (e.g. 'ocp') or give a mesh file."
             )
         start = time.perf_counter()
-        result = self.run(surface, **resolved)
+        if self.needs_faces:
+            result = self.run(surface, **resolved)
+        else:
+            # Coincident points: run on one per group, copy its uv to the others. Imported
+            # here because methods.pointset imports this module.
+            from .pointset.coincident import run_on_representatives
+
+            result = run_on_representatives(self.run, surface, resolved)
         result.timings["total"] = time.perf_counter() - start
         result.params = resolved
         result.method = self.name
