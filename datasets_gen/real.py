@@ -1,8 +1,9 @@
-"""Real meshes and point sets, read in place (never copied into the project).
+"""Real meshes and point sets.
 
 - ``real/camelhead``, ``real/lilium``, ``real/bump-domain``: disk-topology meshes from the
-  libigl tutorial data, in ``<project>/../shared/data/real/`` (override the folder with the
-  environment variable ``PARAMBENCH_REAL_DATA``).
+  libigl tutorial data, shipped as package data in ``datasets_gen/data/real/`` (sources and
+  attribution in ``SOURCES.md`` there), so a clone anywhere and an installed wheel both find
+  them; the environment variable ``PARAMBENCH_REAL_DATA`` points the loader at another folder.
 - ``real/bunny10k``, ``real/chameleon``: files shipped in the pymeshlab wheel
   (``tests/sample_meshes/``), found from ``pymeshlab.__file__``.
 """
@@ -20,17 +21,30 @@ from .errors import InputFileError
 from .io import load_surface
 from .surface import Surface
 
-__all__ = ["REAL_DATASETS", "RealDataset", "real_data_dir", "pymeshlab_samples_dir", "load_real"]
+__all__ = ["REAL_DATASETS", "RealDataset", "PACKAGE_DATA_DIR", "real_data_dir", "pymeshlab_samples_dir", "load_real"]
 
 ENV_VAR = "PARAMBENCH_REAL_DATA"
 
 
+#: The meshes shipped inside the package, beside this module (a source tree and an
+#: unpacked wheel lay them out alike, so no project-relative path is involved).
+PACKAGE_DATA_DIR = Path(__file__).resolve().parent / "data" / "real"
+
+
 def real_data_dir() -> Path:
-    """Folder of the shared real meshes: ``$PARAMBENCH_REAL_DATA`` or ``<project>/../shared/data/real``."""
+    """Folder of the shipped real meshes.
+
+    Returns
+    -------
+    pathlib.Path
+        ``$PARAMBENCH_REAL_DATA`` when that environment variable is set and not empty,
+        otherwise :data:`PACKAGE_DATA_DIR` (``datasets_gen/data/real`` of this package).
+        The folder is not checked here: :func:`load_real` says which file is missing.
+    """
     override = os.environ.get(ENV_VAR)
     if override:
         return Path(override)
-    return (Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real").resolve()
+    return PACKAGE_DATA_DIR
 
 
 def pymeshlab_samples_dir() -> Path:
@@ -46,20 +60,20 @@ class RealDataset:
 
     name: str
     filename: str
-    location: str  # "shared" or "pymeshlab"
+    location: str  # "package" (shipped with parambench, see real_data_dir) or "pymeshlab"
     description: str
     points_only: bool = False
 
     def path(self) -> Path:
-        folder = real_data_dir() if self.location == "shared" else pymeshlab_samples_dir()
+        folder = real_data_dir() if self.location == "package" else pymeshlab_samples_dir()
         return folder / self.filename
 
 
 REAL_DATASETS = {d.name: d for d in (
-    RealDataset("real/camelhead", "camelhead.off", "shared",
+    RealDataset("real/camelhead", "camelhead.off", "package",
                 "camel head scan, disk mesh, 11381 vertices (libigl tutorial data)"),
-    RealDataset("real/lilium", "lilium.obj", "shared", "lilium petal, disk mesh, 3389 vertices (libigl tutorial data)"),
-    RealDataset("real/bump-domain", "bump-domain.obj", "shared",
+    RealDataset("real/lilium", "lilium.obj", "package", "lilium petal, disk mesh, 3389 vertices (libigl tutorial data)"),
+    RealDataset("real/bump-domain", "bump-domain.obj", "package",
                 "bumpy domain, disk mesh, 4172 vertices (libigl tutorial data)"),
     RealDataset("real/bunny10k", "bunny10k_textured.obj", "pymeshlab",
                 "Stanford bunny, 5051 vertices, open with 5 holes (pymeshlab sample)"),
@@ -99,8 +113,13 @@ def load_real(name: str, *, seed: int | None = 0, noise: float = 0.0, requested:
     spec = REAL_DATASETS[name]
     path = spec.path()
     if not path.is_file():
-        where = (f"the shared data folder {path.parent} (set {ENV_VAR} to another folder)"
-                 if spec.location == "shared" else f"the pymeshlab package's sample folder {path.parent}")
+        if spec.location != "package":
+            where = f"the pymeshlab package's sample folder {path.parent} (reinstall pymeshlab)"
+        elif os.environ.get(ENV_VAR):
+            where = f"{path.parent}, the folder {ENV_VAR} names (unset it to use the meshes shipped with parambench)"
+        else:
+            where = (f"the package data folder {path.parent} (reinstall parambench, "
+                     f"or set {ENV_VAR} to a folder holding {spec.filename})")
         raise InputFileError(f"{name}: {spec.filename} not found in {where}.")
     surface = load_surface(path, name=name, points_only=spec.points_only)
     normals = surface.normals

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -55,9 +56,13 @@ import scipy.sparse as sp
 
 from datasets_gen.errors import InvalidInputError
 
+from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
 
 __all__ = ["GeodesicBalls", "dem_balls", "DEM_KINDS", "PROJECTIONS", "DEFAULT_MAX_BALL"]
+
+# On-disk kernel cache where one is writable, none otherwise (see methods.numba_cache).
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 DEM_KINDS = ("upwind", "plain")
 
@@ -106,7 +111,7 @@ class GeodesicBalls:
         return self.indices >= 0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=_CACHE, nogil=True)
 def _heap_push(keys, vals, size, key, val):
     i = size
     keys[i] = key
@@ -121,7 +126,7 @@ def _heap_push(keys, vals, size, key, val):
     return size + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=_CACHE, nogil=True)
 def _heap_pop(keys, vals, size):
     key = keys[0]
     val = vals[0]
@@ -144,7 +149,7 @@ def _heap_pop(keys, vals, size):
     return key, val, size
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=_CACHE, nogil=True)
 def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
     """M_qs T_q p in the centre's frame: (u, v).
 
@@ -196,7 +201,7 @@ def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
     return tx * e1s[0] + ty * e1s[1] + tz * e1s[2], tx * e2s[0] + ty * e2s[1] + tz * e2s[2]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=_CACHE, nogil=True)
 def _dem_range(centres, start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, lens, ball_k, radius,
                max_ball, upwind, w_eps, midpoint, front_weight, out_idx, out_uv, out_dist, out_size,
                seen, frozen, dist, pred, uv, heap_keys, heap_vals):

@@ -6,14 +6,16 @@ from pathlib import Path
 
 import pytest
 
-REAL_DIR = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "real"
+from datasets_gen.real import real_data_dir
 
 
 @pytest.fixture
 def real_dir() -> Path:
-    if not (REAL_DIR / "camelhead.off").exists():
-        pytest.fail(f"real meshes not found in {REAL_DIR}; the suite expects ../shared beside the project")
-    return REAL_DIR.resolve()
+    """The folder of the real meshes shipped with the package (or ``$PARAMBENCH_REAL_DATA``)."""
+    folder = real_data_dir()
+    if not (folder / "camelhead.off").exists():
+        pytest.fail(f"real meshes not found in {folder}; they ship in datasets_gen/data/real/")
+    return folder.resolve()
 
 
 def _write_obj(path: Path, points, faces=None) -> Path:
