@@ -53,8 +53,9 @@ _COS_CONE = np.cos(np.deg2rad(80.0))
 #: Weight of the angular deviation in the successor score.
 _LATERAL_PENALTY = 3.0
 
-#: A loop shorter than this many ball radii of its points cannot enclose a hole the
-#: balls could see: it is the rim of a locally denser patch, not a boundary.
+#: A loop shorter than this many ball radii of its points (or of the typical ball, when
+#: balls follow the local spacing and are small in a dense patch) cannot enclose a hole
+#: the balls could see: it is the rim of a locally denser patch, not a boundary.
 _MIN_PERIMETER_BALLS = 2.0
 
 #: A loop whose points are spaced along it more than this many local spacings apart
@@ -346,7 +347,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     e1, e2 = tangent_frames(normals)
     ball_radius = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
     # Bridges span up to twice the typical ball radius.
-    reach = 2.0 * float(np.median(ball_radius))
+    typical_radius = float(np.median(ball_radius))
+    reach = 2.0 * typical_radius
     outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
     # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
     # true loop open: drop the points of small cycles and walk again until none is left.
@@ -362,7 +364,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         n_dropped_loops += len(small)
         active[np.concatenate(small)] = False
     kept = [c for c in all_cycles if c.size >= min_loop_size
-            and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * float(np.median(ball_radius[c]))]
+            and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * max(float(np.median(ball_radius[c])), typical_radius)]
     if local_spacing is not None:
         kept = [c for c in kept if _loop_spacing(points, c, local_spacing) <= _MAX_LOOP_SPACING]
     n_dropped_loops += len(all_cycles) - len(kept)
