@@ -63,7 +63,7 @@ def ocp_laplacian(front, energy: str = "neumann", area_factor: float = DEFAULT_A
     rows = OCP_ENERGIES[energy]
     if rows is None:
         return front.L
-    return neumann_laplacian(front.ball_indices, front.tangent_coords, front.boundary_loops, front.mean_spacing,
+    return neumann_laplacian(front.ball_indices, front.tangent_coords, front.boundary_loops, front.local_spacing,
                              interior=rows[0], boundary=rows[1], tangent_w=front.W, area_factor=float(area_factor))
 
 

@@ -202,7 +202,7 @@ def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _dem_range(centres, start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, lens, ball_k, radius,
+def _dem_range(centres, start, stop, out_offset, points, normals, e1, e2, indptr, nbrs, lens, ball_k, radii,
                max_ball, upwind, w_eps, midpoint, front_weight, out_idx, out_uv, out_dist, out_size,
                seen, frozen, dist, pred, uv, heap_keys, heap_vals):
     """DEM balls of centres[start:stop]; scratch arrays are stamped with the row number k,
@@ -211,6 +211,7 @@ def _dem_range(centres, start, stop, out_offset, points, normals, e1, e2, indptr
     for k in range(start, stop):
         s = centres[k]
         row = k - out_offset
+        radius = radii[s]
         ns = normals[s]
         e1s = e1[s]
         e2s = e2[s]
@@ -290,7 +291,8 @@ def _dem_range(centres, start, stop, out_offset, points, normals, e1, e2, indptr
 def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix, mean_spacing: float, *,
               ball_k: int = 6, ball_eps_factor: float = 2.5, dem: str = "upwind",
               max_ball: int = DEFAULT_MAX_BALL, projection: str = "midpoint",
-              front_weight: bool = True, centres: np.ndarray | None = None) -> GeodesicBalls:
+              front_weight: bool = True, centres: np.ndarray | None = None,
+              local_spacing: np.ndarray | None = None) -> GeodesicBalls:
     """Geodesic K-eps balls of all points with their DEM tangent coordinates.
 
     Parameters
@@ -319,6 +321,10 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
         docstring); False is the paper's Eq. 9.
     centres : (M,) array_like of int, optional
         Compute only these balls (rows of the result follow this order); all by default.
+    local_spacing : (N,) numpy.ndarray of float64, optional
+        Per-point spacing (:func:`methods.pointset.neighbourhoods.local_spacing`): ball i
+        then has radius ``ball_eps_factor * local_spacing[i]``, so balls follow the local
+        density; default: ``mean_spacing`` everywhere (the paper's global eps).
 
     Returns
     -------
@@ -366,7 +372,10 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     cap = (max_ball + 2) * max_deg + 1
     heap_keys = np.empty((workers, cap))
     heap_vals = np.empty((workers, cap), dtype=np.int64)
-    radius = float(ball_eps_factor * mean_spacing)
+    if local_spacing is None:
+        radii = np.full(n, float(ball_eps_factor * mean_spacing))
+    else:
+        radii = float(ball_eps_factor) * np.ascontiguousarray(local_spacing, dtype=np.float64)
     w_eps = _UPWIND_EPS * mean_spacing**2
 
     parts = []
@@ -381,7 +390,7 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
             b_dist = np.full((m, max_ball), np.inf)
             bounds = np.linspace(start, stop, workers + 1).astype(np.int64)
             args = [(centre_ids, int(bounds[t]), int(bounds[t + 1]), start, points, normals, e1, e2, indptr, nbrs, lens,
-                     int(ball_k), radius, int(max_ball), dem == "upwind", w_eps, projection == "midpoint",
+                     int(ball_k), radii, int(max_ball), dem == "upwind", w_eps, projection == "midpoint",
                      bool(front_weight), b_idx, b_uv, b_dist, sizes[start:stop], seen[t], frozen[t], dist[t],
                      pred[t], uv[t], heap_keys[t], heap_vals[t]) for t in range(workers)]
             n_trunc += sum(int(r) for r in pool.map(lambda a: _dem_range(*a), args))

@@ -19,8 +19,9 @@ from ..base import StageTimer
 from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary, no_boundary_error
 from .dem import DEFAULT_MAX_BALL, DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
-from .neighbourhoods import knn_graph, require_connected, spatial_order, symmetric_adjacency
+from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
 # Aliased: build_frontend has a boolean parameter of the same name.
+from .surface_neighbours import surface_knn_graph
 from .normals import check_user_normals, orient_normals, pca_normals
 from .normals import smooth_normals as neighbourhood_smoothed
 from .tangent_weights import (
@@ -44,6 +45,12 @@ DEM_VARIANTS = {
     "paper": {"projection": "length", "front_weight": False, "smoothing": "average"},
 }
 
+#: ``spacing`` settings of :func:`build_frontend`.
+SPACING_MODES = ("local", "global")
+
+#: ``neighbours`` settings of :func:`build_frontend`.
+NEIGHBOUR_MODES = ("surface", "euclidean")
+
 #: When no boundary loop closes, the boundary stage is retried on balls this much wider.
 _RETRY_BALL_SCALE = 1.6
 
@@ -65,6 +72,10 @@ class FrontEnd:
         K nearest neighbours, nearest first, self excluded.
     mean_spacing : float
         ``l``, mean kNN edge length.
+    local_spacing : (N,) numpy.ndarray of float64
+        The spacing that sized balls and area terms: around each point
+        (:func:`methods.pointset.neighbourhoods.local_spacing`) when ``spacing="local"``,
+        ``l`` everywhere when ``spacing="global"``.
     ball_indices : (N, B) numpy.ndarray of int64
         Geodesic K-eps ball members (-1 padding), see :mod:`methods.pointset.dem`.
     tangent_coords : (N, B, 2) numpy.ndarray of float64
@@ -92,6 +103,7 @@ class FrontEnd:
     normals: np.ndarray
     knn_indices: np.ndarray
     mean_spacing: float
+    local_spacing: np.ndarray
     ball_indices: np.ndarray
     tangent_coords: np.ndarray
     W: sp.csr_matrix
@@ -137,7 +149,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
                    ball_eps_factor: float = 2.5, dem: str = "upwind", smooth_normals: bool = True,
                    reg_eps: float = DEFAULT_REG_EPS, boundary_angle_deg: float = 120.0,
                    boundary_decimate: int = 1, weights: str = "tangent", max_ball: int = DEFAULT_MAX_BALL,
-                   min_loop_size: int = DEFAULT_MIN_LOOP_SIZE, dem_variant: str = "robust") -> FrontEnd:
+                   min_loop_size: int = DEFAULT_MIN_LOOP_SIZE, dem_variant: str = "robust",
+                   spacing: str = "global", neighbours: str = "euclidean") -> FrontEnd:
     """Run the point-set front end of Schmidt & Singh on a point set.
 
     Stages: Euclidean kNN graph and mean spacing ``l`` (``knn``); PCA normals oriented
@@ -176,6 +189,18 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         Cap on geodesic ball size.
     min_loop_size : int
         Boundary cycles with fewer points are dropped as sampling gaps.
+    spacing : {"global", "local"}
+        "global" (default): the paper's single ``eps = ball_eps_factor * l``; "local":
+        ball radii and area terms scale with the spacing around each point, so
+        adaptively sampled surfaces get full balls everywhere. Not the default: on
+        uniform random samples the local spacing is itself noisy and ocp failed (bump,
+        20k random points: no regular map) where "global" gives QC 1.006.
+    neighbours : {"euclidean", "surface"}
+        "euclidean" (default): the paper's plain K nearest; "surface": K neighbours kept
+        along the surface, not across narrow gaps
+        (:func:`methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
+        does not separate the touching sheets of the camelhead scan and with noise of 0.5
+        spacings it loses the outer loop of "holes" at 2k points, so it is not the default.
     dem_variant : {"robust", "paper"}
         "paper": T_q p by length-preserving projection, upwind weights
         ``(|p-q|^2 + eps)^-1``, normals smoothed by weighted averaging, all as in the
@@ -209,6 +234,11 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         ragged to close even on the wider balls.
     """
     pts, given = _validate(points, normals, k_nn, weights, dem, dem_variant)
+    if spacing not in SPACING_MODES:
+        raise InvalidInputError(f"spacing must be one of {', '.join(SPACING_MODES)}, got {spacing!r}.")
+    spacing_mode = spacing
+    if neighbours not in NEIGHBOUR_MODES:
+        raise InvalidInputError(f"neighbours must be one of {', '.join(NEIGHBOUR_MODES)}, got {neighbours!r}.")
     variant = DEM_VARIANTS[dem_variant]
     k_nn = int(k_nn)
     n = pts.shape[0]
@@ -221,10 +251,15 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         inv = np.empty_like(order)
         inv[order] = np.arange(n, dtype=np.int64)
         p = pts[order]
-        graph = knn_graph(p, k_nn)
+        if neighbours == "surface":
+            graph, nbr_diag = surface_knn_graph(p, k_nn)
+        else:
+            graph, nbr_diag = knn_graph(p, k_nn), {}
         adjacency = symmetric_adjacency(graph)
         require_connected(adjacency, k_nn)
         spacing = graph.mean_spacing
+        h_around = local_spacing(graph)  # the boundary's loop-spacing rule uses it in both modes
+        h_local = h_around if spacing_mode == "local" else np.full(n, spacing)
 
     with timer("normals"):
         fitted = pca_normals(p, graph.indices)
@@ -241,7 +276,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     with timer("dem"):
         balls = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
                           ball_eps_factor=float(ball_eps_factor), dem=dem, max_ball=int(max_ball),
-                          projection=variant["projection"], front_weight=variant["front_weight"])
+                          projection=variant["projection"], front_weight=variant["front_weight"],
+                          local_spacing=h_local)
     mask = balls.mask
 
     with timer("weights"):
@@ -258,7 +294,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
 
     with timer("boundary"):
         bnd_args = dict(angle_deg=float(boundary_angle_deg), decimate=int(boundary_decimate),
-                        min_loop_size=int(min_loop_size), require_loop=False)
+                        min_loop_size=int(min_loop_size), require_loop=False, local_spacing=h_around)
         bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
         retried = False
         if not bnd.loops and bnd.candidates.sum() >= 4 * min_loop_size:
@@ -267,7 +303,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
             wide = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
                              ball_eps_factor=_RETRY_BALL_SCALE * float(ball_eps_factor), dem=dem,
                              max_ball=int(_RETRY_BALL_SCALE**2 * max_ball) + 1,
-                             projection=variant["projection"], front_weight=variant["front_weight"])
+                             projection=variant["projection"], front_weight=variant["front_weight"],
+                             local_spacing=h_local)
             wide_bnd = find_boundary(p, frame_normals, wide.indices, wide.coords, **bnd_args)
             del wide
             retried = True
@@ -285,6 +322,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         "k_nn": k_nn,
         "mean_spacing": float(spacing),
         "normals_source": "given" if given is not None else "pca",
+        "neighbours": dict(nbr_diag, mode=neighbours),
         "ball_size": {"min": int(balls.sizes.min()), "mean": float(balls.sizes.mean()),
                       "max": int(balls.sizes.max())},
         "n_truncated_balls": int(balls.n_truncated),
@@ -307,9 +345,9 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
               "smooth_normals": bool(smooth_normals), "reg_eps": float(reg_eps),
               "boundary_angle_deg": float(boundary_angle_deg), "boundary_decimate": int(boundary_decimate),
               "weights": weights, "max_ball": int(max_ball), "min_loop_size": int(min_loop_size),
-              "dem_variant": dem_variant}
+              "dem_variant": dem_variant, "spacing": spacing_mode, "neighbours": neighbours}
     return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(graph.indices[inv], order),
-                    mean_spacing=float(spacing), ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
+                    mean_spacing=float(spacing), local_spacing=h_local[inv], ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
                     boundary_mask=bnd.mask[inv], boundary_loops=loops, reconstruction_error=r_x[inv],
                     diagnostics=diagnostics, timings=dict(timer.timings), params=params)
 

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 
 from datasets_gen.errors import DisconnectedError, TooFewPointsError
 
-__all__ = ["KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order"]
+__all__ = ["local_spacing", "KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,6 +75,26 @@ def knn_graph(points: np.ndarray, k: int = 8) -> KnnGraph:
     idx = np.ascontiguousarray(idx[:, 1:], dtype=np.int64)
     dist = np.ascontiguousarray(dist[:, 1:], dtype=np.float64)
     return KnnGraph(indices=idx, distances=dist, mean_spacing=float(dist.mean()))
+
+
+def local_spacing(graph: KnnGraph) -> np.ndarray:
+    """Sampling spacing around each point: its mean kNN distance, averaged over its kNN.
+
+    The average over the neighbourhood makes the field smooth (one outlier neighbour does
+    not halve a point's radius), so balls and area terms sized from it follow the local
+    density of adaptively sampled surfaces instead of the global mean ``l``.
+
+    Parameters
+    ----------
+    graph : KnnGraph
+
+    Returns
+    -------
+    (N,) numpy.ndarray of float64
+        Length units of the points; its mean is close to ``graph.mean_spacing``.
+    """
+    own = graph.distances.mean(axis=1)
+    return (own + own[graph.indices].sum(axis=1)) / (graph.k + 1)
 
 
 def symmetric_adjacency(graph: KnnGraph) -> sp.csr_matrix:

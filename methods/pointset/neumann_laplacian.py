@@ -264,8 +264,9 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
         Their tangent coordinates (``FrontEnd.tangent_coords``).
     loops : sequence of (L_i,) numpy.ndarray of int64
         Oriented boundary loops (``FrontEnd.boundary_loops``).
-    mean_spacing : float
-        l; the area per point is ``area_factor * l^2`` (halved at boundary points).
+    mean_spacing : float or (N,) numpy.ndarray of float64
+        l, or the spacing around each point; the area per point is
+        ``area_factor * l^2`` (halved at boundary points).
     interior : {"quadratic", "tangent"}
         Weights of the interior rows: :func:`moment_weights` of order 2, or the given
         ``tangent_w`` (W^tan).
@@ -294,7 +295,7 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
                                 f"got {interior!r}, {boundary!r}.")
     if (interior == "tangent" or boundary == "tangent") and tangent_w is None:
         raise InvalidInputError("tangent_w (W^tan) is needed for 'tangent' rows.")
-    if not (mean_spacing > 0 and area_factor > 0):
+    if not (np.all(np.asarray(mean_spacing) > 0) and area_factor > 0):
         raise InvalidInputError("mean_spacing and area_factor must be positive.")
     ball_indices = np.asarray(ball_indices, dtype=np.int64)
     mask = ball_indices >= 0
@@ -319,7 +320,7 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
     q = (w * (t**2).sum(-1)).sum(axis=1)
     q_ref = np.median(q[inner]) if inner.any() else np.median(q)
     q = np.maximum(q, 0.25 * q_ref)  # half balls with negative weights: keep the scale sane
-    area = np.full(n, area_factor * mean_spacing**2)
+    area = area_factor * np.broadcast_to(np.asarray(mean_spacing, dtype=np.float64), (n,))**2
     area[on_boundary] *= 0.5
     scale = 4.0 * area / q
     lap = -stencil_matrix(ball_indices, w * scale[:, None], n)

@@ -164,3 +164,39 @@ def test_thin_fold_does_not_fool_the_orientation_tree():
     assert crossing.sum() > 1000
     signs = consistent_signs(points, normals, graph.indices)
     assert np.all(signs == signs[0])
+
+
+def test_local_spacing_of_a_square_grid_by_hand():
+    """Interior points of a square grid of step a: 4 neighbours at a and 4 at a*sqrt(2),
+    so the mean 8-NN distance (and its neighbourhood average) is a (1 + sqrt 2) / 2."""
+    from methods.pointset.neighbourhoods import knn_graph, local_spacing
+
+    a = 0.3
+    g = np.stack(np.meshgrid(np.arange(30), np.arange(30)), -1).reshape(-1, 2) * a
+    pts = np.column_stack([g, np.zeros(len(g))])
+    h = local_spacing(knn_graph(pts, 8))
+    interior = np.all((g > 2.5 * a) & (g < 26.5 * a), axis=1)
+    np.testing.assert_allclose(h[interior], a * (1 + np.sqrt(2)) / 2, rtol=1e-9)
+
+
+def test_balls_follow_local_density():
+    """A plane sampled 4x denser (2x finer) on one half: with one global radius the dense
+    half's balls hold ~4x the members of the sparse half's (and hit the size cap); with
+    radii from the local spacing both halves hold about the same number."""
+    from methods.pointset.frontend import build_frontend
+
+    rng = np.random.default_rng(3)
+    coarse = np.stack(np.meshgrid(np.arange(0, 40), np.arange(0, 40)), -1).reshape(-1, 2) * 0.1
+    fine = np.stack(np.meshgrid(np.arange(0, 80), np.arange(0, 80)), -1).reshape(-1, 2) * 0.05 + [4.0, 0.0]
+    xy = np.vstack([coarse, fine]) + rng.normal(scale=0.004, size=(len(coarse) + len(fine), 2))
+    pts = np.column_stack([xy, 0.05 * np.sin(xy[:, 0])])
+    left = np.all((xy > [0.8, 0.8]) & (xy < [3.0, 3.1]), axis=1)
+    right = np.all((xy > [5.0, 0.8]) & (xy < [7.2, 3.1]), axis=1)
+
+    def members(mode):
+        fe = build_frontend(pts, spacing=mode)
+        size = (fe.ball_indices >= 0).sum(axis=1)
+        return np.median(size[right]) / np.median(size[left])
+
+    assert members("global") > 2.5
+    assert 0.7 < members("local") < 1.4
