@@ -60,8 +60,8 @@ class Slit(_DevelopableGap):
 
     name = "slit"
     description = ("unit disk bent around a cylinder of radius 2 with a straight slot of length 1.2 whose lips "
-                   "are 2.5 point spacings apart at every size; exact map: unrolling (isometric)")
-    defaults = {"gap": 2.5, "slot_length": 1.2, "bend_radius": 2.0}
+                   "are 2 point spacings apart at every size; exact map: unrolling (isometric)")
+    defaults = {"gap": 2.0, "slot_length": 1.2, "bend_radius": 2.0}
 
     def _setup(self, gap: float, slot_length: float, bend_radius: float) -> Domain:
         self._check_gap(gap, 1.0)
@@ -93,9 +93,9 @@ class Fold(_DevelopableGap):
 
     name = "fold"
     description = ("a 2.0 x 1.0 strip (plus its bend) folded around a thin cylinder by slightly more than "
-                   "180 deg, the two sheets 3 to 2 point spacings apart at every size; exact map: "
+                   "180 deg, the two sheets 2.5 to 2 point spacings apart at every size; exact map: "
                    "unrolling (isometric)")
-    defaults = {"gap": 2.5, "taper": 1.0, "length": 1.0, "width": 1.0}
+    defaults = {"gap": 2.25, "taper": 0.5, "length": 1.0, "width": 1.0}
 
     def _setup(self, gap: float, taper: float, length: float, width: float) -> Domain:
         self._check_gap(gap, 1.0)
