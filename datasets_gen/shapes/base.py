@@ -132,6 +132,22 @@ class Shape:
         """The exact flattening at parameter points, (n, 2), or None when none is known."""
         return None
 
+    def refinement(self, x: np.ndarray) -> np.ndarray | None:
+        """Where a graded sampling must use its finest spacing, whatever its random field.
+
+        Parameters
+        ----------
+        x : (n, 2) numpy.ndarray of float64
+            Parameter points.
+
+        Returns
+        -------
+        (n,) numpy.ndarray of float64 in [0, 1], or None
+            1 where the geometry needs the finest spacing (a bend tighter than the coarse
+            spacing), blending smoothly to 0; None (the default) when nowhere.
+        """
+        return None
+
     def area_factor(self, x: np.ndarray) -> np.ndarray:
         """Surface area per unit parameter area, |F_u x F_v|, at (n, 2) points; shape (n,).
 
