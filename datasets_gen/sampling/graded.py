@@ -10,11 +10,12 @@ so the relative spacing
 
     sigma(x) = DENSITY_RATIO ** (-t(x) / 2),  t in [0, 1],
 
-(t raised to 1 where the shape asks for refinement, e.g. the fold's tight bend)
-
-runs from 1 (sparse) to DENSITY_RATIO ** -0.5 (dense), and local density ~ sigma^-2.
+runs from 1 (sparse) to DENSITY_RATIO ** -0.5 (dense), and local density ~ sigma^-2
+(t is raised to 1 where the shape asks for refinement, e.g. the fold's tight bend).
 With these fractions both plateaus hold more than 5 % of the points, so the 5th and 95th
-percentiles of the point density lie on the plateaus and measure the designed ratio.
+percentiles of the point density lie on the plateaus. The field's ratio is 11; estimated
+from 6-nearest-neighbour distances, whose noise widens the spread, the 95th / 5th
+percentile ratio reads 14-16 on the procedural surfaces at 3000 points.
 """
 
 from __future__ import annotations
