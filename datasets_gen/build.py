@@ -2,6 +2,8 @@
 
 Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
 
+0. Shapes whose geometry scales with the spacing (the narrow gaps of "slit" and "fold")
+   are rebuilt for the nominal surface spacing of the requested count (:func:`nominal_spacing`).
 1. Spacing h from the requested count (:func:`~datasets_gen.sampling.sizing.spacing_for_count`),
    measured in the parameter domain for lattice samplings of flat-ish shapes, on the surface
    for the area-uniform samplings (and for shapes whose lattice is area-uniform).
@@ -18,7 +20,10 @@ Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
    - ``random``: uniform by surface area (rejection sampling), exactly the requested count;
    - ``blue-noise``: dart throwing on the surface (Poisson disk, radius 0.59 h, measured in
      3D) over 3x as many area-uniform candidates, the boundary points fixed first; computed
-     as a maximal independent set with array operations (:mod:`~datasets_gen.sampling.poisson_disk`).
+     as a maximal independent set with array operations (:mod:`~datasets_gen.sampling.poisson_disk`);
+   - ``graded``: the same with a local spacing h sigma(x) from a smooth seeded sizing field
+     (:mod:`~datasets_gen.sampling.graded`, density varying 11x), candidates drawn with
+     density ~ sigma^-2 and Poisson radius 0.59 h sigma; the boundary follows h sigma too.
 
    Shapes with a merged-scan strip (gnome-strip) add a second, rotated scan inside the strip.
 4. Interior points crowding the boundary are removed (in the meshing chart).
@@ -39,11 +44,13 @@ from .meshing import delaunay_in_chart, ordered_loops
 from .sampling import SAMPLINGS
 from .sampling.area_uniform import sample_by_area
 from .sampling.boundary import curve_length, near_boundary, place_boundary
+from .sampling.graded import graded_sizing, sample_by_density
 from .sampling.poisson_disk import poisson_disk_select
 from .sampling.sizing import spacing_for_count
 from .surface import Surface
 
-__all__ = ["build_surface", "add_normal_noise", "mean_edge_length", "check_noise", "MIN_GENERATED_POINTS"]
+__all__ = ["build_surface", "add_normal_noise", "mean_edge_length", "check_noise", "nominal_spacing",
+           "MIN_GENERATED_POINTS"]
 
 #: Smallest size a generator accepts: below it the boundary alone would use most points.
 MIN_GENERATED_POINTS = 100
@@ -66,7 +73,7 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
     shape : datasets_gen.shapes.base.Shape
     n_points : int
         Requested number of points (the result is within a few percent).
-    sampling : {"grid", "jittered", "random", "blue-noise"}
+    sampling : {"grid", "jittered", "random", "blue-noise", "graded"}
     seed : int or None
     noise : float
         Standard deviation of the displacement along the exact normal, as a fraction of
@@ -90,8 +97,13 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
         raise UnknownNameError(f"unknown sampling {sampling!r}; valid samplings: {', '.join(SAMPLINGS)}.")
     n_points = _check_count(n_points)
     noise = check_noise(noise)
-    rngs = dict(zip(("boundary", "interior", "scan", "order", "noise"),
-                    (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5))))
+    # a sixth child stream leaves the first five (and so the older samplings) unchanged
+    rngs = dict(zip(("boundary", "interior", "scan", "order", "noise", "sizing"),
+                    (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(6))))
+    if shape.spacing_dependent:
+        # twice: the domain (hence the spacing) changes slightly with the gap it was built for
+        for _ in range(2):
+            shape = shape.at_spacing(nominal_spacing(shape, n_points))
 
     x, labels, loop_sizes = _sample(shape, n_points, sampling, rngs)
     faces = _triangulate(shape, x, loop_sizes)
@@ -120,6 +132,25 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
                    exact_map_kind=shape.exact_map_kind if exact is not None else None)
 
 
+def nominal_spacing(shape, n_points: int) -> float:
+    """Surface spacing of an area-uniform sampling of ``n_points`` on ``shape`` (3D units).
+
+    The mean edge length of the "jittered", "random" and "blue-noise" samplings (within
+    ~6 %), and the spacing a narrow gap is measured in, whatever the sampling.
+
+    Parameters
+    ----------
+    shape : datasets_gen.shapes.base.Shape
+    n_points : int
+        Requested number of points.
+
+    Returns
+    -------
+    float
+    """
+    return spacing_for_count(n_points / shape.count_factor(), shape.surface_area, curve_length(shape, "3d"))
+
+
 def check_noise(noise) -> float:
     """``noise`` as a float, or InvalidInputError unless finite and non-negative."""
     try:
@@ -143,22 +174,26 @@ def _check_count(n_points) -> int:
 
 def _sample(shape, n_points: int, sampling: str, rngs: dict) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """Parameter points (boundary curves first, in order), their curve labels (-1 inside), loop sizes."""
-    metric = "3d" if sampling in ("random", "blue-noise") or shape.lattice_metric == "3d" else "param"
-    area = shape.surface_area if metric == "3d" else shape.domain.area
-    h = spacing_for_count(n_points / shape.count_factor(), area, curve_length(shape, metric))
+    sizing = graded_sizing(shape, rngs["sizing"]) if sampling == "graded" else None
+    metric = "3d" if sampling in ("random", "blue-noise", "graded") or shape.lattice_metric == "3d" else "param"
+    if sizing is not None:
+        area = sizing.effective_area
+    else:
+        area = shape.surface_area if metric == "3d" else shape.domain.area
+    h = spacing_for_count(n_points / shape.count_factor(), area, curve_length(shape, metric, sizing=sizing))
     if metric == "param":
         h = shape.snap_spacing(h)
 
     loops_x = place_boundary(shape, h, metric, jitter=0.0 if sampling == "grid" else BOUNDARY_JITTER,
-                             rng=rngs["boundary"])
+                             rng=rngs["boundary"], sizing=sizing)
     loops_chart = [shape.chart(lp) for lp in loops_x]
     boundary_x = np.concatenate(loops_x)
     n_interior = max(1, round(n_points / shape.count_factor()) - len(boundary_x))
 
-    interior = _scan(shape, sampling, h, n_interior, boundary_x, loops_chart, rngs["interior"])
+    interior = _scan(shape, sampling, h, n_interior, boundary_x, loops_chart, rngs["interior"], sizing=sizing)
     if hasattr(shape, "in_strip"):  # a merged-scan shape (gnome-strip)
         interior = _merge_second_scan(shape, sampling, h, metric, interior, n_interior, boundary_x,
-                                      loops_chart, rngs["scan"])
+                                      loops_chart, rngs["scan"], sizing)
     interior = interior[~near_boundary(shape.chart(interior), loops_chart)]
 
     x = np.concatenate([boundary_x, interior])
@@ -176,7 +211,7 @@ def _triangulate(shape, x: np.ndarray, loop_sizes: list[int]) -> np.ndarray:
 
 
 def _scan(shape, sampling: str, h: float, n_interior: int, boundary_x: np.ndarray, loops_chart: list,
-          rng: np.random.Generator, *, angle: float = 0.0, offset=(0.0, 0.0)) -> np.ndarray:
+          rng: np.random.Generator, *, angle: float = 0.0, offset=(0.0, 0.0), sizing=None) -> np.ndarray:
     """Interior parameter points of one scan (before the near-boundary removal)."""
     if sampling == "grid":
         return shape.lattice(h, angle=angle, offset=offset)
@@ -184,7 +219,7 @@ def _scan(shape, sampling: str, h: float, n_interior: int, boundary_x: np.ndarra
         return shape.lattice(h, angle=angle, offset=offset, jitter=LATTICE_JITTER, rng=rng)
     if sampling == "random":
         return _random_interior(shape, n_interior, loops_chart, rng)
-    return _blue_noise_interior(shape, h, n_interior, boundary_x, rng)
+    return _blue_noise_interior(shape, h, n_interior, boundary_x, rng, sizing)
 
 
 def _random_interior(shape, n: int, loops_chart: list, rng: np.random.Generator) -> np.ndarray:
@@ -198,12 +233,20 @@ def _random_interior(shape, n: int, loops_chart: list, rng: np.random.Generator)
     return np.concatenate(out)[:n]
 
 
-def _blue_noise_interior(shape, h: float, n: int, boundary_x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Poisson-disk points on the surface, boundary points fixed; about ``n`` of them."""
-    candidates = sample_by_area(shape, BLUE_NOISE_OVERSAMPLING * n, rng)
-    pts3 = shape.lift(np.concatenate([boundary_x, candidates]))[0]
+def _blue_noise_interior(shape, h: float, n: int, boundary_x: np.ndarray, rng: np.random.Generator,
+                         sizing=None) -> np.ndarray:
+    """Poisson-disk points on the surface, boundary points fixed; about ``n`` of them.
+
+    With a ``sizing`` the candidates have density ~ sigma^-2 and the radius is local (graded).
+    """
+    if sizing is None:
+        candidates = sample_by_area(shape, BLUE_NOISE_OVERSAMPLING * n, rng)
+    else:
+        candidates = sample_by_density(shape, sizing, BLUE_NOISE_OVERSAMPLING * n, rng)
+    x = np.concatenate([boundary_x, candidates])
+    pts3 = shape.lift(x)[0]
     n_fixed = len(boundary_x)
-    radius = BLUE_NOISE_RADIUS * h
+    radius = BLUE_NOISE_RADIUS * h * (1.0 if sizing is None else sizing(x))
     keep = poisson_disk_select(pts3, radius, n_fixed)[n_fixed:]
     # One correction if the calibrated radius misses by more than 4 % (small or odd shapes).
     if abs(keep.sum() / max(n, 1) - 1.0) > 0.04:
@@ -213,15 +256,17 @@ def _blue_noise_interior(shape, h: float, n: int, boundary_x: np.ndarray, rng: n
 
 
 def _merge_second_scan(shape, sampling: str, h: float, metric: str, first: np.ndarray, n_interior: int,
-                       boundary_x: np.ndarray, loops_chart: list, rng: np.random.Generator) -> np.ndarray:
-    """Add a rotated second scan inside the shape's strip, dropping near-duplicates."""
+                       boundary_x: np.ndarray, loops_chart: list, rng: np.random.Generator,
+                       sizing=None) -> np.ndarray:
+    """Add a rotated second scan inside the shape's strip, dropping near-duplicates (at the local spacing)."""
     angle = np.radians(shape.options["strip_angle"])
     second = _scan(shape, sampling, h, n_interior, boundary_x, loops_chart, rng,
-                   angle=angle, offset=(SECOND_SCAN_SHIFT[0] * h, SECOND_SCAN_SHIFT[1] * h))
+                   angle=angle, offset=(SECOND_SCAN_SHIFT[0] * h, SECOND_SCAN_SHIFT[1] * h), sizing=sizing)
     second = second[shape.in_strip(second)]
     merged = np.concatenate([first, second])
     coords = shape.lift(merged)[0] if metric == "3d" else merged
-    keep = poisson_disk_select(coords, shape.options["min_spacing"] * h, n_fixed=len(first))
+    radius = shape.options["min_spacing"] * h * (1.0 if sizing is None else sizing(merged))
+    keep = poisson_disk_select(coords, radius, n_fixed=len(first))
     return merged[keep]
 
 

@@ -1,4 +1,4 @@
-"""Planar parameter domains: a disk or a rectangle, minus circular holes.
+"""Planar parameter domains: a disk or a rectangle, minus circular or slot-shaped holes.
 
 A procedural surface is a map from one of these domains to 3D. The domain answers three
 questions for the samplers and the mesher: which points lie inside, where the boundary
@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Disk", "Rect", "Domain", "Segment"]
+__all__ = ["Disk", "Rect", "Stadium", "Domain", "Segment"]
 
 #: A boundary segment: maps parameters t in [0, 1] of shape (n,) to points (n, 2).
 Segment = Callable[[np.ndarray], np.ndarray]
@@ -85,14 +85,67 @@ class Rect:
 
 
 @dataclass(frozen=True)
+class Stadium:
+    """The open slot (stadium) of points closer than ``half_width`` to a horizontal segment.
+
+    The segment runs from ``center - (half_length, 0)`` to ``center + (half_length, 0)``;
+    the slot has two straight sides and two semicircular ends.
+    """
+
+    center: tuple[float, float]
+    half_length: float
+    half_width: float
+
+    def inside(self, x: np.ndarray) -> np.ndarray:
+        """(n,) bool: True where the (n, 2) points lie strictly inside."""
+        d = np.asarray(x, dtype=float) - np.asarray(self.center)
+        along = np.clip(d[:, 0], -self.half_length, self.half_length)
+        return (d[:, 0] - along) ** 2 + d[:, 1] ** 2 < self.half_width ** 2
+
+    @property
+    def radius(self) -> float:
+        """Radius of the smallest disk around ``center`` holding the slot (for the overlap checks)."""
+        return float(self.half_length + self.half_width)
+
+    @property
+    def area(self) -> float:
+        return float(4.0 * self.half_length * self.half_width + np.pi * self.half_width ** 2)
+
+    @property
+    def bbox(self) -> tuple[np.ndarray, np.ndarray]:
+        c = np.asarray(self.center, dtype=float)
+        half = np.array([self.half_length + self.half_width, self.half_width])
+        return c - half, c + half
+
+    def segments(self) -> list[Segment]:
+        """Lower side, right end, upper side, left end: counter-clockwise, the joints always boundary points."""
+        c = np.asarray(self.center, dtype=float)
+        a, w = float(self.half_length), float(self.half_width)
+
+        def side(start: np.ndarray, end: np.ndarray) -> Segment:
+            return lambda t: start + np.asarray(t, dtype=float)[:, None] * (end - start)
+
+        def end_cap(mid: np.ndarray, start_angle: float) -> Segment:
+            def arc(t: np.ndarray) -> np.ndarray:
+                angle = start_angle + np.pi * np.asarray(t, dtype=float)
+                return mid + w * np.column_stack([np.cos(angle), np.sin(angle)])
+            return arc
+
+        right, left = c + [a, 0.0], c - [a, 0.0]
+        return [side(left - [0.0, w], right - [0.0, w]), end_cap(right, -0.5 * np.pi),
+                side(right + [0.0, w], left + [0.0, w]), end_cap(left, 0.5 * np.pi)]
+
+
+@dataclass(frozen=True)
 class Domain:
-    """An outer disk or rectangle minus disjoint circular holes.
+    """An outer disk or rectangle minus disjoint holes (disks or slots).
 
     Parameters
     ----------
     outer : Disk or Rect
-    holes : tuple of Disk
-        Must lie inside ``outer`` and not overlap each other (checked).
+    holes : tuple of Disk or Stadium
+        Must lie inside ``outer`` and not overlap each other (checked, conservatively for
+        slots: by their enclosing disks).
 
     Raises
     ------
@@ -102,7 +155,7 @@ class Domain:
     """
 
     outer: Disk | Rect
-    holes: tuple[Disk, ...] = ()
+    holes: tuple[Disk | Stadium, ...] = ()
 
     def __post_init__(self) -> None:
         lo, hi = self.outer.bbox

@@ -41,7 +41,7 @@ def make_surface(name: str, n_points: int = 5000, *, sampling: str = "jittered",
     n_points : int
         Requested number of points, at least 100 (the result is within a few percent;
         ``params["n_actual"]`` records it). Ignored by real datasets.
-    sampling : {"grid", "jittered", "random", "blue-noise"}
+    sampling : {"grid", "jittered", "random", "blue-noise", "graded"}
         How the parameter domain is sampled (see :mod:`datasets_gen.build`). Ignored by
         real datasets.
     seed : int or None

@@ -25,22 +25,30 @@ MIN_CIRCLE_POINTS = 8
 MIN_SIDE_INTERVALS = 2
 
 
-def _arc_table(shape, segment, metric: str, m: int) -> tuple[np.ndarray, np.ndarray]:
+def _arc_table(shape, segment, metric: str, m: int, sizing=None) -> tuple[np.ndarray, np.ndarray]:
+    """Curve parameters t (m,) and cumulative arc length s (m,), divided by the sizing if given."""
     t = np.linspace(0.0, 1.0, m)
     x = segment(t)
     y = shape.lift(x)[0] if metric == "3d" else x
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(y, axis=0), axis=1))])
-    return t, s
+    ds = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    if sizing is not None:
+        ds = ds / sizing(0.5 * (x[1:] + x[:-1]))
+    return t, np.concatenate([[0.0], np.cumsum(ds)])
 
 
-def curve_length(shape, metric: str, m: int = 4097) -> float:
-    """Total length of all boundary curves, in parameter ("param") or surface ("3d") units."""
-    return float(sum(_arc_table(shape, seg, metric, m)[1][-1] for curve in shape.domain.curves() for seg in curve))
+def curve_length(shape, metric: str, m: int = 4097, sizing=None) -> float:
+    """Total length of all boundary curves, in parameter ("param") or surface ("3d") units.
+
+    With a ``sizing`` (a callable giving the relative spacing sigma at (n, 2) parameter
+    points), the length is the integral of ds / sigma: the number of points at unit spacing.
+    """
+    return float(sum(_arc_table(shape, seg, metric, m, sizing)[1][-1]
+                     for curve in shape.domain.curves() for seg in curve))
 
 
 def place_boundary(shape, h: float, metric: str, *, jitter: float = 0.0,
-                   rng: np.random.Generator | None = None) -> list[np.ndarray]:
-    """Boundary points of every curve at spacing ~``h``.
+                   rng: np.random.Generator | None = None, sizing=None) -> list[np.ndarray]:
+    """Boundary points of every curve at spacing ~``h`` (``h * sigma(x)`` with a sizing).
 
     Parameters
     ----------
@@ -54,6 +62,9 @@ def place_boundary(shape, h: float, metric: str, *, jitter: float = 0.0,
         the spacing (0.25 keeps the order and a spacing of at least half the mean).
     rng : numpy.random.Generator
         Required when ``jitter > 0``.
+    sizing : callable, optional
+        Relative spacing sigma at (n, 2) parameter points, (n,) values > 0: the local
+        spacing is ``h * sigma`` (points at equal steps of the integral of ds / sigma).
 
     Returns
     -------
@@ -65,9 +76,9 @@ def place_boundary(shape, h: float, metric: str, *, jitter: float = 0.0,
         closed_single = len(curve) == 1
         parts = []
         for seg in curve:
-            t, s = _arc_table(shape, seg, metric, 257)
+            t, s = _arc_table(shape, seg, metric, 257, sizing)
             m = int(max(1025, 16 * s[-1] / h + 1))
-            t, s = _arc_table(shape, seg, metric, m)
+            t, s = _arc_table(shape, seg, metric, m, sizing)
             n = max(MIN_CIRCLE_POINTS if closed_single else MIN_SIDE_INTERVALS, round(s[-1] / h))
             step = s[-1] / n
             k = np.arange(n, dtype=float)

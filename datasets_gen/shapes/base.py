@@ -58,6 +58,11 @@ class Shape:
     exact_map_kind: ClassVar[str | None] = None
     #: "param" when the lattice is uniform in the parameter domain, "3d" when uniform on the surface.
     lattice_metric: ClassVar[str] = "param"
+    #: True when the geometry is set in units of the sampling spacing (narrow gaps): the
+    #: generator then rebuilds the shape with :meth:`at_spacing`.
+    spacing_dependent: ClassVar[bool] = False
+    #: Surface spacing the geometry was built for (None: the shape's own default).
+    nominal_spacing: float | None = None
 
     def __init__(self, **options) -> None:
         unknown = sorted(set(options) - set(self.defaults))
@@ -76,6 +81,26 @@ class Shape:
 
     def _setup(self, **options) -> Domain:
         raise NotImplementedError
+
+    def at_spacing(self, h: float) -> "Shape":
+        """This shape rebuilt for a sampling of surface spacing ``h`` (itself unless spacing-dependent).
+
+        Parameters
+        ----------
+        h : float
+            Nominal spacing on the surface, > 0 (see :func:`datasets_gen.build.nominal_spacing`).
+
+        Returns
+        -------
+        Shape
+            A new instance with the same options and ``nominal_spacing == h``.
+        """
+        if not self.spacing_dependent:
+            return self
+        shape = type(self).__new__(type(self))
+        shape.nominal_spacing = float(h)
+        Shape.__init__(shape, **self.options)
+        return shape
 
     def _require(self, condition: bool, message: str) -> None:
         if not condition:
@@ -105,6 +130,22 @@ class Shape:
 
     def exact_uv(self, x: np.ndarray) -> np.ndarray | None:
         """The exact flattening at parameter points, (n, 2), or None when none is known."""
+        return None
+
+    def refinement(self, x: np.ndarray) -> np.ndarray | None:
+        """Where a graded sampling must use its finest spacing, whatever its random field.
+
+        Parameters
+        ----------
+        x : (n, 2) numpy.ndarray of float64
+            Parameter points.
+
+        Returns
+        -------
+        (n,) numpy.ndarray of float64 in [0, 1], or None
+            1 where the geometry needs the finest spacing (a bend tighter than the coarse
+            spacing), blending smoothly to 0; None (the default) when nowhere.
+        """
         return None
 
     def area_factor(self, x: np.ndarray) -> np.ndarray:

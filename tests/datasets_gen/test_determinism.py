@@ -18,16 +18,16 @@ def _same(a, b) -> bool:
                for k in ARRAYS) and all(np.array_equal(x, y) for x, y in zip(a.boundary_loops, b.boundary_loops))
 
 
-@pytest.mark.parametrize("sampling", ["grid", "jittered", "random", "blue-noise"])
-@pytest.mark.parametrize("name", ["holes-bumped", "cap", "protrusions", "gnome-strip"])
+@pytest.mark.parametrize("sampling", ["grid", "jittered", "random", "blue-noise", "graded"])
+@pytest.mark.parametrize("name", ["holes-bumped", "cap", "protrusions", "gnome-strip", "slit", "fold"])
 def test_same_seed_same_arrays(name, sampling):
     a = make_surface(name, 700, sampling=sampling, seed=11, noise=0.2)
     b = make_surface(name, 700, sampling=sampling, seed=11, noise=0.2)
     assert _same(a, b)
 
 
-@pytest.mark.parametrize("sampling", ["jittered", "random", "blue-noise"])
-@pytest.mark.parametrize("name", ["plane", "cylinder", "gnome-strip"])
+@pytest.mark.parametrize("sampling", ["jittered", "random", "blue-noise", "graded"])
+@pytest.mark.parametrize("name", ["plane", "cylinder", "gnome-strip", "fold"])
 def test_other_seed_other_points(name, sampling):
     a = make_surface(name, 700, sampling=sampling, seed=1)
     b = make_surface(name, 700, sampling=sampling, seed=2)

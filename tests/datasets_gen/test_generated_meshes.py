@@ -10,7 +10,7 @@ from datasets_gen.shapes import SHAPES
 from methods.mesh.topology import require_connected_disk_like
 
 PROCEDURAL = [n for n in dataset_names() if not n.startswith("real/")]
-N_HOLES = {"holes": 3, "holes-bumped": 3}
+N_HOLES = {"holes": 3, "holes-bumped": 3, "slit": 1}
 
 
 def _planar(surface):

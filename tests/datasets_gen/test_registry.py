@@ -8,12 +8,13 @@ import pytest
 from datasets_gen.errors import InputFileError, InvalidInputError, TooFewPointsError, UnknownNameError
 from datasets_gen.registry import SAMPLINGS, dataset_info, dataset_names, make_surface
 
-PROCEDURAL = ["plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions", "gnome-strip"]
+PROCEDURAL = ["plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions", "gnome-strip",
+              "slit", "fold"]
 REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k", "real/chameleon"]
 
 
 def test_names_and_info():
-    assert SAMPLINGS == ("grid", "jittered", "random", "blue-noise")
+    assert SAMPLINGS == ("grid", "jittered", "random", "blue-noise", "graded")
     assert dataset_names() == PROCEDURAL + REAL
     info = dataset_info()
     assert list(info) == dataset_names()
