@@ -173,7 +173,9 @@ class Method:
         Returns
         -------
         Parameterization
-            With ``timings["total"]`` set and ``params`` fully resolved.
+            With ``timings["total"]`` set and ``params`` fully resolved; for point-set
+            methods (``needs_faces`` False) also ``diagnostics["selfcheck"]``, see
+            :func:`methods.pointset.plugin_support.selfcheck_result`.
 
         Raises
         ------
@@ -197,6 +199,10 @@ class Method:
             raise InvalidInputError(
                 f"method {self.name!r} returned {result.uv.shape[0]} uv rows for {surface.n_points} points (a bug)."
             )
+        if not self.needs_faces:  # every point-set map checks itself (diagnostics["selfcheck"])
+            from .pointset.plugin_support import selfcheck_result
+
+            selfcheck_result(surface, result)
         return result
 
     def run(self, surface: Surface, **params: Any) -> Parameterization:  # pragma: no cover - abstract
