@@ -14,7 +14,8 @@ from datasets_gen.surface import Surface
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
 
-__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "scale_to_spacing", "frontend_diagnostics", "selfcheck_result"]
+__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "scale_to_spacing", "frontend_diagnostics", "frontend_candidates",
+           "selfcheck_result"]
 
 #: Front-end parameters every point-set method accepts (paper Sec. 6 defaults).
 FRONTEND_DEFAULTS: dict[str, Any] = {
@@ -60,7 +61,13 @@ class _CheckInputs:
 _CHECK_INPUTS: "weakref.WeakKeyDictionary[Surface, _CheckInputs]" = weakref.WeakKeyDictionary()
 
 
-def _candidates(front: FrontEnd) -> np.ndarray | None:
+def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
+    """The angle-criterion boundary candidates of a front end, or None if it cannot tell.
+
+    Taken from ``front.boundary_candidates`` when the front end keeps them, otherwise
+    recomputed with :func:`methods.pointset.boundary.angular_gaps` on its balls (None
+    once the balls are dropped).
+    """
     given = getattr(front, "boundary_candidates", None)
     if given is not None:
         return np.asarray(given, dtype=bool)
@@ -74,7 +81,7 @@ def _candidates(front: FrontEnd) -> np.ndarray | None:
 
 def _check_inputs(front: FrontEnd) -> _CheckInputs:
     try:
-        candidates = _candidates(front)
+        candidates = frontend_candidates(front)
     except Exception:  # the check is optional; a changed front end must not fail a method
         candidates = None
     return _CheckInputs(normals=front.normals, knn_indices=front.knn_indices, spacing=front.mean_spacing,

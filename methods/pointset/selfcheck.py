@@ -40,7 +40,7 @@ from datasets_gen.errors import ParambenchError
 from ..geometry2d import turning_number
 from .uv_triangulation import triangulate_uv
 
-__all__ = ["check_pointset_map", "loop_coverage", "suggest_fix", "failure_line", "THRESHOLDS"]
+__all__ = ["check_pointset_map", "loop_coverage", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
 
 MAX_FLIPPED = 0
 MAX_DEGENERATE_FRACTION = 0.01
@@ -67,6 +67,17 @@ def _knn(points: np.ndarray, k: int = _SPACING_K) -> np.ndarray:
 
 def _local_spacing(points: np.ndarray, knn: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[knn] - points[:, None, :], axis=-1).mean(axis=1)
+
+
+def _longest_edge(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    p = points[faces]
+    edges = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 1], p[:, 0] - p[:, 2]], axis=1)
+    return np.sqrt(np.einsum("mij,mij->mi", edges, edges)).max(axis=1)
+
+
+def _bridging(longest: np.ndarray, faces: np.ndarray, spacing_pt: np.ndarray) -> np.ndarray:
+    """Triangles with a 3D edge longer than ``BRIDGE_FACTOR`` local spacings."""
+    return longest > BRIDGE_FACTOR * spacing_pt[faces].mean(axis=1)
 
 
 def loop_coverage(points: np.ndarray, loops: list, candidates: np.ndarray, knn_indices: np.ndarray,
@@ -116,9 +127,8 @@ def loop_coverage(points: np.ndarray, loops: list, candidates: np.ndarray, knn_i
 def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool) -> tuple[dict, int]:
     p = points[faces]
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    edges = np.stack([e1, e2, p[:, 2] - p[:, 1]], axis=1)
-    longest = np.sqrt(np.einsum("mij,mij->mi", edges, edges)).max(axis=1)
-    bridging = longest > BRIDGE_FACTOR * spacing_pt[faces].mean(axis=1)
+    longest = _longest_edge(points, faces)
+    bridging = _bridging(longest, faces, spacing_pt)
     n_dropped = 0
     if drop_bridging:
         n_dropped = int(bridging.sum())
@@ -241,10 +251,11 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     return facts
 
 
-#: Per failed check: (parameter, how to change it) in order of preference.
+#: Per failed check, most telling first (a spinning boundary also folds and stretches
+#: triangles): (parameter, how to change it) in order of preference.
 _FIXES = {
+    "turning": [("k_search", "line"), ("k", "x10"), ("ball_eps_factor", "raise"), ("k_nn", "raise")],
     "coverage": [("boundary_angle_deg", "lower"), ("ball_eps_factor", "raise")],
-    "turning": [("k_search", "line"), ("k", "raise"), ("ball_eps_factor", "raise"), ("k_nn", "raise")],
     "flipped": [("k_nn", "raise"), ("ball_eps_factor", "raise"), ("n_neighbors", "raise")],
     "degenerate": [("ball_eps_factor", "raise"), ("k_nn", "raise"), ("n_neighbors", "raise")],
     "triangulation": [("k_nn", "raise"), ("n_neighbors", "raise")],
@@ -256,6 +267,8 @@ def _proposal(key: str, how: str, current: Any) -> str | None:
         return None if current == "line" else f"{key}=line"
     if not isinstance(current, (int, float)) or isinstance(current, bool):
         return None
+    if how == "x10":  # scp-tan's fixed k: k_opt of W^tan is ~10-25 (Sec. 4.2)
+        return f"{key}={10 * current:g}"
     if how == "lower":
         return f"{key}={current - 20:g}"
     if isinstance(current, int):
@@ -280,7 +293,7 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
     str
         E.g. ``"try --param boundary_angle_deg=100"``, or advice to try ``ocp``.
     """
-    for name in failed:
+    for name in sorted(failed, key=lambda f: list(_FIXES).index(f) if f in _FIXES else len(_FIXES)):
         for key, how in _FIXES.get(name, []):
             if key in params:
                 change = _proposal(key, how, params[key])
@@ -290,5 +303,36 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
 
 
 def failure_line(check: dict, params: dict, method: str) -> str:
-    """One line: what failed and what to try."""
-    return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], params, method)}."
+    """One line, no final period: what failed and what to try."""
+    return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], params, method)}"
+
+
+def pointset_faces(points: np.ndarray, uv: np.ndarray, loops: list | None) -> np.ndarray:
+    """The triangles the self-check judges a map on, for writing a point-set result as a mesh.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    uv : (N, 2) numpy.ndarray of float64
+    loops : list of (L_i,) array_like of int, or None
+        Detected boundary loops (``diagnostics["boundary_loops"]``); without them the
+        Delaunay triangles bridging more than ``BRIDGE_FACTOR`` local spacings in 3D are
+        dropped as lying outside the surface.
+
+    Returns
+    -------
+    (M, 3) numpy.ndarray of int64
+        Counter-clockwise in uv; holes of the loops left empty.
+
+    Raises
+    ------
+    InvalidInputError
+        The uv points cannot be triangulated (a collapsed map).
+    """
+    points = np.asarray(points, dtype=np.float64)
+    loops = [np.asarray(lp, dtype=np.int64) for lp in (loops or [])]
+    faces = triangulate_uv(uv, loops).faces
+    if loops:
+        return faces
+    spacing_pt = _local_spacing(points, _knn(points))
+    return faces[~_bridging(_longest_edge(points, faces), faces, spacing_pt)]
