@@ -125,9 +125,12 @@ def summary_table(table: pd.DataFrame) -> str:
         times = ok.groupby("method")["time_total"].median()
         lines.append("")
         lines.append(pd.DataFrame({"foldovers (sum)": folds, "median time (s)": times.round(3)}).to_string())
-    failed = table[table["status"] != "ok"]
+    suspect = table[table["status"] == "suspect"]  # metrics stored, but the map failed its self-check
+    failed = table[~table["status"].isin(("ok", "suspect"))]
     lines.append("")
-    lines.append(f"{len(ok)} ok, {len(failed)} failed of {len(table)} cells")
+    lines.append(f"{len(ok)} ok, {len(suspect)} suspect, {len(failed)} failed of {len(table)} cells")
+    for _, r in suspect.head(5).iterrows():
+        lines.append(f"  SUSPECT {r['dataset']} / {r['method']}: {str(r['error'])[:150]}")
     for _, r in failed.head(10).iterrows():
         lines.append(f"  FAILED {r['dataset']} / {r['method']}: {r['error_type']}: {str(r['error'])[:150]}")
     if len(failed) > 10:

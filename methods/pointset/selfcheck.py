@@ -231,8 +231,10 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         else:
             face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops)
             facts.update(triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped, **face_facts)
-    if loops and "n_flipped" in facts:
-        facts.update(_turning(uv, loops, facts["mirrored"]))
+    if loops and np.all(np.isfinite(uv)):
+        # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
+        mirrored = facts.get("mirrored", turning_number(uv[loops[0]]) < 0)
+        facts.update(_turning(uv, loops, mirrored))
     facts["coverage"] = (loop_coverage(points, loops, candidates, knn, l_mean) if candidates is not None else None)
     failed = []
     if "reason_override" in facts:
@@ -245,7 +247,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         failed.append("turning")
     if facts["coverage"] is not None and not facts["coverage"]["passed"]:
         failed.append("coverage")
-    reason = facts.pop("reason_override", None) or _reason(facts)
+    override = facts.pop("reason_override", None)
+    reason = "; ".join(r for r in (override, _reason(facts)) if r and r != "ok") or "ok"
     facts.update(passed=not failed, reason=reason, failed=failed, thresholds=dict(THRESHOLDS),
                  seconds=round(time.perf_counter() - start, 4))
     return facts

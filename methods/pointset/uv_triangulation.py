@@ -2,12 +2,13 @@
 
 Constrained Delaunay in the plane (the ``triangle`` package, Shewchuk's Triangle) with
 every detected boundary loop as a chain of constraint segments; of the triangles, those
-inside the outer loop and outside every hole loop are kept (even-odd rule over the loops).
+inside the outer loop and outside every hole loop are kept (non-zero total winding number
+of the loops).
 The classification floods the triangle adjacency without crossing a constraint segment,
 so each region between loops is classified by one point-in-polygon test.
 
 When the constraints cannot be honoured as given (a self-intersecting uv boundary, which
-Triangle resolves by inserting new vertices, or coincident uv points) the fallback is
+Triangle resolves by inserting new vertices, or coincident uv points, which it drops) the fallback is
 scipy's unconstrained Delaunay with every triangle classified by its centroid.
 """
 
@@ -17,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from matplotlib.path import Path
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, QhullError
 
@@ -51,13 +51,31 @@ def _loop_segments(loops: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(segs).astype(np.int32) if segs else np.empty((0, 2), np.int32)
 
 
-def _inside_count(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
-    """How many loops contain each point (even count = outside the domain)."""
-    count = np.zeros(points.shape[0], dtype=np.int64)
+def _winding(query: np.ndarray, polygon: np.ndarray, chunk: int = 4_000_000) -> np.ndarray:
+    """Winding number of a closed polygon around each query point (crossing rule)."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    out = np.zeros(query.shape[0], dtype=np.int64)
+    step = max(1, chunk // max(1, len(polygon)))
+    for lo in range(0, query.shape[0], step):
+        q = query[lo:lo + step]
+        qx, qy = q[:, :1], q[:, 1:]
+        cross = (b[:, 0] - a[:, 0]) * (qy - a[:, 1]) - (b[:, 1] - a[:, 1]) * (qx - a[:, 0])
+        up = (a[:, 1] <= qy) & (b[:, 1] > qy) & (cross > 0)
+        down = (a[:, 1] > qy) & (b[:, 1] <= qy) & (cross < 0)
+        out[lo:lo + step] = up.sum(axis=1) - down.sum(axis=1)
+    return out
+
+
+def _inside(query: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """Non-zero total winding of the loops: inside the outer loop and outside the holes.
+
+    Holes turn against the outer loop, so their windings cancel the outer one inside a
+    hole, under a global mirror too; a boundary that winds twice still has its inside.
+    """
+    total = np.zeros(query.shape[0], dtype=np.int64)
     for lp in loops:
-        if len(lp) >= 3:
-            count += Path(uv[lp]).contains_points(points)
-    return count
+        total += _winding(query, uv[lp])
+    return total != 0
 
 
 def _ccw(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -110,9 +128,9 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
     uv : (N, 2) numpy.ndarray of float64
         One row per point.
     loops : list of (L_i,) array_like of int, optional
-        Boundary loops (point indices in order), outer first; all loops are used as
-        constraints and the even-odd rule decides inside, so the order and orientation
-        of the loops do not matter. None or empty: the Delaunay triangulation of the
+        Boundary loops (point indices in order), outer first, holes turning against the
+        outer loop (as the front end returns them); all loops are constraints and a
+        triangle is kept where their total winding number is non-zero. None or empty: the Delaunay triangulation of the
         whole convex hull.
 
     Returns
@@ -130,7 +148,7 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
     loops = [np.asarray(lp, dtype=np.int64) for lp in (loops or []) if len(lp) >= 3]
     faces = None
     segments = _loop_segments(loops)
-    if loops:
+    if loops and np.unique(uv, axis=0).shape[0] == n:  # Triangle cannot keep coincident vertices
         faces = _cdt(uv, segments)
     kind = "cdt" if faces is not None else ("delaunay-fallback" if loops else "delaunay")
     if faces is None:
@@ -146,9 +164,9 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
     if kind == "cdt":
         labels = _regions(faces, segments, n)
         first = np.unique(labels, return_index=True)[1]
-        inside = (_inside_count(centroids[first], uv, loops) % 2 == 1)[labels]
+        inside = _inside(centroids[first], uv, loops)[labels]
     else:
-        inside = _inside_count(centroids, uv, loops) % 2 == 1
+        inside = _inside(centroids, uv, loops)
     if not inside.any():
         raise InvalidInputError("no uv triangle lies inside the detected boundary loops: the map collapsed.")
     return UvTriangulation(faces=faces[inside], kind=kind, n_removed=int((~inside).sum()))
