@@ -61,6 +61,10 @@ class _CheckInputs:
 _CHECK_INPUTS: "weakref.WeakKeyDictionary[Surface, _CheckInputs]" = weakref.WeakKeyDictionary()
 
 
+#: Rows of balls per chunk when the candidates are recomputed.
+_CANDIDATE_CHUNK = 100_000
+
+
 def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
     """The angle-criterion boundary candidates of a front end, or None if it cannot tell.
 
@@ -75,8 +79,12 @@ def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
         return None
     from .boundary import angular_gaps  # the angle criterion of the front end, on its own balls
 
-    gap, _ = angular_gaps(front.tangent_coords, front.ball_indices >= 0)
-    return gap > np.deg2rad(float(front.params.get("boundary_angle_deg", FRONTEND_DEFAULTS["boundary_angle_deg"])))
+    threshold = np.deg2rad(float(front.params.get("boundary_angle_deg", FRONTEND_DEFAULTS["boundary_angle_deg"])))
+    out = np.empty(front.n_points, dtype=bool)
+    for lo in range(0, front.n_points, _CANDIDATE_CHUNK):  # bounded temporaries at 1M points
+        sl = slice(lo, lo + _CANDIDATE_CHUNK)
+        out[sl] = angular_gaps(front.tangent_coords[sl], front.ball_indices[sl] >= 0)[0] > threshold
+    return out
 
 
 def _check_inputs(front: FrontEnd) -> _CheckInputs:

@@ -171,3 +171,15 @@ def test_every_pointset_method_result_carries_its_check(bump):
     good = get_method("sdp")(bump).diagnostics["selfcheck"]
     assert good["passed"] and good["triangulation"] == "cdt" and good["coverage"]["passed"]
     json.dumps(good)
+
+
+def test_candidates_for_coverage_are_the_front_ends_own(bump):
+    from methods.pointset.frontend import build_frontend
+    from methods.pointset.plugin_support import frontend_candidates
+
+    front = build_frontend(bump.points)
+    candidates = frontend_candidates(front)
+    assert not front.diagnostics["boundary"]["retried_with_wider_balls"]
+    assert candidates.sum() == front.diagnostics["boundary"]["n_candidates"] > 0
+    assert candidates[front.boundary_mask].mean() > 0.9  # loop points pass the angle criterion
+    assert frontend_candidates(front.without_balls()) is None
