@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -62,15 +63,27 @@ def parse_param_values(pairs: Sequence[str], defaults: dict) -> dict:
     return params
 
 
+def _check_benchmark_files(paths: Sequence[str] | None) -> None:
+    """Refuse missing ``--benchmark-json`` files now rather than after the sweep."""
+    missing = [p for p in paths or () if not Path(p).is_file()]
+    if missing:
+        raise InputFileError(f"--benchmark-json: no such file {', '.join(map(repr, missing))}; "
+                             f"give files written by pytest --benchmark-json.")
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .suites import get_suite
+    from .suites import check_workers, get_suite
     from .sweep import run_sweep, summary_table
 
+    # Everything the sweep needs is checked before it creates a folder or starts a cell.
     suite = get_suite(args.suite).with_overrides(
         methods=args.methods, datasets=args.datasets, sizes=args.sizes, seeds=args.seeds,
         samplings=args.samplings, noise=args.noise)
+    check_workers(args.workers)
+    _check_benchmark_files(args.benchmark_json)
     table = run_sweep(suite, args.out, scheduler=args.scheduler, workers=args.workers,
-                      progress=not args.no_progress, isolate=args.isolate)
+                      progress=not args.no_progress, isolate=args.isolate,
+                      retry_failed=not args.keep_failed, wait=args.wait)
     print(summary_table(table))
     print(f"\nresults: {Path(args.out) / 'results.parquet'} and results.csv")
     if not args.no_report:
@@ -80,6 +93,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
         for kind, path in paths.items():
             print(f"report ({kind}): {path}")
     return 0
+
+
+def _whole_number(text: str) -> int:
+    """argparse type: an integer written as one (ranges are checked with the suite)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
 def _default_method(surface) -> str:
@@ -211,13 +239,19 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--suite", default="quick", help="quick (default, < 3 min), full, or scale (10k to 1M points)")
     run.add_argument("--methods", nargs="+", help="method names (default: all registered)")
     run.add_argument("--datasets", nargs="+", help="dataset names (default: the suite's)")
-    run.add_argument("--sizes", nargs="+", type=int, help="point counts of procedural datasets")
-    run.add_argument("--seeds", nargs="+", type=int, help="seeds")
+    run.add_argument("--sizes", nargs="+", type=_whole_number,
+                     help="point counts of procedural datasets (whole numbers, at least 100)")
+    run.add_argument("--seeds", nargs="+", type=_whole_number, help="seeds (whole numbers >= 0)")
     run.add_argument("--samplings", nargs="+", help="grid, jittered, random, blue-noise")
-    run.add_argument("--noise", nargs="+", type=float, help="normal noise, fraction of the mean spacing")
+    run.add_argument("--noise", nargs="+", type=_number,
+                     help="normal noise, fraction of the mean spacing (finite, >= 0)")
     run.add_argument("--out", default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")
     run.add_argument("--scheduler", help="address of a running Dask scheduler")
-    run.add_argument("--workers", type=int, help="start a local Dask cluster with N workers")
+    run.add_argument("--workers", type=_whole_number, help="start a local Dask cluster with N (>= 1) workers")
+    run.add_argument("--keep-failed", action="store_true",
+                     help="skip cells that failed in an earlier run (default: retry them)")
+    run.add_argument("--wait", action="store_true",
+                     help="if another sweep is using --out, wait for it to finish (default: stop at once)")
     run.add_argument("--isolate", action="store_true",
                      help="run each cell in a fresh process and record its peak memory (scaling runs)")
     run.add_argument("--benchmark-json", nargs="+", help="pytest-benchmark JSON files to include in the report")
@@ -255,13 +289,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    # One line per warning, like errors: the source line Python would add means nothing to a user.
+    print(f"parambench: warning: {category.__name__}: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code.
 
     2 for bad input, with one line on stderr; 3 when ``flatten`` refuses to write a
     point-set map that fails its self-check (one line on stderr saying what to try).
+    Warnings (e.g. coincident points merged) are printed as one line each on stderr.
     """
     args = build_parser().parse_args(argv)
+    with warnings.catch_warnings():
+        warnings.showwarning = _warning_line
+        return _dispatch(args)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     try:
         return args.func(args)
     except ParambenchError as exc:

@@ -17,7 +17,7 @@ from datasets_gen.surface import Surface
 from methods.pointset.frontend import build_frontend
 
 from .cells import Cell
-from .run_cell import surface_for
+from .run_cell import _method_input, surface_for
 from .storage import ResultStore
 
 __all__ = ["surface_diagnostics", "store_missing_diagnostics", "MAX_POINTS"]
@@ -63,7 +63,8 @@ def surface_diagnostics(surface: Surface) -> dict:
     ParambenchError
         When the front end refuses the points (e.g. a closed surface).
     """
-    front = build_frontend(surface.points, surface.normals)
+    # The front end as the point-set methods of the sweep run it: no generator normals.
+    front = build_frontend(surface.points, _method_input(surface, needs_faces=False).normals)
     truth = surface.boundary_mask if surface.boundary_mask is not None else front.boundary_mask
     arrays = {"points": surface.points.astype(np.float32), "det_boundary_mask": front.boundary_mask}
     arrays["w_tan_interior"], arrays["w_tan_boundary"] = _split_rows(front.W, ~truth)

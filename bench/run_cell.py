@@ -39,6 +39,17 @@ def surface_for(dataset: str, size: int, sampling: str, noise: float, seed: int)
     return make_surface(dataset, size, sampling=sampling, seed=seed, noise=noise)
 
 
+def _method_input(surface: Surface, needs_faces: bool) -> Surface:
+    """What a cell's method is given: no ground truth (see :meth:`Surface.method_input`).
+
+    A file's own normals are data (``flatten`` passes them too), kept for point-set methods
+    while the positions are the file's; a generator's normals, or a file's once noise has
+    moved the points, are ground truth and withheld.
+    """
+    file_normals = surface.params.get("normals") == "file" and not surface.params.get("noise")
+    return surface.method_input(needs_faces, keep_normals=file_normals)
+
+
 def _loops_arrays(prefix: str, loops) -> dict:
     if not loops:
         return {}
@@ -134,7 +145,7 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
         surface = surface_for(cell.dataset, cell.size, cell.sampling, cell.noise, cell.seed)
         row.update(n_points=surface.n_points, n_faces=0 if surface.faces is None else int(len(surface.faces)))
         method = get_method(cell.method)
-        given = surface if method.needs_faces else surface.points_only()
+        given = _method_input(surface, method.needs_faces)
         params = cell.params_dict
         if "seed" in method.defaults:
             params.setdefault("seed", cell.seed)

@@ -3,6 +3,11 @@
 Each cell is written the moment it finishes, atomically (temporary file, then rename), so
 a run killed half-way loses no finished cell and a second run skips them. The consolidated
 ``results.parquet`` / ``results.csv`` are rebuilt from the cell files alone.
+
+A cell file that cannot be read back (truncated by a full disk, edited by hand, written by
+a tool that did not rename atomically) is never fatal: :meth:`ResultStore.scan` lists it
+as unreadable, :meth:`ResultStore.quarantine` moves it aside (kept as evidence) and the
+sweep recomputes the cell.
 """
 
 from __future__ import annotations
@@ -10,12 +15,20 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["ResultStore"]
+from datasets_gen.errors import InputFileError
+
+__all__ = ["ResultStore", "StoredCells", "check_output_dir", "FAILED", "UNREADABLE_SUFFIX"]
+
+#: The one status that does not count as finished: a rerun retries such cells by default.
+FAILED = "failed"
+#: Suffix given to a cell file that could not be read back (see ``ResultStore.quarantine``).
+UNREADABLE_SUFFIX = ".unreadable"
 
 
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -37,6 +50,83 @@ def _json_default(value):
     if isinstance(value, np.ndarray):
         return value.tolist()
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+
+
+def check_output_dir(path: str | os.PathLike) -> Path:
+    """Check, creating nothing, that a results folder can be created or written.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The results folder (``--out``); it may not exist yet.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    InputFileError
+        ``path`` (or the nearest existing folder above it) is a file or is not writable.
+    """
+    root = Path(path)
+    existing = root
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        what = "" if existing == root else f" ({str(existing)!r} is a file)"
+        raise InputFileError(f"--out: cannot use {str(root)!r} as a results folder{what}; give a folder path.")
+    # An existing results folder must also let us replace files in its sub-folders.
+    probes = [existing]
+    if existing == root:
+        probes += [root / sub for sub in ("cells", "datasets") if (root / sub).is_dir()]
+    for folder in probes:
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise InputFileError(f"--out: folder {str(folder)!r} is not writable; fix its permissions or "
+                                 f"choose another --out.")
+    return root
+
+
+@dataclass(frozen=True)
+class StoredCells:
+    """What a results folder holds, read without ever raising.
+
+    Attributes
+    ----------
+    status : dict of str to str
+        ``cell_id`` -> ``status`` of every readable row.
+    unreadable : dict of str to str
+        ``cell_id`` -> one-line reason, for cell files that are not a valid row
+        (undecodable or truncated JSON, not an object, ``cell_id`` not matching the file
+        name, no ``status``).
+    """
+
+    status: dict = field(default_factory=dict)
+    unreadable: dict = field(default_factory=dict)
+
+    def finished(self) -> set[str]:
+        """Cells that need no rerun: every readable status but ``failed`` (``ok``, ``suspect``, ...)."""
+        return {cid for cid, status in self.status.items() if status != FAILED}
+
+    def failed(self) -> set[str]:
+        return {cid for cid, status in self.status.items() if status == FAILED}
+
+
+def _read_row(path: Path) -> tuple[dict | None, str]:
+    """The row stored at ``path``, or None and why it is not usable."""
+    try:
+        row = json.loads(path.read_bytes())
+    except OSError as exc:
+        return None, f"cannot be read ({exc.strerror or exc})"
+    except (UnicodeDecodeError, ValueError) as exc:  # JSONDecodeError is a ValueError
+        return None, f"is not valid JSON, probably truncated ({exc})"
+    if not isinstance(row, dict):
+        return None, f"holds a JSON {type(row).__name__}, not a row object"
+    if row.get("cell_id") != path.stem:
+        return None, f"names cell {row.get('cell_id')!r}, not {path.stem!r}"
+    if not isinstance(row.get("status"), str):
+        return None, "has no status"
+    return row, ""
 
 
 class ResultStore:
@@ -63,9 +153,43 @@ class ResultStore:
         self.cells_dir.mkdir(parents=True, exist_ok=True)
         self.datasets_dir.mkdir(parents=True, exist_ok=True)
 
+    def scan(self) -> StoredCells:
+        """Status of every readable cell file and the reason for every unreadable one."""
+        stored = StoredCells()
+        for path in sorted(self.cells_dir.glob("*.json")):
+            row, why = _read_row(path)
+            if row is None:
+                stored.unreadable[path.stem] = why
+            else:
+                stored.status[path.stem] = row["status"]
+        return stored
+
     def finished_ids(self) -> set[str]:
-        """Identifiers of cells that already have a row."""
-        return {p.stem for p in self.cells_dir.glob("*.json")}
+        """Identifiers of cells with a readable row whose status is not ``failed``."""
+        return self.scan().finished()
+
+    def quarantine(self, cell_id: str) -> Path:
+        """Move an unreadable cell file aside (``<cell_id>.json.unreadable``) so it is recomputed.
+
+        The bytes are kept for inspection; the report and later sweeps no longer see them.
+        Returns the new path.
+        """
+        path = self.cells_dir / f"{cell_id}.json"
+        target = path.with_name(path.name + UNREADABLE_SUFFIX)
+        os.replace(path, target)
+        return target
+
+    def remove_stale_temporaries(self) -> int:
+        """Delete temporary files left by a writer that was killed mid-write; returns how many.
+
+        Call only while holding the folder lock (:func:`bench.folder_lock.hold_folder`):
+        a running writer's temporary file looks the same.
+        """
+        stale = [p for folder in (self.cells_dir, self.datasets_dir) for p in folder.glob(".*")
+                 if p.suffix in (".tmp", ".npz") and p.is_file()]
+        for p in stale:
+            p.unlink(missing_ok=True)
+        return len(stale)
 
     def write_row(self, row: dict) -> Path:
         """Write one cell's row atomically; returns its path."""
@@ -92,8 +216,8 @@ class ResultStore:
         return (self.root / folder / f"{name}.npz").exists()
 
     def rows(self) -> pd.DataFrame:
-        """All finished rows, sorted by cell id."""
-        rows = [json.loads(p.read_text()) for p in sorted(self.cells_dir.glob("*.json"))]
+        """All readable rows (any status), sorted by cell id; unreadable files are left out."""
+        rows = [row for row, _ in map(_read_row, sorted(self.cells_dir.glob("*.json"))) if row is not None]
         return pd.DataFrame(rows)
 
     def consolidate(self) -> pd.DataFrame:

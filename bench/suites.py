@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import itertools
+import math
+import numbers
 from dataclasses import dataclass, replace
 
-from datasets_gen.errors import UnknownNameError
+from datasets_gen.build import MIN_GENERATED_POINTS, check_noise
+from datasets_gen.errors import InvalidInputError, TooFewPointsError, UnknownNameError
+from datasets_gen.sampling import SAMPLINGS
 from methods.registry import all_methods
 
 from .cells import REAL_PREFIX, Cell
 
-__all__ = ["Suite", "SUITES", "get_suite", "expand_cells"]
+__all__ = ["Suite", "SUITES", "get_suite", "expand_cells", "validate_suite", "check_workers"]
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,87 @@ def get_suite(name: str) -> Suite:
     try:
         return SUITES[name]
     except KeyError:
-        raise UnknownNameError(f"unknown suite {name!r}; available: {', '.join(SUITES)}.") from None
+        raise UnknownNameError(f"--suite: unknown suite {name!r}; available: {', '.join(SUITES)}.") from None
+
+
+def _is_whole(value) -> bool:
+    return (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
+            and float(value).is_integer())
+
+
+def _require(option: str, values: tuple) -> None:
+    if not values:
+        raise InvalidInputError(f"--{option}: no values given; give at least one.")
+
+
+def _check_names(option: str, given: tuple, available, what: str) -> None:
+    unknown = [str(v) for v in given if v not in available]
+    if unknown:
+        raise UnknownNameError(f"--{option}: unknown {what}(s) {', '.join(unknown)}; "
+                               f"available: {', '.join(available)}.")
+
+
+def validate_suite(suite: Suite) -> Suite:
+    """Check every field of a suite before any work, naming the option and the allowed values.
+
+    Parameters
+    ----------
+    suite : Suite
+
+    Returns
+    -------
+    Suite
+        ``suite`` unchanged (for chaining).
+
+    Raises
+    ------
+    UnknownNameError
+        Unknown method, dataset or sampling names (the message lists the available ones).
+    TooFewPointsError
+        A size below the generators' minimum (:data:`datasets_gen.build.MIN_GENERATED_POINTS`).
+    InvalidInputError
+        An empty list, a size or seed that is not a whole number, a negative seed, or
+        noise that is negative, NaN or infinite.
+    """
+    from datasets_gen.registry import dataset_names
+
+    registered = all_methods()
+    _check_names("methods", suite.methods, list(registered), "method")
+    _require("datasets", suite.datasets)
+    _check_names("datasets", suite.datasets, dataset_names(), "dataset")
+    for option, values in (("sizes", suite.sizes), ("samplings", suite.samplings), ("seeds", suite.seeds),
+                           ("noise", suite.noise)):
+        _require(option, values)
+    for size in suite.sizes:
+        if not _is_whole(size):
+            raise InvalidInputError(f"--sizes: {size!r} is not a whole number; sizes are point counts, "
+                                    f"at least {MIN_GENERATED_POINTS}.")
+        if size < MIN_GENERATED_POINTS:
+            raise TooFewPointsError(f"--sizes: {size!r} is too small; sizes are point counts, "
+                                    f"at least {MIN_GENERATED_POINTS}.")
+    _check_names("samplings", suite.samplings, SAMPLINGS, "sampling")
+    for seed in suite.seeds:
+        if not _is_whole(seed) or seed < 0:
+            raise InvalidInputError(f"--seeds: {seed!r} is not allowed; seeds are whole numbers >= 0.")
+    for noise in suite.noise:
+        try:
+            check_noise(noise)
+        except InvalidInputError:
+            raise InvalidInputError(f"--noise: {noise!r} is not allowed; noise is a finite fraction of the "
+                                    f"mean spacing, >= 0 (e.g. 0 or 0.05).") from None
+    return suite
+
+
+def check_workers(workers) -> None:
+    """Refuse a local cluster size that is not a whole number >= 1 (None means in-process).
+
+    Raises
+    ------
+    InvalidInputError
+    """
+    if workers is not None and (not _is_whole(workers) or workers < 1):
+        raise InvalidInputError(f"--workers: {workers!r} is not allowed; give a whole number of worker "
+                                f"processes >= 1 (or leave it out to run in-process).")
 
 
 def _param_combinations(method_cls, use_grid: bool) -> list[tuple]:
@@ -108,19 +192,11 @@ def expand_cells(suite: Suite) -> list[Cell]:
 
     Raises
     ------
-    UnknownNameError
-        Unknown method or dataset names, listing the available ones.
+    UnknownNameError, TooFewPointsError, InvalidInputError
+        From :func:`validate_suite`.
     """
-    from datasets_gen.registry import dataset_names
-
+    validate_suite(suite)
     registered = all_methods()
-    unknown = [m for m in suite.methods if m not in registered]
-    if unknown:
-        raise UnknownNameError(f"unknown method(s) {', '.join(unknown)}; available: {', '.join(registered)}.")
-    known_datasets = set(dataset_names())
-    bad = [d for d in suite.datasets if d not in known_datasets]
-    if bad:
-        raise UnknownNameError(f"unknown dataset(s) {', '.join(bad)}; available: {', '.join(sorted(known_datasets))}.")
     methods = suite.methods or tuple(registered)
     cells = []
     for dataset in suite.datasets:

@@ -27,6 +27,7 @@ __all__ = [
     "SolverError",
     "ConvergenceError",
     "ResourceLimitError",
+    "ResultsInUseError",
 ]
 
 
@@ -95,3 +96,7 @@ class ConvergenceError(SolverError):
 
 class ResourceLimitError(ParambenchError):
     """The input is too large for this method's memory or time complexity."""
+
+
+class ResultsInUseError(ParambenchError):
+    """A results folder is locked by another running sweep."""

@@ -3,6 +3,13 @@
 Validation lives here, once, at the public boundary (the pattern of scikit-learn and
 robust-laplacian): a ``Surface`` that exists has finite float64 points, in-range int64
 faces without degenerate triangles, and unit normals if any.
+
+Coincident points are accepted where they are data: in a bare point set (point-set methods
+merge them, :mod:`methods.pointset.coincident`) and in a mesh whose faces keep them apart
+(the cut seams of textured exports). A mesh edge joining two coincident vertices is refused.
+
+Ground truth (exact map, true boundary, the generator's normals) travels on the same object
+for evaluation; :meth:`Surface.method_input` is what a method may see.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ from .errors import (
 )
 
 __all__ = ["Surface", "validate_points", "validate_faces", "validate_normals", "find_duplicate_points",
-           "require_unique_points", "MIN_POINTS"]
+           "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "MIN_POINTS"]
 
 #: Fewer points than this cannot define a surface patch with an interior.
 MIN_POINTS = 4
@@ -76,21 +83,34 @@ def validate_points(points: Any, *, name: str = "points", min_points: int = MIN_
     return arr
 
 
-def find_duplicate_points(points: np.ndarray, rel_tol: float = DUPLICATE_TOL) -> np.ndarray:
-    """Pairs of points closer than ``rel_tol`` times the bounding-box diagonal.
+def duplicate_tolerance(points: np.ndarray, rel_tol: float = DUPLICATE_TOL) -> float:
+    """``rel_tol`` times the bounding-box diagonal of ``points`` (same length unit), never 0."""
+    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    return max(rel_tol * diag, np.finfo(float).tiny)
+
+
+def find_duplicate_points(points: np.ndarray, rel_tol: float = DUPLICATE_TOL, *, tol: float | None = None,
+                          tree: cKDTree | None = None) -> np.ndarray:
+    """Pairs of points closer than ``rel_tol`` times the bounding-box diagonal (or ``tol``).
 
     Parameters
     ----------
     points : (N, 3) numpy.ndarray of float64
     rel_tol : float
+        Tolerance as a fraction of the bounding-box diagonal.
+    tol : float, optional
+        Absolute tolerance (length unit of ``points``); replaces ``rel_tol`` when given.
+    tree : scipy.spatial.cKDTree, optional
+        A tree already built over ``points`` (saves rebuilding it).
 
     Returns
     -------
     (P, 2) numpy.ndarray of int64, each row ``i < j``.
     """
-    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
-    tol = max(rel_tol * diag, np.finfo(float).tiny)
-    return cKDTree(points).query_pairs(tol, output_type="ndarray").astype(np.int64)
+    if tol is None:
+        tol = duplicate_tolerance(points, rel_tol)
+    tree = cKDTree(points) if tree is None else tree
+    return tree.query_pairs(max(tol, np.finfo(float).tiny), output_type="ndarray").astype(np.int64)
 
 
 def require_unique_points(points: np.ndarray, name: str | None = None) -> None:
@@ -108,6 +128,45 @@ def require_unique_points(points: np.ndarray, name: str | None = None) -> None:
         raise DuplicatePointsError(
             f"{prefix}{len(dup)} pair(s) of duplicate points (first: {i} and {j}); "
             "merge them first (e.g. pymeshlab meshing_remove_duplicate_vertices) and retry."
+        )
+
+
+def require_no_collapsed_edges(points: np.ndarray, faces: np.ndarray, name: str | None = None) -> None:
+    """Raise if a face edge joins two coincident vertices.
+
+    Coincident vertices that no face joins are a cut seam (textured OBJ exports store seams
+    so): the faces keep the two sides apart, and merging them would glue the cut. An edge
+    between coincident vertices has zero length and makes its faces degenerate.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64, indices in ``[0, N)``
+    name : str, optional
+        Used in the error message.
+
+    Raises
+    ------
+    DegenerateFacesError
+        With the number of such edges and the first face and vertex pair.
+    """
+    dup = find_duplicate_points(points)
+    if not dup.size:
+        return
+    n = np.int64(points.shape[0])
+    pair_keys = dup[:, 0] * n + dup[:, 1]
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    edge_keys = edges.min(axis=1) * n + edges.max(axis=1)
+    collapsed = np.isin(edge_keys, pair_keys)
+    if collapsed.any():
+        first = int(np.flatnonzero(collapsed)[0])
+        i, j = (int(v) for v in np.sort(edges[first]))
+        prefix = f"{name}: " if name else ""
+        raise DegenerateFacesError(
+            f"{prefix}{int(np.unique(edge_keys[collapsed]).size)} edge(s) join coincident vertices "
+            f"(first: vertices {i} and {j} in face {first % len(faces)}); merge each such pair and drop the "
+            "faces that collapse (e.g. pymeshlab meshing_merge_close_vertices, then meshing_remove_null_faces), "
+            "and retry."
         )
 
 
@@ -229,8 +288,9 @@ class Surface:
     ------
     InvalidInputError, TooFewPointsError, DegenerateFacesError
         On invalid arrays (see :func:`validate_points`, :func:`validate_faces`).
-    DuplicatePointsError
-        When two points coincide.
+    DegenerateFacesError
+        Also when a face edge joins two coincident vertices (coincident vertices that no
+        face joins are accepted: cut seams; so are coincident points of a point set).
     """
 
     points: np.ndarray
@@ -246,11 +306,12 @@ class Surface:
 
     def __post_init__(self) -> None:
         pts = validate_points(self.points)
-        require_unique_points(pts, self.name)
         object.__setattr__(self, "points", pts)
         n = pts.shape[0]
         if self.faces is not None:
-            object.__setattr__(self, "faces", validate_faces(self.faces, n, pts))
+            faces = validate_faces(self.faces, n, pts)
+            require_no_collapsed_edges(pts, faces, self.name)
+            object.__setattr__(self, "faces", faces)
         if self.normals is not None:
             object.__setattr__(self, "normals", validate_normals(self.normals, n))
         if self.boundary_mask is not None:
@@ -283,8 +344,36 @@ class Surface:
         return float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
 
     def points_only(self) -> "Surface":
-        """The same surface with its faces dropped (ground truth is kept for evaluation)."""
+        """The same surface with its faces dropped; ground truth is kept.
+
+        For tests and evaluation helpers that need the ground truth beside a point set.
+        What a method may be given is :meth:`method_input`.
+        """
         return replace(self, faces=None)
+
+    def method_input(self, needs_faces: bool, *, keep_normals: bool = False) -> "Surface":
+        """What a method may see: what a user's file would hold, no ground truth.
+
+        Parameters
+        ----------
+        needs_faces : bool
+            True for a mesh method (points and faces); False for a point-set method
+            (positions only).
+        keep_normals : bool
+            Keep ``normals`` for a point-set method. Only for normals that are data (read
+            from a file, positions unchanged since); a generator's exact normals are ground
+            truth and a user would have to estimate them.
+
+        Returns
+        -------
+        Surface
+            Same ``points`` and ``name``; ``faces`` only if ``needs_faces`` (None on a point
+            set: the method then reports the missing faces itself); no exact map, boundary
+            loops or mask, generator parameters or seed.
+        """
+        normals = self.normals if (keep_normals and not needs_faces) else None
+        return replace(self, faces=self.faces if needs_faces else None, normals=normals, params={}, seed=None,
+                       boundary_mask=None, boundary_loops=None, exact_uv=None, exact_map_kind=None)
 
     def describe(self) -> dict:
         """A JSON-serialisable summary (name, sizes, parameters, seed)."""

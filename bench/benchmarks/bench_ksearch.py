@@ -38,7 +38,7 @@ def _qc(surface, result) -> float:
 def test_line_search_against_direct_k(benchmark, dataset, method_name, params):
     surface = surface_for(dataset, SIZE, SAMPLING, 0.0, 0)
     method = get_method(method_name)
-    given = surface if method.needs_faces else surface.points_only()
+    given = surface.method_input(method.needs_faces)  # no ground truth reaches the method
     benchmark.group = f"ksearch-{method_name}"
     line = benchmark.pedantic(lambda: method(given, k_search="line", **params), rounds=1, iterations=1)
     info = {"k_line": line.diagnostics["k_opt"], "qc_line": _qc(surface, line),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 import weakref
 from dataclasses import dataclass
 from typing import Any
@@ -114,7 +115,8 @@ def selfcheck_result(surface: Surface, result) -> dict:
     """Check a point-set result and store the facts in ``result.diagnostics["selfcheck"]``.
 
     Uses the front end of the method's own run on ``surface`` when there was one,
-    otherwise estimates normals and neighbours. Never raises: a check that cannot run
+    otherwise estimates normals and neighbours. ``seconds`` in the facts is the time of
+    the whole check, estimation included. Never raises: a check that cannot run
     records ``passed=False`` with the reason, and the map is always kept.
 
     Parameters
@@ -130,6 +132,7 @@ def selfcheck_result(surface: Surface, result) -> dict:
     """
     from .selfcheck import check_pointset_map
 
+    start = time.perf_counter()
     try:
         inputs = _CHECK_INPUTS.pop(surface, None) or _estimated_inputs(surface, result)
         check = check_pointset_map(surface.points, result.uv, inputs.normals, inputs.loops,
@@ -138,6 +141,7 @@ def selfcheck_result(surface: Surface, result) -> dict:
     except Exception as exc:  # checking must never hide a result
         check = {"passed": False, "reason": f"the self-check could not run ({type(exc).__name__}: {exc})",
                  "failed": ["check-error"]}
+    check["seconds"] = round(time.perf_counter() - start, 4)  # with the inputs' estimation, if any
     result.diagnostics["selfcheck"] = check
     return check
 

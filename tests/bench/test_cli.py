@@ -1,4 +1,4 @@
-"""The command line: flatten, list, inspect, and one-line errors with exit code 2."""
+"""The command line: flatten, list, inspect, run, and one-line errors with exit code 2."""
 
 from __future__ import annotations
 
@@ -143,3 +143,70 @@ def test_flatten_point_cloud_with_ocp(tmp_path, write_obj):
     assert len(vt) == surface.n_points and len(f) > surface.n_points
     *_, signed, _ = jacobian_singular_values(surface.points, surface.faces, vt)
     assert count_foldovers(signed) == 0
+
+
+# Each bad ``run`` option: exit 2, one line naming the option and what is allowed, no folder left.
+RUN_CASES = {
+    "negative-seed": (["--seeds", "-1"], "--seeds", ">= 0"),
+    "zero-size": (["--sizes", "0"], "--sizes", "at least 100"),
+    "negative-size": (["--sizes", "-5"], "--sizes", "at least 100"),
+    "size-below-minimum": (["--sizes", "99"], "--sizes", "at least 100"),
+    "unknown-sampling": (["--samplings", "poisson"], "--samplings", "blue-noise"),
+    "negative-noise": (["--noise", "-0.5"], "--noise", ">= 0"),
+    "nan-noise": (["--noise", "nan"], "--noise", "finite"),
+    "zero-workers": (["--workers", "0"], "--workers", ">= 1"),
+    "unknown-method": (["--methods", "scp", "magic"], "--methods", "scp-igl"),
+    "unknown-dataset": (["--datasets", "nowhere"], "--datasets", "real/lilium"),
+    "unknown-suite": (["--suite", "huge"], "--suite", "quick"),
+    "missing-benchmark-json": (["--benchmark-json", "{tmp}/none.json"], "--benchmark-json", "pytest"),
+    "out-under-a-file": (["--out", "{tmp}/file.txt/r"], "--out", "folder"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(RUN_CASES))
+def test_bad_run_options_refused_before_any_folder(case, tmp_path, capsys):
+    extra, option, allowed = RUN_CASES[case]
+    (tmp_path / "file.txt").write_text("x")
+    argv = ["run", "--datasets", "plane", "--sizes", "500", "--methods", "scp", "--out", str(tmp_path / "r"),
+            "--no-report", "--no-progress"] + [a.format(tmp=tmp_path) for a in extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert f"{option}:" in err and allowed in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]  # nothing created
+
+
+def test_run_option_that_is_not_a_number_is_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--sizes", "1e3", "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err.strip()
+    assert exc.value.code == 2 and len(err.splitlines()) == 1 and "--sizes" in err and "whole number" in err
+    assert not (tmp_path / "r").exists()
+
+
+def test_run_retries_failed_cells_and_refuses_a_busy_folder(tmp_path, capsys):
+    from bench.folder_lock import hold_folder
+    from bench.run_cell import failed_row
+    from bench.storage import ResultStore
+    from bench.suites import Suite, expand_cells
+
+    out = tmp_path / "r"
+    argv = ["run", "--datasets", "plane", "--sizes", "500", "--methods", "scp", "--out", str(out),
+            "--no-report", "--no-progress"]
+    (cell,) = expand_cells(Suite("x", ("plane",), (500,), ("jittered",), (0,), ("scp",)))
+    ResultStore(out).write_row(failed_row(cell, "InputFileError", "no data"))
+
+    assert main(argv + ["--keep-failed"]) == 0
+    captured = capsys.readouterr()
+    assert "0 done, 0 to run (0 new), 1 failed before and kept" in captured.err
+    assert "0 ok, 1 failed of 1 cells" in captured.out and "--keep-failed skips them" in captured.out
+
+    with hold_folder(out):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "ResultsInUseError" in err and "--wait" in err
+
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "0 done, 1 to run (0 new, 1 failed before and retried)" in captured.err
+    assert "1 ok, 0 failed of 1 cells" in captured.out

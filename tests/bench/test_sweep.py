@@ -1,4 +1,5 @@
-"""The sweep: one row per cell, resumable, failures recorded, deterministic."""
+"""The sweep: one row per cell, resumable (failed cells retried, unreadable ones recomputed), one per folder,
+validated before any work, failures recorded, deterministic."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -103,3 +105,106 @@ def test_isolated_cells_record_their_peak_memory_and_same_values(tmp_path):
     assert isolated.loc[0, "peak_rss_mb"] > 50  # a whole interpreter with numpy and libigl
     cols = ["cell_id", "qc_mean", "qc_max", "exact_error"]
     pd.testing.assert_frame_equal(isolated[cols], serial[cols])
+
+
+# Cheap cells for the resume tests: our own SCP on a 500-point plane.
+PLANE = Suite(name="plane", datasets=("plane",), sizes=(500,), samplings=("jittered",), seeds=(0, 1),
+              methods=("scp",))
+
+
+def _mtimes(folder: Path) -> dict:
+    return {p.name: p.stat().st_mtime_ns for p in (folder / "cells").glob("*.json")}
+
+
+def _plan_line(err: str) -> str:
+    return next(line for line in err.splitlines() if " done, " in line)
+
+
+def test_failed_cells_are_retried_unless_kept(tmp_path, capsys):
+    from bench.run_cell import failed_row
+
+    first, second = expand_cells(PLANE)
+    store = ResultStore(tmp_path)
+    store.write_row(failed_row(first, "InputFileError", "data path missing"))  # the earlier run's failure
+    store.write_row({**failed_row(second, "", ""), "status": "suspect"})  # finished, though doubtful
+    before = _mtimes(tmp_path)
+
+    kept = run_sweep(PLANE, str(tmp_path), progress=False, diagnostics=False, retry_failed=False)
+    assert _plan_line(capsys.readouterr().err) == \
+        "parambench: 1 done, 0 to run (0 new), 1 failed before and kept (--keep-failed; drop it to retry them)"
+    assert _mtimes(tmp_path) == before and sorted(kept.status) == ["failed", "suspect"]
+
+    table = run_sweep(PLANE, str(tmp_path), progress=False, diagnostics=False)
+    assert _plan_line(capsys.readouterr().err) == "parambench: 1 done, 1 to run (0 new, 1 failed before and retried)"
+    by_id = table.set_index("cell_id")
+    assert by_id.loc[first.cell_id, "status"] == "ok" and by_id.loc[first.cell_id, "qc_mean"] < 1 + 1e-6
+    assert by_id.loc[second.cell_id, "status"] == "suspect"  # not recomputed
+    assert _mtimes(tmp_path)[f"{second.cell_id}.json"] == before[f"{second.cell_id}.json"]
+
+
+def test_truncated_cell_file_is_reported_and_recomputed(tmp_path, capsys):
+    reference = run_sweep(PLANE, str(tmp_path), progress=False, diagnostics=False)
+    capsys.readouterr()
+    broken, intact = (tmp_path / "cells" / f"{c.cell_id}.json" for c in expand_cells(PLANE))
+    broken.write_bytes(broken.read_bytes()[:57])
+    intact_mtime = intact.stat().st_mtime_ns
+
+    table = run_sweep(PLANE, str(tmp_path), progress=False, diagnostics=False)
+    err = capsys.readouterr().err
+    notes = [line for line in err.splitlines() if broken.name in line]
+    assert len(notes) == 1 and "not valid JSON" in notes[0] and "recomputed" in notes[0]
+    assert _plan_line(err) == "parambench: 1 done, 1 to run (0 new, 1 unreadable and recomputed)"
+    assert json.loads(broken.read_text())["status"] == "ok" and intact.stat().st_mtime_ns == intact_mtime
+    assert broken.with_name(broken.name + ".unreadable").stat().st_size == 57  # the evidence is kept
+    cols = ["cell_id", "qc_mean", "exact_error"]
+    pd.testing.assert_frame_equal(table[cols], reference[cols])
+
+
+def test_sweep_refuses_a_folder_in_use_and_computes_nothing(tmp_path):
+    from bench.folder_lock import hold_folder
+    from datasets_gen.errors import ResultsInUseError
+
+    (tmp_path / "r").mkdir()
+    with hold_folder(tmp_path / "r"):  # stands in for another sweep on the same folder
+        with pytest.raises(ResultsInUseError, match="--wait"):
+            run_sweep(PLANE, str(tmp_path / "r"), progress=False)
+    assert not list((tmp_path / "r").glob("cells/*.json")) and not (tmp_path / "r" / "run.json").exists()
+
+
+@pytest.mark.parametrize("field, value, error", [
+    ("methods", ("magic",), "UnknownNameError"), ("datasets", ("nowhere",), "UnknownNameError"),
+    ("sizes", (0,), "TooFewPointsError"), ("sizes", (99,), "TooFewPointsError"),
+    ("sizes", (500.5,), "InvalidInputError"),
+    ("seeds", (-1,), "InvalidInputError"), ("samplings", ("poisson",), "UnknownNameError"),
+    ("noise", (-0.1,), "InvalidInputError"), ("noise", (float("inf"),), "InvalidInputError"),
+    ("seeds", (), "InvalidInputError"),
+])
+def test_bad_suite_is_refused_before_any_folder(tmp_path, field, value, error):
+    out = tmp_path / "r"
+    with pytest.raises(Exception) as exc:
+        run_sweep(replace(PLANE, **{field: value}), str(out), progress=False)
+    assert type(exc.value).__name__ == error and f"--{field}:" in str(exc.value)
+    assert not out.exists()
+
+
+def test_bad_workers_refused_before_any_folder(tmp_path):
+    from datasets_gen.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="--workers"):
+        run_sweep(PLANE, str(tmp_path / "r"), workers=0, progress=False)
+    assert not (tmp_path / "r").exists()
+
+
+def test_progress_and_summary_label_variants_as_the_report(tmp_path, capsys):
+    from bench.sweep import summary_table
+
+    suite = replace(PLANE, seeds=(0,), variants=(("scp", (("b_matrix", "mass"),)),))
+    table = run_sweep(suite, str(tmp_path), progress=True, diagnostics=False)
+    err = capsys.readouterr().err
+    assert "plane scp [b_matrix=mass] ok" in err  # the progress bar's last postfix
+    text = summary_table(table)
+    assert "scp [b_matrix=mass]" in text and "2 ok, 0 failed of 2 cells" in text
+    rows = table.assign(status=["suspect", "failed"], error_type=["", "SolverError"], error=["", "boom"])
+    text = summary_table(rows)
+    assert "0 ok, 1 suspect, 1 failed of 2 cells" in text
+    assert "SUSPECT plane / scp" in text and "FAILED plane / scp [b_matrix=mass]: SolverError: boom" in text

@@ -46,11 +46,57 @@ def test_too_few_points():
         Surface(np.eye(3))
 
 
-def test_duplicate_points():
+def test_coincident_points_of_a_point_set_are_data():
+    # point-set methods merge them (methods.pointset.coincident); the Surface keeps every row
     pts, _ = _square()
-    pts = np.vstack([pts, pts[1]])
+    s = Surface(np.vstack([pts, pts[1]]))
+    assert s.n_points == 6 and np.array_equal(s.points[5], s.points[1])
+
+
+def test_coincident_mesh_vertices_kept_apart_by_the_faces_are_a_seam():
+    # vertex 5 is a copy of vertex 1 that only the last face uses: a cut along 1-4 seen from
+    # face (1, 2, 4)'s side, as textured OBJ exports store seams
+    pts, faces = _square()
+    seam = np.vstack([pts, pts[1]])
+    cut = np.array([[0, 1, 4], [5, 2, 4], [2, 3, 4], [3, 0, 4]])
+    s = Surface(seam, cut)
+    assert s.n_points == 6 and len(s.faces) == 4
+
+
+def test_edge_joining_coincident_vertices_is_refused():
+    pts, faces = _square()
+    # vertex 5 sits 1e-10 from vertex 1 (coincident to the 1e-9-of-diagonal tolerance), so
+    # face (1, 5, 2) passes the area test but has a (numerically) zero-length edge
+    seam = np.vstack([pts, pts[1] + [0, 0, 1e-10]])
+    joined = np.vstack([faces, [[1, 5, 2]]])
+    with pytest.raises(DegenerateFacesError, match=r"coincident vertices \(first: vertices 1 and 5 in face 4\)"):
+        Surface(seam, joined)
+
+
+def test_require_unique_points_still_refuses_for_its_callers():
+    from datasets_gen.surface import require_unique_points
+
+    pts, _ = _square()
     with pytest.raises(DuplicatePointsError, match="1 and 5"):
-        Surface(pts)
+        require_unique_points(np.vstack([pts, pts[1]]))
+
+
+def test_method_input_holds_no_ground_truth():
+    from datasets_gen.registry import make_surface
+
+    gt = make_surface("cap", 300, sampling="jittered", seed=0)  # cap has an exact map
+    assert gt.normals is not None and gt.exact_uv is not None and gt.boundary_loops is not None
+    for needs_faces in (False, True):
+        given = gt.method_input(needs_faces)
+        assert given.normals is None and given.exact_uv is None and given.exact_map_kind is None
+        assert given.boundary_loops is None and given.boundary_mask is None
+        assert given.params == {} and given.seed is None and given.name == gt.name
+        np.testing.assert_array_equal(given.points, gt.points)
+        assert (given.faces is not None) == needs_faces
+    # a file's own normals are data: kept for a point-set method when asked
+    np.testing.assert_allclose(gt.method_input(False, keep_normals=True).normals, gt.normals, atol=1e-15)
+    assert gt.method_input(True, keep_normals=True).normals is None
+    assert gt.exact_uv is not None  # the ground truth itself is untouched
 
 
 def test_face_index_out_of_range():

@@ -183,3 +183,18 @@ def test_candidates_for_coverage_are_the_front_ends_own(bump):
     assert candidates.sum() == front.diagnostics["boundary"]["n_candidates"] > 0
     assert candidates[front.boundary_mask].mean() > 0.9  # loop points pass the angle criterion
     assert frontend_candidates(front.without_balls()) is None
+
+
+def test_check_runs_on_the_distinct_points_when_some_coincide(bump):
+    import warnings
+
+    from datasets_gen.surface import Surface
+    from methods import get_method
+
+    points = np.r_[bump.points, bump.points[:5]]  # five copies: merged before the method runs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = get_method("sdp")(Surface(points=points, name="copies"))
+    check = result.diagnostics["selfcheck"]
+    # Same front end, same map on the distinct points: the check with its loops (CDT) passes.
+    assert check["passed"] and check["triangulation"] == "cdt" and check["coverage"] is not None

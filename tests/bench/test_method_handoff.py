@@ -1,0 +1,99 @@
+"""What a sweep cell hands its method (no ground truth) and what the command line does with copies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench.cells import Cell
+from bench.cli import main
+from bench.run_cell import compute_cell, surface_for
+from methods import Method, Parameterization
+from methods.registry import register, _REGISTRY
+
+
+class _PointSpy(Method):
+    """Records the surface ``run`` is given; maps to the xy coordinates (the test surfaces are graphs)."""
+
+    name = "spy-handoff-points"
+    needs_faces = False
+    seen: list = []
+
+    def run(self, surface, **params):
+        type(self).seen.append(surface)
+        return Parameterization(uv=surface.points[:, :2].copy(), method=self.name)
+
+
+class _MeshSpy(_PointSpy):
+    name = "spy-handoff-mesh"
+    needs_faces = True
+    seen: list = []
+
+
+@pytest.fixture
+def spies():
+    for cls in (_PointSpy, _MeshSpy):
+        cls.seen = []
+        register(cls)
+    yield _PointSpy, _MeshSpy
+    for cls in (_PointSpy, _MeshSpy):
+        _REGISTRY.pop(cls.name, None)
+
+
+def _no_ground_truth(given):
+    return (given.exact_uv is None and given.boundary_loops is None and given.boundary_mask is None
+            and given.params == {} and given.seed is None)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.2])
+def test_generated_surface_reaches_methods_without_ground_truth(spies, noise):
+    point_spy, mesh_spy = spies
+    truth = surface_for("cap", 600, "jittered", noise, 0)
+    assert truth.normals is not None and truth.exact_uv is not None and truth.boundary_loops is not None
+    for spy in spies:
+        row, _ = compute_cell(Cell("cap", 600, "jittered", noise, 0, spy.name))
+        # "suspect": the xy projection of the noisy cap folds at its steep rim (self-check).
+        assert row["status"] in ("ok", "suspect"), row["error"]
+        (given,) = spy.seen
+        assert _no_ground_truth(given) and given.normals is None
+        np.testing.assert_array_equal(given.points, truth.points)
+    assert point_spy.seen[0].faces is None
+    np.testing.assert_array_equal(mesh_spy.seen[0].faces, truth.faces)
+    # evaluation still gets the ground truth: the exact-map error is measured
+    assert row["exact_error"] is not None and row["eval_mesh"] == "ground-truth"
+
+
+def test_file_normals_are_data_until_noise_moves_the_points(spies):
+    from bench.run_cell import _method_input
+    from datasets_gen.registry import make_surface
+
+    point_spy, _ = spies
+    truth = surface_for("real/chameleon", 0, "", 0.0, 0)
+    assert truth.params["normals"] == "file"
+    compute_cell(Cell("real/chameleon", 0, "", 0.0, 0, point_spy.name))
+    (given,) = point_spy.seen
+    np.testing.assert_allclose(given.normals, truth.normals, atol=1e-15)  # as `flatten` would pass them
+    assert _no_ground_truth(given)
+    # once noise has moved the points, the file's normals describe the clean surface: withheld
+    noisy = make_surface("real/chameleon", seed=0, noise=0.5)
+    assert noisy.normals is not None and _method_input(noisy, needs_faces=False).normals is None
+
+
+def test_flatten_merges_copies_with_one_line_and_writes_every_row(tmp_path, capsys):
+    from datasets_gen.registry import make_surface
+
+    base = make_surface("bump", 800, sampling="jittered", seed=0).points
+    rng = np.random.default_rng(1)
+    copies = np.sort(rng.choice(len(base), len(base) // 20, replace=False))
+    points = np.insert(base, copies + 1, base[copies], axis=0)  # each copy right after its original
+    src = tmp_path / "scan.xyz"
+    np.savetxt(src, points, fmt="%.17g")
+    out = tmp_path / "uv.csv"
+    assert main(["flatten", str(src), "--method", "sdp", "-o", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "CoincidentPointsWarning" in err[0] and f" {len(copies)} of {len(points)} " in err[0]
+    uv = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert uv.shape == (len(points), 2)
+    is_copy = np.zeros(len(points), dtype=bool)
+    is_copy[copies + np.arange(1, len(copies) + 1)] = True  # where np.insert put them
+    np.testing.assert_array_equal(uv[is_copy], uv[np.flatnonzero(is_copy) - 1])
