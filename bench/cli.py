@@ -121,21 +121,53 @@ def _default_method(surface) -> str:
     raise InvalidInputError("no default method for a point set is installed; pass --method.")
 
 
+#: Exit code of ``flatten`` when the map fails its self-check and ``--force`` is not given.
+EXIT_SELFCHECK = 3
+
+
+def _selfcheck_summary(check: dict | None) -> str:
+    if not check:
+        return ""
+    if "n_triangles" not in check:
+        return f"; self-check {'ok' if check.get('passed') else 'FAILED'}"
+    turning = check.get("turning_numbers")
+    cov = check.get("coverage")
+    return (f"; self-check {'ok' if check['passed'] else 'FAILED'}: {check.get('n_flipped', 0)} flipped, "
+            f"{check.get('n_degenerate', 0)} degenerate of {check['n_triangles']} triangles"
+            + (f", loop turning {turning}" if turning else "")
+            + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops" if cov else ""))
+
+
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from datasets_gen.io import load_surface
+    from methods.pointset.selfcheck import failure_line, pointset_faces
     from methods.registry import get_method
 
-    from .uv_output import write_uv
+    from .uv_output import UV_FORMATS, write_uv
 
     out = Path(args.output)
-    if out.suffix.lower() not in (".obj", ".csv"):
-        raise InputFileError(f"cannot write {out.name!r}: output must end in .obj or .csv.")
+    if out.suffix.lower() not in UV_FORMATS:
+        raise InputFileError(f"cannot write {out.name!r}: output must end in {', '.join(UV_FORMATS)}.")
     surface = load_surface(args.input, points_only=args.points_only)
     method = get_method(args.method or _default_method(surface))
     params = parse_param_values(args.param or [], method.defaults)
     result = method(surface, **params)
-    write_uv(out, surface.points, result.uv, surface.faces)
-    print(f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s -> {out}")
+    check = result.diagnostics.get("selfcheck")
+    failed = check is not None and not check.get("passed", False)
+    summary = f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
+    if failed and not args.force:
+        print(f"{summary}{_selfcheck_summary(check)}; nothing written")
+        print(f"parambench: error: {failure_line(check, result.params, method.name)} "
+              "(--force writes the map anyway)", file=sys.stderr)
+        return EXIT_SELFCHECK
+    faces = surface.faces
+    if faces is None and out.suffix.lower() != ".csv":
+        faces = pointset_faces(surface.points, result.uv, result.diagnostics.get("boundary_loops"))
+    write_uv(out, surface.points, result.uv, faces)
+    print(f"{summary}{_selfcheck_summary(check)} -> {out}")
+    if failed:
+        print(f"parambench: warning: {failure_line(check, result.params, method.name)} (written anyway: --force)",
+              file=sys.stderr)
     return 0
 
 
@@ -161,8 +193,13 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     report = inspect_surface(surface, **params)
     out.write_text(json.dumps(report, indent=2))
     loops = report.get("boundary_loops", [])
+    cov = (report.get("selfcheck") or {}).get("coverage")
+    coverage = ""
+    if cov:
+        coverage = (f", loop coverage {'ok' if cov['passed'] else 'FAILED (a missed hole?)'}: "
+                    f"{cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops")
     print(f"{surface.n_points} points, mean spacing {report['mean_spacing']:.4g}, "
-          f"{len(loops)} boundary loop(s) -> {out}")
+          f"{len(loops)} boundary loop(s){coverage} -> {out}")
     return 0
 
 
@@ -227,7 +264,11 @@ def build_parser() -> argparse.ArgumentParser:
     flat.add_argument("--method", help="method name (default: scp for meshes, ocp for point sets)")
     flat.add_argument("--param", nargs="+", action="extend", metavar="KEY=VALUE", help="method parameters")
     flat.add_argument("--points-only", action="store_true", help="drop faces; treat the input as a point set")
-    flat.add_argument("-o", "--output", required=True, help="output .obj (v, vt, f) or .csv (u,v)")
+    flat.add_argument("-o", "--output", required=True,
+                      help="output .obj (v, vt, f), .ply (x y z texture_u texture_v, faces) or .csv (u,v); point sets get the "
+                           "self-check's uv triangulation as faces")
+    flat.add_argument("--force", action="store_true",
+                      help="write a point-set map that fails its self-check (otherwise exit code 3, nothing written)")
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")
@@ -254,8 +295,10 @@ def _warning_line(message, category, filename, lineno, file=None, line=None) -> 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code (2 for bad input, with one line on stderr).
+    """Entry point; returns the exit code.
 
+    2 for bad input, with one line on stderr; 3 when ``flatten`` refuses to write a
+    point-set map that fails its self-check (one line on stderr saying what to try).
     Warnings (e.g. coincident points merged) are printed as one line each on stderr.
     """
     args = build_parser().parse_args(argv)

@@ -114,11 +114,19 @@ def _jsonable_diagnostics(diag: dict) -> str:
     return json.dumps(slim, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v), sort_keys=True)
 
 
+def _status(result) -> str:
+    """``"suspect"`` for a map that failed its self-check (metrics still computed), else ``"ok"``."""
+    check = result.diagnostics.get("selfcheck")
+    return "suspect" if check is not None and not check.get("passed", False) else "ok"
+
+
 def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
     """Run one cell and return its row and arrays, writing nothing.
 
     Never raises for a failure of the method or the data: the row records
-    ``status="failed"`` with the error type and text, and the sweep goes on.
+    ``status="failed"`` with the error type and text, and the sweep goes on. A point-set
+    map that fails its self-check (``diagnostics["selfcheck"]``) gets ``status="suspect"``
+    and its ``error`` holds the check's one-line reason; its metrics are stored as usual.
 
     Parameters
     ----------
@@ -129,7 +137,7 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
     row : dict
         Flat, JSON-serialisable; ``artifact`` is filled in by :func:`store_cell`.
     arrays : dict of numpy arrays, or None
-        Pictures' data for ok cells on surfaces up to ``ARTIFACT_MAX_POINTS`` points.
+        Pictures' data for ok and suspect cells on surfaces up to ``ARTIFACT_MAX_POINTS`` points.
     """
     row = _empty_row(cell)
     arrays = None
@@ -151,12 +159,14 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
                            diameter=surface.diameter)
         row.update({c: metrics.get(c) for c in METRIC_COLUMNS})
         row["turning_numbers"] = json.dumps(metrics.get("turning_numbers", []))
-        row.update(status="ok", eval_mesh=eval_kind, time_total=result.timings.get("total"),
+        row.update(status=_status(result), eval_mesh=eval_kind, time_total=result.timings.get("total"),
                    timings=json.dumps(result.timings, sort_keys=True),
                    diagnostics=_jsonable_diagnostics(result.diagnostics),
                    k_opt=result.diagnostics.get("k_opt"), peak_memory_mb=peak.delta_mb,
                    stage_memory_mb=json.dumps({k: round(v, 1) for k, v in peak.stage_peak_mb.items()},
                                               sort_keys=True))
+        if row["status"] == "suspect":
+            row.update(error_type="SelfCheck", error=result.diagnostics["selfcheck"].get("reason", ""))
         if surface.n_points <= ARTIFACT_MAX_POINTS:
             arrays = _artifact(surface, result, faces, eval_kind)
     except ParambenchError as exc:

@@ -1,4 +1,11 @@
-"""Writing a flattening to disk: OBJ (v, vt, f) or CSV (u,v), one row per input point."""
+"""Writing a flattening to disk: OBJ (v, vt, f), PLY (x y z texture_u texture_v, faces) or CSV (u,v).
+
+One row per input point, in input order.
+
+A point set has no faces of its own; the command line passes the triangulation of the uv
+layout that the self-check used (:func:`methods.pointset.selfcheck.pointset_faces`), so a
+textured point-set result opens in any mesh viewer.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +17,7 @@ from datasets_gen.errors import InputFileError
 
 __all__ = ["write_uv", "UV_FORMATS"]
 
-UV_FORMATS = (".obj", ".csv")
+UV_FORMATS = (".obj", ".ply", ".csv")
 
 
 def _write_obj(path: Path, points: np.ndarray, uv: np.ndarray, faces: np.ndarray | None) -> None:
@@ -21,6 +28,19 @@ def _write_obj(path: Path, points: np.ndarray, uv: np.ndarray, faces: np.ndarray
         if faces is not None:
             one = faces + 1
             np.savetxt(fh, np.repeat(one, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+
+
+def _write_ply(path: Path, points: np.ndarray, uv: np.ndarray, faces: np.ndarray | None) -> None:
+    n_faces = 0 if faces is None else int(faces.shape[0])
+    header = ("ply\nformat ascii 1.0\ncomment parambench flattening: texture_u texture_v per vertex, in input order\n"
+              f"element vertex {points.shape[0]}\nproperty double x\nproperty double y\nproperty double z\n"
+              "property double texture_u\nproperty double texture_v\n"
+              f"element face {n_faces}\nproperty list uchar int vertex_indices\nend_header\n")
+    with open(path, "w") as fh:
+        fh.write(header)
+        np.savetxt(fh, np.hstack([points, uv]), fmt="%.17g")
+        if n_faces:
+            np.savetxt(fh, faces, fmt="3 %d %d %d")
 
 
 def _write_csv(path: Path, uv: np.ndarray) -> None:
@@ -34,7 +54,13 @@ def write_uv(path: str | Path, points: np.ndarray, uv: np.ndarray, faces: np.nda
     ----------
     path : str or Path
         ``.obj``: ``v`` and ``vt`` lines (one per input point, input order) and ``f v/vt``
-        lines when ``faces`` is given. ``.csv``: header ``u,v`` and one row per point.
+        lines (same index for both) when ``faces`` is given. ``.ply`` (ASCII): vertices
+        with properties ``x y z texture_u texture_v``, in input order, and a ``face``
+        element with ``vertex_indices`` (empty without ``faces``). The uv properties are
+        named ``texture_u texture_v`` because MeshLab (and pymeshlab) reads per-vertex
+        texture coordinates only under these names (not ``u v`` or ``s t``); Blender's
+        importer accepts them too.
+        ``.csv``: header ``u,v`` and one row per point.
     points : (N, 3) numpy.ndarray of float64
     uv : (N, 2) numpy.ndarray of float64
     faces : (M, 3) numpy.ndarray of int64, optional
@@ -47,12 +73,14 @@ def write_uv(path: str | Path, points: np.ndarray, uv: np.ndarray, faces: np.nda
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in UV_FORMATS:
-        raise InputFileError(f"cannot write {path.name!r}: output must end in {' or '.join(UV_FORMATS)}.")
+        raise InputFileError(f"cannot write {path.name!r}: output must end in {', '.join(UV_FORMATS)}.")
     if not path.parent.exists():
         raise InputFileError(f"output directory {str(path.parent)!r} does not exist; create it first.")
     try:
         if suffix == ".obj":
             _write_obj(path, points, uv, faces)
+        elif suffix == ".ply":
+            _write_ply(path, points, uv, faces)
         else:
             _write_csv(path, uv)
     except OSError as exc:

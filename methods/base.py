@@ -176,7 +176,10 @@ class Method:
             With ``timings["total"]`` set and ``params`` fully resolved; one uv row per
             input point. A point-set method runs on one point per group of coincident
             points, and the copies get that point's uv
-            (:func:`methods.pointset.coincident.run_on_representatives`).
+            (:func:`methods.pointset.coincident.run_on_representatives`). Point-set
+            results (``needs_faces`` False) also carry ``diagnostics["selfcheck"]``, see
+            :func:`methods.pointset.plugin_support.selfcheck_result`; its time is not in
+            ``timings["total"]``.
 
         Warns
         -----
@@ -204,14 +207,28 @@ class Method:
             # here because methods.pointset imports this module.
             from .pointset.coincident import run_on_representatives
 
-            result = run_on_representatives(self.run, surface, resolved)
-        result.timings["total"] = time.perf_counter() - start
+            result = run_on_representatives(self._run_and_check, surface, resolved)
+        # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
+        check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)
+        result.timings["total"] = time.perf_counter() - start - check_seconds
         result.params = resolved
         result.method = self.name
         if result.uv.shape[0] != surface.n_points:
             raise InvalidInputError(
                 f"method {self.name!r} returned {result.uv.shape[0]} uv rows for {surface.n_points} points (a bug)."
             )
+        return result
+
+    def _run_and_check(self, surface: Surface, **params: Any) -> Parameterization:
+        """:meth:`run`, then the point-set self-check on the same points (``diagnostics["selfcheck"]``).
+
+        Inside :func:`~methods.pointset.coincident.run_on_representatives`, so the check
+        sees the distinct points the method saw, and reuses that run's front end.
+        """
+        from .pointset.plugin_support import selfcheck_result
+
+        result = self.run(surface, **params)
+        selfcheck_result(surface, result)
         return result
 
     def run(self, surface: Surface, **params: Any) -> Parameterization:  # pragma: no cover - abstract

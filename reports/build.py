@@ -26,7 +26,8 @@ from .labels import add_labels
 from .load import CellArrays, Results, load_cell_arrays, load_dataset_arrays, load_results
 from .pdf import write_pdf
 from .selection import PictureView, dataset_npz_candidates, picture_views
-from .tables import (benchmark_table, exponent_table, failures_table, metadata_table, overview_table,
+from .tables import (MEASURED_STATUSES, benchmark_table, exponent_table, failures_table, metadata_table,
+                     overview_table, suspect_table,
                      stage_memory_table, summarise, summary_tables)
 
 __all__ = ["build_report", "render_html", "EmptyResultsError", "FORMATS"]
@@ -64,7 +65,7 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
     not_drawn: list[str] = []
     cell_arrays: dict[str, CellArrays] = {}
     for row in view.rows.itertuples():
-        if row.status != "ok":
+        if row.status not in MEASURED_STATUSES:
             not_drawn.append(f"{row.variant} (failed: {row.error_type or 'error'})")
             continue
         arrays = _load_arrays(results, row.artifact, warnings)
@@ -143,8 +144,9 @@ def _subtitle(run: dict, rows: pd.DataFrame) -> str:
     commit = run.get("git_commit")
     if version or commit:
         parts.append(f"parambench {version or '?'}" + (f" @ {str(commit)[:10]}" if commit else ""))
-    n_ok = int((rows["status"] == "ok").sum())
-    parts.append(f"{len(rows)} cells, {n_ok} ok, {len(rows) - n_ok} failed")
+    n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
+    parts.append(f"{len(rows)} cells, {n_ok} ok, " + (f"{n_suspect} suspect, " if n_suspect else "")
+                 + f"{len(rows) - n_ok - n_suspect} failed")
     return " · ".join(parts)
 
 
@@ -173,14 +175,15 @@ def render_html(results: Results, benchmark_json=()) -> str:
     warnings = list(results.warnings)
     rows = add_labels(results.rows)
     summary = summarise(rows)
-    n_ok = int((rows["status"] == "ok").sum())
+    n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
     sections: list[Section] = []
 
     overview = Section("Overview", intro=(
-        f"{len(rows)} cells: {n_ok} ok, {len(rows) - n_ok} failed; {rows['variant'].nunique()} method "
+        f"{len(rows)} cells: {n_ok} ok, " + (f"{n_suspect} suspect (map failed its self-check), " if n_suspect else "")
+        + f"{len(rows) - n_ok - n_suspect} failed; {rows['variant'].nunique()} method "
         f"variant(s) on {rows['config'].nunique()} surface configuration(s). Values are medians over seeds; "
         f"every metric is lower-is-better."))
-    if n_ok == 0:
+    if n_ok + n_suspect == 0:
         overview.blocks.append(Note("Every cell failed: the tables below list the errors.", "warning"))
     overview.blocks.append(overview_table(summary))
     sections.append(overview)
@@ -196,6 +199,9 @@ def render_html(results: Results, benchmark_json=()) -> str:
 
     failures = failures_table(rows)
     sections.append(Section("Failed cells", [failures if failures.rows else Note("No cell failed.", "muted")]))
+    suspects = suspect_table(rows)
+    if suspects.rows:
+        sections.append(Section("Suspect cells", [suspects]))
 
     for view in picture_views(rows, results.root):
         sections.append(_view_section(results, view, warnings))

@@ -66,6 +66,7 @@ td.best { background: #d9f2d9 !important; font-weight: bold; color: #14591c; }
 td.failed { color: #a11; }
 td.status.failed { background: #fdeaea !important; max-width: 30em; }
 td.status.ok { color: #14591c; }
+td.status.suspect { background: #fff4d6 !important; color: #8a5a00; max-width: 30em; }
 td.partial { color: #8a5a00; }
 td.absent { color: #aaa; text-align: center; }
 td.error { font-family: "DejaVu Sans Mono", monospace; font-size: 8pt; white-space: pre-wrap;

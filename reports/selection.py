@@ -69,7 +69,8 @@ def picture_views(rows: pd.DataFrame, root: Path) -> list[PictureView]:
         Sorted by dataset, sampling, noise.
     """
     views = []
-    rows = rows.assign(_arrays=[r.status == "ok" and _has_arrays(root, r.artifact) for r in rows.itertuples()])
+    measured = ("ok", "suspect")  # suspect maps are drawn: the picture shows what the self-check found
+    rows = rows.assign(_arrays=[r.status in measured and _has_arrays(root, r.artifact) for r in rows.itertuples()])
     for (dataset, sampling, noise), family in rows.groupby(["dataset", "sampling", "noise"], sort=True):
         with_arrays = family[family["_arrays"]]
         if len(with_arrays):

@@ -5,7 +5,8 @@ median over its ok seeds. Every metric is "lower is better" (QC >= 1 with 1 conf
 foldovers, area distortion, exact-map error, time); the best value of each column within a
 configuration is marked when at least two variants have a value. Failed cells keep their
 row, with the error text in the status column, and are listed once more in full in the
-failures table.
+failures table. "Suspect" cells (a point-set map that failed its self-check) have metrics:
+they count in the medians, are named in the status column and listed in their own table.
 """
 
 from __future__ import annotations
@@ -28,12 +29,17 @@ __all__ = [
     "summary_tables",
     "overview_table",
     "failures_table",
+    "suspect_table",
+    "MEASURED_STATUSES",
     "metadata_table",
     "benchmark_table",
     "exponent_table",
     "stage_memory_table",
     "format_number",
 ]
+
+#: Statuses of cells whose metrics were computed ("suspect": the map failed its self-check).
+MEASURED_STATUSES = ("ok", "suspect")
 
 #: (column, header, kind) of the summary's metric columns; all lower-is-better.
 SUMMARY_METRICS = (
@@ -112,20 +118,27 @@ def _error_text(error_type: str, error: str) -> str:
     return error_type or error or "failed (no error text recorded)"
 
 
-def _status(group: pd.DataFrame) -> tuple[str, bool]:
-    ok = group["status"] == "ok"
-    n_ok, n = int(ok.sum()), len(group)
-    failed = group[~ok]
+def _status(group: pd.DataFrame) -> tuple[str, bool, bool]:
+    measured = group["status"].isin(MEASURED_STATUSES)
+    suspect = group["status"] == "suspect"
+    n_measured, n, n_suspect = int(measured.sum()), len(group), int(suspect.sum())
+    failed = group[~measured]
     errors = list(dict.fromkeys(_error_text(t, e) for t, e in zip(failed["error_type"], failed["error"])))
-    collapsed = bool((group.loc[ok, "collapsed"].fillna(0) > 0).any())
-    if n_ok == n:
-        return ("ok (collapsed)" if collapsed else "ok"), False
-    text = "failed: " if n_ok == 0 else f"{n - n_ok} of {n} seeds failed: "
-    return text + " | ".join(_short(e) for e in errors), True
+    collapsed = bool((group.loc[measured, "collapsed"].fillna(0) > 0).any())
+    reasons = " | ".join(_short(e) for e in dict.fromkeys(group.loc[suspect, "error"].fillna("")) if e)
+    suspect_text = (f"suspect: {n_suspect} of {n} seeds fail the self-check" + (f": {reasons}" if reasons else "")
+                    if n_suspect else "")
+    if n_measured == n:
+        if n_suspect:
+            return suspect_text, False, True
+        return ("ok (collapsed)" if collapsed else "ok"), False, False
+    text = "failed: " if n_measured == 0 else f"{n - n_measured} of {n} seeds failed: "
+    text += " | ".join(_short(e) for e in errors)
+    return text + (f"; {suspect_text}" if n_suspect else ""), True, bool(n_suspect)
 
 
 def summarise(rows: pd.DataFrame) -> pd.DataFrame:
-    """One row per (configuration, variant): medians over ok seeds and a status text.
+    """One row per (configuration, variant): medians over measured (ok or suspect) seeds and a status text.
 
     Parameters
     ----------
@@ -136,27 +149,28 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         Columns: the configuration columns, ``config``, ``variant``, ``method``,
-        ``n_cells``, ``n_ok``, ``n_points`` and the :data:`SUMMARY_METRICS` columns
-        (NaN when no seed is ok), ``status`` (text) and ``has_failure`` (bool); sorted by
-        configuration then variant.
+        ``n_cells``, ``n_ok``, ``n_suspect``, ``n_points`` and the :data:`SUMMARY_METRICS`
+        columns (NaN when no seed is measured), ``status`` (text), ``has_failure`` and
+        ``has_suspect`` (bool); sorted by configuration then variant.
     """
     metric_cols = [m[0] for m in SUMMARY_METRICS]
     keys = [*CONFIG_COLUMNS, "config", "variant"]
     out = []
     for key, group in rows.groupby(keys, sort=True, dropna=False):
-        ok = group[group["status"] == "ok"]
+        ok = group[group["status"].isin(MEASURED_STATUSES)]
         record = dict(zip(keys, key))
         record["method"] = group["method"].iloc[0]
         record["n_cells"] = len(group)
-        record["n_ok"] = len(ok)
+        record["n_suspect"] = int((group["status"] == "suspect").sum())
+        record["n_ok"] = len(ok) - record["n_suspect"]
         record["n_points"] = float(group["n_points"].median()) if group["n_points"].notna().any() else np.nan
         for col in metric_cols:
             values = ok[col].dropna()
             record[col] = float(values.median()) if len(values) else np.nan
-        record["status"], record["has_failure"] = _status(group)
+        record["status"], record["has_failure"], record["has_suspect"] = _status(group)
         out.append(record)
-    return pd.DataFrame(out, columns=[*keys, "method", "n_cells", "n_ok", "n_points", *metric_cols,
-                                      "status", "has_failure"])
+    return pd.DataFrame(out, columns=[*keys, "method", "n_cells", "n_ok", "n_suspect", "n_points", *metric_cols,
+                                      "status", "has_failure", "has_suspect"])
 
 
 def best_mask(summary: pd.DataFrame, by: str = "config") -> pd.DataFrame:
@@ -213,7 +227,8 @@ def summary_tables(summary: pd.DataFrame) -> dict[str, Table]:
                 best = bool(mask.at[idx, col])
                 row.append(Cell(format_number(rec[col], kind), ("best",) if best else (),
                                 "best in this table" if best else ""))
-            status_class = ("status", "failed") if rec["has_failure"] else ("status", "ok")
+            status_class = (("status", "failed") if rec["has_failure"] else
+                            ("status", "suspect") if rec["has_suspect"] else ("status", "ok"))
             row.append(Cell(str(rec["status"]), status_class))
             body.append(row)
         n_points = group["n_points"].median()
@@ -240,7 +255,7 @@ def overview_table(summary: pd.DataFrame) -> Table:
     cells: dict = {}
     for (dataset, variant), group in summary.groupby(["dataset", "variant"], sort=False):
         values = group["qc_mean"].dropna()
-        n_failed = int((group["n_cells"] - group["n_ok"]).sum())
+        n_failed = int((group["n_cells"] - group["n_ok"] - group["n_suspect"]).sum())
         errors = "; ".join(dict.fromkeys(s for s, f in zip(group["status"], group["has_failure"]) if f))
         cells[(dataset, variant)] = (float(values.median()) if len(values) else np.nan, n_failed,
                                      int(group["n_cells"].sum()), errors)
@@ -281,13 +296,30 @@ def failures_table(rows: pd.DataFrame) -> Table:
     rows : pandas.DataFrame
         Labelled rows.
     """
-    failed = rows[rows["status"] != "ok"].sort_values(["config", "variant", "seed"], kind="stable")
+    failed = rows[~rows["status"].isin(MEASURED_STATUSES)].sort_values(["config", "variant", "seed"], kind="stable")
     body = [[Cell(str(r.config)), Cell(str(r.variant), ("method",)),
              Cell(format_number(r.seed, "count")), Cell(r.error_type or _MISSING),
              Cell(r.error or _MISSING, ("error",))]
             for r in failed.itertuples()]
     return Table(["Surface", "Method", "Seed", "Error type", "Error"], body,
                  f"{len(failed)} failed cell(s)", "failures", numeric={2})
+
+
+def suspect_table(rows: pd.DataFrame) -> Table:
+    """Every suspect cell (its map failed the self-check) with the check's reason.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Labelled rows.
+    """
+    suspect = rows[rows["status"] == "suspect"].sort_values(["config", "variant", "seed"], kind="stable")
+    body = [[Cell(str(r.config)), Cell(str(r.variant), ("method",)),
+             Cell(format_number(r.seed, "count")), Cell(r.error or _MISSING, ("error",))]
+            for r in suspect.itertuples()]
+    return Table(["Surface", "Method", "Seed", "Self-check"], body,
+                 f"{len(suspect)} suspect cell(s): metrics computed, but the map failed its self-check",
+                 "suspects", numeric={2})
 
 
 def _meta_value(value) -> str:

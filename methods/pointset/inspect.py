@@ -7,6 +7,8 @@ from typing import Any
 from datasets_gen.surface import Surface
 
 from .frontend import build_frontend
+from .plugin_support import frontend_candidates
+from .selfcheck import loop_coverage
 
 __all__ = ["inspect_surface"]
 
@@ -29,7 +31,10 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         (lists of point indices in order, outer first), ``n_boundary_points``,
         ``negative_weight_fraction`` {"interior", "boundary"},
         ``reconstruction_error`` {"mean", "max", "unit"} (R_x / l^2), ``ball_size``,
-        ``timings`` (seconds per stage), ``params`` and the full ``diagnostics``.
+        ``timings`` (seconds per stage), ``params``, the full ``diagnostics`` and
+        ``selfcheck``: the boundary part of a map's self-check, ``{"coverage":
+        loop_coverage(...) or None}`` (:func:`methods.pointset.selfcheck.loop_coverage`:
+        do the loops cover the angle-criterion candidates?).
 
     Raises
     ------
@@ -38,6 +43,9 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
     """
     fe = build_frontend(surface.points, surface.normals, **frontend_params)
     diag = fe.diagnostics
+    candidates = frontend_candidates(fe)
+    coverage = (None if candidates is None else
+                loop_coverage(fe.points, fe.boundary_loops, candidates, fe.knn_indices, fe.mean_spacing))
     return {
         "name": surface.name,
         "n_points": fe.n_points,
@@ -50,4 +58,5 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         "timings": {k: float(v) for k, v in fe.timings.items()},
         "params": dict(fe.params),
         "diagnostics": diag,
+        "selfcheck": {"coverage": coverage},
     }

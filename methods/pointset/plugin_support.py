@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import time
+import weakref
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -12,7 +15,8 @@ from datasets_gen.surface import Surface
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
 
-__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "scale_to_spacing", "frontend_diagnostics"]
+__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "scale_to_spacing", "frontend_diagnostics", "frontend_candidates",
+           "selfcheck_result"]
 
 #: Front-end parameters every point-set method accepts (paper Sec. 6 defaults).
 FRONTEND_DEFAULTS: dict[str, Any] = {
@@ -40,7 +44,108 @@ def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: 
     front = build_frontend(surface.points, surface.normals, weights=weights, **kwargs)
     for stage in STAGES:
         timer.timings[stage] = timer.timings.get(stage, 0.0) + front.timings.get(stage, 0.0)
+    _CHECK_INPUTS[surface] = _check_inputs(front)
     return front
+
+
+@dataclass(frozen=True, eq=False)
+class _CheckInputs:
+    """What the self-check reuses from the front end (normals, kNN graph, candidates)."""
+
+    normals: np.ndarray
+    knn_indices: np.ndarray
+    spacing: float
+    loops: list
+    candidates: np.ndarray | None
+
+
+#: Front-end facts of the last run on each surface, taken (and dropped) by
+#: :func:`selfcheck_result` so the check does not recompute normals and neighbours.
+_CHECK_INPUTS: "weakref.WeakKeyDictionary[Surface, _CheckInputs]" = weakref.WeakKeyDictionary()
+
+
+#: Rows of balls per chunk when the candidates are recomputed.
+_CANDIDATE_CHUNK = 100_000
+
+
+def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
+    """The angle-criterion boundary candidates of a front end, or None if it cannot tell.
+
+    Taken from ``front.boundary_candidates`` when the front end keeps them, otherwise
+    recomputed with :func:`methods.pointset.boundary.angular_gaps` on its balls (None
+    once the balls are dropped).
+    """
+    given = getattr(front, "boundary_candidates", None)
+    if given is not None:
+        return np.asarray(given, dtype=bool)
+    if front.ball_indices is None or front.tangent_coords is None:
+        return None
+    from .boundary import angular_gaps  # the angle criterion of the front end, on its own balls
+
+    threshold = np.deg2rad(float(front.params.get("boundary_angle_deg", FRONTEND_DEFAULTS["boundary_angle_deg"])))
+    out = np.empty(front.n_points, dtype=bool)
+    for lo in range(0, front.n_points, _CANDIDATE_CHUNK):  # bounded temporaries at 1M points
+        sl = slice(lo, lo + _CANDIDATE_CHUNK)
+        out[sl] = angular_gaps(front.tangent_coords[sl], front.ball_indices[sl] >= 0)[0] > threshold
+    return out
+
+
+def _check_inputs(front: FrontEnd) -> _CheckInputs:
+    try:
+        candidates = frontend_candidates(front)
+    except Exception:  # the check is optional; a changed front end must not fail a method
+        candidates = None
+    return _CheckInputs(normals=front.normals, knn_indices=front.knn_indices, spacing=front.mean_spacing,
+                        loops=list(front.boundary_loops), candidates=candidates)
+
+
+def _estimated_inputs(surface: Surface, result) -> _CheckInputs:
+    """Normals and neighbours for a method that ran no front end (e.g. the sklearn peers)."""
+    from .neighbourhoods import knn_graph
+    from .normals import orient_normals, pca_normals
+
+    graph = knn_graph(surface.points, FRONTEND_DEFAULTS["k_nn"])
+    normals = surface.normals
+    if normals is None:
+        normals = orient_normals(surface.points, pca_normals(surface.points, graph.indices), graph.indices)
+    loops = result.diagnostics.get("boundary_loops") or []
+    return _CheckInputs(normals=normals, knn_indices=graph.indices, spacing=graph.mean_spacing,
+                        loops=[np.asarray(lp) for lp in loops], candidates=None)
+
+
+def selfcheck_result(surface: Surface, result) -> dict:
+    """Check a point-set result and store the facts in ``result.diagnostics["selfcheck"]``.
+
+    Uses the front end of the method's own run on ``surface`` when there was one,
+    otherwise estimates normals and neighbours. ``seconds`` in the facts is the time of
+    the whole check, estimation included. Never raises: a check that cannot run
+    records ``passed=False`` with the reason, and the map is always kept.
+
+    Parameters
+    ----------
+    surface : Surface
+        The surface the method ran on.
+    result : methods.base.Parameterization
+
+    Returns
+    -------
+    dict
+        The facts of :func:`methods.pointset.selfcheck.check_pointset_map`.
+    """
+    from .selfcheck import check_pointset_map
+
+    start = time.perf_counter()
+    try:
+        inputs = _CHECK_INPUTS.pop(surface, None) or _estimated_inputs(surface, result)
+        check = check_pointset_map(surface.points, result.uv, inputs.normals, inputs.loops,
+                                   knn_indices=inputs.knn_indices, spacing=inputs.spacing,
+                                   candidates=inputs.candidates)
+    except Exception as exc:  # checking must never hide a result
+        check = {"passed": False, "reason": f"the self-check could not run ({type(exc).__name__}: {exc})",
+                 "failed": ["check-error"]}
+    check["seconds"] = round(time.perf_counter() - start, 4)  # with the inputs' estimation, if any
+    result.diagnostics["selfcheck"] = check
+    return check
 
 
 def scale_to_spacing(uv: np.ndarray, front: FrontEnd) -> np.ndarray:

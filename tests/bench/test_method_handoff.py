@@ -52,7 +52,8 @@ def test_generated_surface_reaches_methods_without_ground_truth(spies, noise):
     assert truth.normals is not None and truth.exact_uv is not None and truth.boundary_loops is not None
     for spy in spies:
         row, _ = compute_cell(Cell("cap", 600, "jittered", noise, 0, spy.name))
-        assert row["status"] == "ok", row["error"]
+        # "suspect": the xy projection of the noisy cap folds at its steep rim (self-check).
+        assert row["status"] in ("ok", "suspect"), row["error"]
         (given,) = spy.seen
         assert _no_ground_truth(given) and given.normals is None
         np.testing.assert_array_equal(given.points, truth.points)

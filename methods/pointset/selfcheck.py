@@ -1,0 +1,341 @@
+"""A point-set map checks itself: flipped and degenerate triangles, loop turning, loop coverage.
+
+The uv points are triangulated with the detected boundary loops as constraints
+(:func:`methods.pointset.uv_triangulation.triangulate_uv`) and the triangles are checked
+against the 3D geometry. Thresholds (module constants, reported with every check):
+
+* **flipped** (``MAX_FLIPPED`` = 0 allowed): a uv-counter-clockwise triangle whose 3D
+  normal disagrees with the mean normal of its points (``dot < 0``). A global mirror is
+  not a flip: the majority orientation counts as "not flipped". 3D slivers (area below
+  ``SLIVER_QUALITY`` = 0.05 times the squared longest edge; equilateral: 0.43) are not
+  counted: three nearly collinear points change orientation under any small distortion
+  (counted apart as ``n_flipped_slivers``).
+* **degenerate** (share of triangles <= ``MAX_DEGENERATE_FRACTION`` = 1 %): zero uv area
+  (below ``ZERO_AREA_REL`` = 1e-10 of the median), or a 3D edge longer than
+  ``BRIDGE_FACTOR`` = 4 times the local spacing of its points (the triangle bridges a
+  gap or a hole the map closed). Without detected loops (peers without a front end)
+  the bridging triangles are taken as lying outside the domain and dropped instead.
+* **turning**: each loop's turning number in uv is +1 for the outer loop and -1 for
+  holes, or all reversed under a global mirror, within ``TURNING_TOL`` = 0.25.
+* **coverage**: the angle-criterion boundary candidates, when known, lie within
+  ``COVER_RADIUS`` = 3 mean spacings of a detected loop; a connected group of at least
+  ``MIN_MISSED_RING`` = 8 uncovered candidates is a missed hole.
+
+The facts are JSON-serialisable; ``passed`` is their conjunction and ``reason`` says in
+one line what failed. The check never raises and never changes the map.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from datasets_gen.errors import ParambenchError
+
+from ..geometry2d import turning_number
+from .uv_triangulation import triangulate_uv
+
+__all__ = ["check_pointset_map", "loop_coverage", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
+
+MAX_FLIPPED = 0
+MAX_DEGENERATE_FRACTION = 0.01
+ZERO_AREA_REL = 1e-10
+SLIVER_QUALITY = 0.05
+BRIDGE_FACTOR = 4.0
+TURNING_TOL = 0.25
+COVER_RADIUS = 3.0
+MIN_MISSED_RING = 8
+
+#: The thresholds as reported in ``diagnostics["selfcheck"]["thresholds"]``.
+THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENERATE_FRACTION,
+              "zero_area_rel": ZERO_AREA_REL, "sliver_quality": SLIVER_QUALITY, "bridge_factor": BRIDGE_FACTOR, "turning_tol": TURNING_TOL,
+              "cover_radius_spacings": COVER_RADIUS, "min_missed_ring": MIN_MISSED_RING}
+
+#: Neighbours for the local spacing when no kNN graph is given.
+_SPACING_K = 8
+
+
+def _knn(points: np.ndarray, k: int = _SPACING_K) -> np.ndarray:
+    _, idx = cKDTree(points).query(points, k=k + 1, workers=-1)
+    return np.ascontiguousarray(idx[:, 1:], dtype=np.int64)
+
+
+def _local_spacing(points: np.ndarray, knn: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(points[knn] - points[:, None, :], axis=-1).mean(axis=1)
+
+
+def _longest_edge(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    p = points[faces]
+    edges = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 1], p[:, 0] - p[:, 2]], axis=1)
+    return np.sqrt(np.einsum("mij,mij->mi", edges, edges)).max(axis=1)
+
+
+def _bridging(longest: np.ndarray, faces: np.ndarray, spacing_pt: np.ndarray) -> np.ndarray:
+    """Triangles with a 3D edge longer than ``BRIDGE_FACTOR`` local spacings."""
+    return longest > BRIDGE_FACTOR * spacing_pt[faces].mean(axis=1)
+
+
+def loop_coverage(points: np.ndarray, loops: list, candidates: np.ndarray, knn_indices: np.ndarray,
+                  spacing: float) -> dict:
+    """Do the detected loops cover the angle-criterion boundary candidates?
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    loops : list of (L_i,) numpy.ndarray of int64
+        Detected boundary loops.
+    candidates : (N,) numpy.ndarray of bool
+        Points passing the angle criterion.
+    knn_indices : (N, K) numpy.ndarray of int64
+        Neighbour graph used to group uncovered candidates.
+    spacing : float
+        Mean point spacing ``l`` (length units of ``points``).
+
+    Returns
+    -------
+    dict
+        ``n_candidates``, ``n_uncovered`` (farther than ``COVER_RADIUS * l`` from every
+        loop point), ``largest_uncovered_group`` (connected in the kNN graph) and
+        ``passed`` (that group has fewer than ``MIN_MISSED_RING`` points).
+    """
+    cand = np.flatnonzero(np.asarray(candidates, dtype=bool))
+    loop_pts = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in loops]) if loops else np.empty(0, np.int64)
+    if cand.size and loop_pts.size:
+        dist, _ = cKDTree(points[loop_pts]).query(points[cand], k=1, distance_upper_bound=COVER_RADIUS * spacing)
+        uncovered = cand[~np.isfinite(dist)]
+    else:
+        uncovered = cand
+    largest = 0
+    if uncovered.size:
+        flag = np.zeros(points.shape[0], dtype=bool)
+        flag[uncovered] = True
+        rows = np.repeat(uncovered, knn_indices.shape[1])
+        cols = knn_indices[uncovered].ravel()
+        keep = flag[cols]
+        adj = sp.coo_matrix((np.ones(int(keep.sum())), (rows[keep], cols[keep])), shape=(points.shape[0],) * 2)
+        _, labels = connected_components(adj, directed=False)
+        largest = int(np.bincount(labels[uncovered]).max())
+    return {"n_candidates": int(cand.size), "n_uncovered": int(uncovered.size),
+            "largest_uncovered_group": largest, "passed": bool(largest < MIN_MISSED_RING)}
+
+
+def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool) -> tuple[dict, int]:
+    p = points[faces]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    longest = _longest_edge(points, faces)
+    bridging = _bridging(longest, faces, spacing_pt)
+    n_dropped = 0
+    if drop_bridging:
+        n_dropped = int(bridging.sum())
+        keep = ~bridging
+        faces, e1, e2, longest, bridging = faces[keep], e1[keep], e2[keep], longest[keep], bridging[keep]
+    q = uv[faces]
+    d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    area = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])  # faces are uv-CCW
+    zero = area <= ZERO_AREA_REL * (np.median(area) if area.size else 0.0)
+    normal3d = np.cross(e1, e2)
+    sliver = 0.5 * np.linalg.norm(normal3d, axis=1) < SLIVER_QUALITY * longest**2
+    agree = np.einsum("mi,mi->m", normal3d, normals[faces].sum(axis=1))
+    valid = ~(zero | bridging)
+    n_neg = np.count_nonzero(agree[valid] < 0)
+    n_pos = np.count_nonzero(agree[valid] > 0)
+    mirrored = n_neg > n_pos
+    flipped = valid & ((agree > 0) if mirrored else (agree < 0))
+    m = int(faces.shape[0])
+    n_degenerate = int((zero | bridging).sum())
+    facts = {"n_triangles": m, "n_flipped": int((flipped & ~sliver).sum()),
+             "n_flipped_slivers": int((flipped & sliver).sum()), "mirrored": bool(mirrored),
+             "n_zero_area": int(zero.sum()), "n_bridging": int(bridging.sum()), "n_degenerate": n_degenerate,
+             "degenerate_fraction": n_degenerate / m if m else 1.0}
+    return facts, n_dropped
+
+
+def _turning(uv: np.ndarray, loops: list, mirrored: bool) -> dict:
+    sign = -1.0 if mirrored else 1.0
+    turns = [turning_number(uv[np.asarray(lp, dtype=np.int64)]) for lp in loops]
+    expected = [sign * (1.0 if i == 0 else -1.0) for i in range(len(turns))]
+    ok = all(abs(t - e) <= TURNING_TOL for t, e in zip(turns, expected))
+    return {"turning_numbers": [round(t, 4) for t in turns], "expected_turning": expected, "turning_ok": bool(ok)}
+
+
+def _reason(facts: dict) -> str:
+    parts = []
+    if facts.get("n_flipped", 0) > MAX_FLIPPED:
+        parts.append(f"{facts['n_flipped']} flipped triangle(s) of {facts['n_triangles']}")
+    if facts.get("degenerate_fraction", 0.0) > MAX_DEGENERATE_FRACTION:
+        parts.append(f"{100 * facts['degenerate_fraction']:.1f} % degenerate triangles "
+                     f"({facts['n_zero_area']} zero-area, {facts['n_bridging']} bridging a gap)")
+    if not facts.get("turning_ok", True):
+        bad = [f"loop {i} turns {t:+.2f} (expected {e:+.0f})" for i, (t, e)
+               in enumerate(zip(facts["turning_numbers"], facts["expected_turning"])) if abs(t - e) > TURNING_TOL]
+        parts.append("; ".join(bad))
+    cov = facts.get("coverage")
+    if cov and not cov["passed"]:
+        parts.append(f"{cov['largest_uncovered_group']} boundary candidates lie on no detected loop (a missed hole?)")
+    return "; ".join(parts) if parts else "ok"
+
+
+def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, loops: list | None, *,
+                       knn_indices: np.ndarray | None = None, spacing: float | None = None,
+                       candidates: np.ndarray | None = None) -> dict:
+    """Check a point-set map; see the module docstring for the checks and thresholds.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    uv : (N, 2) numpy.ndarray of float64
+        The map, one row per point.
+    normals : (N, 3) numpy.ndarray of float64
+        Consistently oriented point normals (the front end's).
+    loops : list of (L_i,) array_like of int, or None
+        Detected boundary loops, outer first. None or empty: no constraint, no turning
+        check, bridging triangles dropped as outside.
+    knn_indices : (N, K) numpy.ndarray of int64, optional
+        Neighbour graph; computed (K = 8) when omitted.
+    spacing : float, optional
+        Mean spacing ``l``; the mean kNN distance when omitted.
+    candidates : (N,) numpy.ndarray of bool, optional
+        Angle-criterion boundary candidates; no coverage check when omitted.
+
+    Returns
+    -------
+    dict
+        JSON-serialisable: ``passed`` (bool), ``reason`` (one line; "ok" when passed),
+        ``failed`` (names among "flipped", "degenerate", "turning", "coverage"),
+        ``triangulation`` ("cdt", "delaunay", "delaunay-fallback" or "none"),
+        ``n_triangles``, ``n_removed_outside``, ``n_flipped``, ``n_flipped_slivers``, ``mirrored``,
+        ``n_zero_area``, ``n_bridging``, ``n_degenerate``, ``degenerate_fraction``,
+        ``turning_numbers`` and ``expected_turning`` (per loop), ``turning_ok``,
+        ``coverage`` (:func:`loop_coverage`, or None), ``thresholds``, ``seconds``.
+    """
+    start = time.perf_counter()
+    points = np.asarray(points, dtype=np.float64)
+    uv = np.asarray(uv, dtype=np.float64)
+    loops = [np.asarray(lp, dtype=np.int64) for lp in (loops or [])]
+    knn = _knn(points) if knn_indices is None else knn_indices
+    spacing_pt = _local_spacing(points, knn)
+    l_mean = float(spacing_pt.mean()) if spacing is None else float(spacing)
+    facts: dict[str, Any] = {}
+    if not np.all(np.isfinite(uv)):
+        facts.update(triangulation="none", n_triangles=0, reason_override="the map has non-finite uv coordinates")
+    else:
+        try:
+            tri = triangulate_uv(uv, loops)
+        except ParambenchError as exc:
+            facts.update(triangulation="none", n_triangles=0, reason_override=str(exc).rstrip("."))
+        else:
+            face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops)
+            facts.update(triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped, **face_facts)
+    if loops and np.all(np.isfinite(uv)):
+        # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
+        mirrored = facts.get("mirrored", turning_number(uv[loops[0]]) < 0)
+        facts.update(_turning(uv, loops, mirrored))
+    facts["coverage"] = (loop_coverage(points, loops, candidates, knn, l_mean) if candidates is not None else None)
+    failed = []
+    if "reason_override" in facts:
+        failed.append("triangulation")
+    if facts.get("n_flipped", 0) > MAX_FLIPPED:
+        failed.append("flipped")
+    if facts.get("degenerate_fraction", 0.0) > MAX_DEGENERATE_FRACTION:
+        failed.append("degenerate")
+    if not facts.get("turning_ok", True):
+        failed.append("turning")
+    if facts["coverage"] is not None and not facts["coverage"]["passed"]:
+        failed.append("coverage")
+    override = facts.pop("reason_override", None)
+    reason = "; ".join(r for r in (override, _reason(facts)) if r and r != "ok") or "ok"
+    facts.update(passed=not failed, reason=reason, failed=failed, thresholds=dict(THRESHOLDS),
+                 seconds=round(time.perf_counter() - start, 4))
+    return facts
+
+
+#: Per failed check, most telling first (a spinning boundary also folds and stretches
+#: triangles): (parameter, how to change it) in order of preference.
+_FIXES = {
+    "turning": [("k_search", "line"), ("k", "x10"), ("ball_eps_factor", "raise"), ("k_nn", "raise")],
+    "coverage": [("boundary_angle_deg", "lower"), ("ball_eps_factor", "raise")],
+    "flipped": [("k_nn", "raise"), ("ball_eps_factor", "raise"), ("n_neighbors", "raise")],
+    "degenerate": [("ball_eps_factor", "raise"), ("k_nn", "raise"), ("n_neighbors", "raise")],
+    "triangulation": [("k_nn", "raise"), ("n_neighbors", "raise")],
+}
+
+
+def _proposal(key: str, how: str, current: Any) -> str | None:
+    if how == "line":
+        return None if current == "line" else f"{key}=line"
+    if not isinstance(current, (int, float)) or isinstance(current, bool):
+        return None
+    if how == "x10":  # scp-tan's fixed k: k_opt of W^tan is ~10-25 (Sec. 4.2)
+        return f"{key}={10 * current:g}"
+    if how == "lower":
+        return f"{key}={current - 20:g}"
+    if isinstance(current, int):
+        return f"{key}={current + 4}"
+    return f"{key}={current * 1.4:.3g}"
+
+
+def suggest_fix(failed: list[str], params: dict, method: str) -> str:
+    """A parameter change worth trying for the first failed check, as ``--param KEY=VALUE``.
+
+    Parameters
+    ----------
+    failed : list of str
+        ``diagnostics["selfcheck"]["failed"]``.
+    params : dict
+        The parameters the method ran with (only keys present here are proposed).
+    method : str
+        Method name, for the fallback advice.
+
+    Returns
+    -------
+    str
+        E.g. ``"try --param boundary_angle_deg=100"``, or advice to try ``ocp``.
+    """
+    for name in sorted(failed, key=lambda f: list(_FIXES).index(f) if f in _FIXES else len(_FIXES)):
+        for key, how in _FIXES.get(name, []):
+            if key in params:
+                change = _proposal(key, how, params[key])
+                if change:
+                    return f"try --param {change}"
+    return "try another method, e.g. --method ocp" if method != "ocp" else "try --param k_nn=12"
+
+
+def failure_line(check: dict, params: dict, method: str) -> str:
+    """One line, no final period: what failed and what to try."""
+    return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], params, method)}"
+
+
+def pointset_faces(points: np.ndarray, uv: np.ndarray, loops: list | None) -> np.ndarray:
+    """The triangles the self-check judges a map on, for writing a point-set result as a mesh.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    uv : (N, 2) numpy.ndarray of float64
+    loops : list of (L_i,) array_like of int, or None
+        Detected boundary loops (``diagnostics["boundary_loops"]``); without them the
+        Delaunay triangles bridging more than ``BRIDGE_FACTOR`` local spacings in 3D are
+        dropped as lying outside the surface.
+
+    Returns
+    -------
+    (M, 3) numpy.ndarray of int64
+        Counter-clockwise in uv; holes of the loops left empty.
+
+    Raises
+    ------
+    InvalidInputError
+        The uv points cannot be triangulated (a collapsed map).
+    """
+    points = np.asarray(points, dtype=np.float64)
+    loops = [np.asarray(lp, dtype=np.int64) for lp in (loops or [])]
+    faces = triangulate_uv(uv, loops).faces
+    if loops:
+        return faces
+    spacing_pt = _local_spacing(points, _knn(points))
+    return faces[~_bridging(_longest_edge(points, faces), faces, spacing_pt)]

@@ -1,0 +1,172 @@
+"""A triangulation of a point set's uv layout with its boundary loops kept (paper Sec. 6).
+
+Constrained Delaunay in the plane (the ``triangle`` package, Shewchuk's Triangle) with
+every detected boundary loop as a chain of constraint segments; of the triangles, those
+inside the outer loop and outside every hole loop are kept (non-zero total winding number
+of the loops).
+The classification floods the triangle adjacency without crossing a constraint segment,
+so each region between loops is classified by one point-in-polygon test.
+
+When the constraints cannot be honoured as given (a self-intersecting uv boundary, which
+Triangle resolves by inserting new vertices, or coincident uv points, which it drops) the fallback is
+scipy's unconstrained Delaunay with every triangle classified by its centroid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import Delaunay, QhullError
+
+from datasets_gen.errors import InvalidInputError
+
+__all__ = ["UvTriangulation", "triangulate_uv"]
+
+
+@dataclass(frozen=True, eq=False)
+class UvTriangulation:
+    """Triangles of a uv layout.
+
+    Attributes
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+        Indices into the input points; counter-clockwise in uv.
+    kind : str
+        ``"cdt"`` (constrained Delaunay, loops as segments), ``"delaunay"`` (no loops
+        given) or ``"delaunay-fallback"`` (constraints failed, classified by centroid).
+    n_removed : int
+        Triangles dropped as outside the outer loop or inside a hole.
+    """
+
+    faces: np.ndarray
+    kind: str
+    n_removed: int
+
+
+def _loop_segments(loops: list[np.ndarray]) -> np.ndarray:
+    segs = [np.stack([lp, np.roll(lp, -1)], axis=1) for lp in loops if len(lp) >= 3]
+    return np.concatenate(segs).astype(np.int32) if segs else np.empty((0, 2), np.int32)
+
+
+def _winding(query: np.ndarray, polygon: np.ndarray, chunk: int = 4_000_000) -> np.ndarray:
+    """Winding number of a closed polygon around each query point (crossing rule)."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    out = np.zeros(query.shape[0], dtype=np.int64)
+    step = max(1, chunk // max(1, len(polygon)))
+    for lo in range(0, query.shape[0], step):
+        q = query[lo:lo + step]
+        qx, qy = q[:, :1], q[:, 1:]
+        cross = (b[:, 0] - a[:, 0]) * (qy - a[:, 1]) - (b[:, 1] - a[:, 1]) * (qx - a[:, 0])
+        up = (a[:, 1] <= qy) & (b[:, 1] > qy) & (cross > 0)
+        down = (a[:, 1] > qy) & (b[:, 1] <= qy) & (cross < 0)
+        out[lo:lo + step] = up.sum(axis=1) - down.sum(axis=1)
+    return out
+
+
+def _inside(query: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """Non-zero total winding of the loops: inside the outer loop and outside the holes.
+
+    Holes turn against the outer loop, so their windings cancel the outer one inside a
+    hole, under a global mirror too; a boundary that winds twice still has its inside.
+    """
+    total = np.zeros(query.shape[0], dtype=np.int64)
+    for lp in loops:
+        total += _winding(query, uv[lp])
+    return total != 0
+
+
+def _ccw(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    d1 = uv[faces[:, 1]] - uv[faces[:, 0]]
+    d2 = uv[faces[:, 2]] - uv[faces[:, 0]]
+    cw = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0] < 0
+    faces = faces.copy()
+    faces[cw] = faces[cw][:, [0, 2, 1]]
+    return faces
+
+
+def _regions(faces: np.ndarray, segments: np.ndarray, n: int) -> np.ndarray:
+    """Label of each face: faces sharing an edge that is not a segment get the same label."""
+    m = faces.shape[0]
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    owner = np.tile(np.arange(m), 3)
+    lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+    key = lo.astype(np.int64) * n + hi
+    seg_key = (np.minimum(segments[:, 0], segments[:, 1]).astype(np.int64) * n
+               + np.maximum(segments[:, 0], segments[:, 1]))
+    free = ~np.isin(key, seg_key)
+    key, owner = key[free], owner[free]
+    order = np.argsort(key, kind="stable")
+    key, owner = key[order], owner[order]
+    pair = np.flatnonzero(key[1:] == key[:-1])
+    adj = sp.coo_matrix((np.ones(pair.size), (owner[pair], owner[pair + 1])), shape=(m, m))
+    return connected_components(adj, directed=False)[1]
+
+
+def _cdt(uv: np.ndarray, segments: np.ndarray) -> np.ndarray | None:
+    """Constrained Delaunay faces, or None when Triangle had to change the input vertices."""
+    import triangle
+
+    try:
+        out = triangle.triangulate({"vertices": uv, "segments": segments}, "pcQ")
+    except Exception:  # Triangle's C code reports bad input only by failing
+        return None
+    verts = out.get("vertices")
+    tris = out.get("triangles")
+    if verts is None or tris is None or verts.shape[0] != uv.shape[0] or not np.array_equal(verts, uv):
+        return None  # Steiner points at crossing segments: the uv boundary self-intersects
+    return np.asarray(tris, dtype=np.int64)
+
+
+def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation:
+    """Triangulate a uv layout, keeping the domain bounded by the loops.
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+        One row per point.
+    loops : list of (L_i,) array_like of int, optional
+        Boundary loops (point indices in order), outer first, holes turning against the
+        outer loop (as the front end returns them); all loops are constraints and a
+        triangle is kept where their total winding number is non-zero. None or empty: the Delaunay triangulation of the
+        whole convex hull.
+
+    Returns
+    -------
+    UvTriangulation
+
+    Raises
+    ------
+    InvalidInputError
+        The uv points cannot be triangulated at all (all collinear or coincident: a
+        collapsed map), or no triangle lies inside the loops.
+    """
+    uv = np.ascontiguousarray(uv, dtype=np.float64)
+    n = uv.shape[0]
+    loops = [np.asarray(lp, dtype=np.int64) for lp in (loops or []) if len(lp) >= 3]
+    faces = None
+    segments = _loop_segments(loops)
+    if loops and np.unique(uv, axis=0).shape[0] == n:  # Triangle cannot keep coincident vertices
+        faces = _cdt(uv, segments)
+    kind = "cdt" if faces is not None else ("delaunay-fallback" if loops else "delaunay")
+    if faces is None:
+        try:
+            faces = Delaunay(uv).simplices.astype(np.int64)
+        except QhullError:
+            raise InvalidInputError("the uv points cannot be triangulated (all collinear or coincident): "
+                                    "the map collapsed.") from None
+    faces = _ccw(uv, faces)
+    if not loops:
+        return UvTriangulation(faces=faces, kind=kind, n_removed=0)
+    centroids = uv[faces].mean(axis=1)
+    if kind == "cdt":
+        labels = _regions(faces, segments, n)
+        first = np.unique(labels, return_index=True)[1]
+        inside = _inside(centroids[first], uv, loops)[labels]
+    else:
+        inside = _inside(centroids, uv, loops)
+    if not inside.any():
+        raise InvalidInputError("no uv triangle lies inside the detected boundary loops: the map collapsed.")
+    return UvTriangulation(faces=faces[inside], kind=kind, n_removed=int((~inside).sum()))

@@ -1,0 +1,104 @@
+"""flatten and inspect report the point-set self-check; failing maps are not written silently."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.cli import EXIT_SELFCHECK, main
+
+
+@pytest.fixture(scope="module")
+def bump_xyz(tmp_path_factory):
+    from datasets_gen.registry import make_surface
+
+    surface = make_surface("bump", 900, sampling="jittered", seed=0)
+    path = tmp_path_factory.mktemp("in") / "bump.xyz"
+    np.savetxt(path, surface.points, fmt="%.17g")
+    return path, surface.points
+
+
+def test_failing_map_exits_3_with_one_line_and_no_file(bump_xyz, tmp_path, capsys):
+    src, _ = bump_xyz
+    out = tmp_path / "spin.obj"
+    assert main(["flatten", str(src), "--method", "scp-tan", "-o", str(out)]) == EXIT_SELFCHECK == 3
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "self-check" in err[0] and "turns" in err[0]
+    assert "--param k=10" in err[0]  # a parameter scp-tan has
+    assert not out.exists()
+    assert "self-check FAILED" in captured.out and len(captured.out.strip().splitlines()) == 1
+
+
+def test_suggested_parameter_fixes_the_map(bump_xyz, tmp_path):
+    src, _ = bump_xyz
+    out = tmp_path / "fixed.csv"
+    assert main(["flatten", str(src), "--method", "scp-tan", "--param", "k=10", "-o", str(out)]) == 0
+    assert out.exists()
+
+
+def test_force_writes_the_failing_map_with_a_warning(bump_xyz, tmp_path, capsys):
+    src, points = bump_xyz
+    out = tmp_path / "spin.obj"
+    assert main(["flatten", str(src), "--method", "scp-tan", "--force", "-o", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("parambench: warning:")
+    assert out.exists() and sum(line.startswith("vt ") for line in out.read_text().splitlines()) == len(points)
+
+
+@pytest.fixture(scope="module")
+def sdp_outputs(bump_xyz, tmp_path_factory):
+    """flatten --points-only with sdp to .obj and .ply, and the map itself."""
+    from datasets_gen.surface import Surface
+    from methods import get_method
+    from methods.pointset.selfcheck import pointset_faces
+
+    src, points = bump_xyz
+    root = tmp_path_factory.mktemp("out")
+    for ext in ("obj", "ply"):
+        assert main(["flatten", str(src), "--points-only", "--method", "sdp", "-o", str(root / f"m.{ext}")]) == 0
+    result = get_method("sdp")(Surface(points=points, name="bump"))
+    faces = pointset_faces(points, result.uv, result.diagnostics["boundary_loops"])
+    return root, points, result.uv, faces
+
+
+def _same_faces(a, b):
+    canon = lambda f: np.unique(np.sort(f, axis=1), axis=0)  # noqa: E731 - rotation-free comparison
+    return a.shape == b.shape and np.array_equal(canon(a), canon(b))
+
+
+def test_obj_of_a_point_set_opens_as_a_textured_mesh(sdp_outputs):
+    import igl
+
+    root, points, uv, faces = sdp_outputs
+    v, tc, _, f, ftc, _ = igl.readOBJ(str(root / "m.obj"))
+    assert v.shape == points.shape and np.allclose(v, points, rtol=0, atol=1e-12)  # input order
+    assert tc.shape == uv.shape and np.allclose(tc, uv, rtol=0, atol=1e-12)
+    assert np.array_equal(f, ftc)  # f i/i: the same index for v and vt
+    assert _same_faces(f, faces) and len(f) > len(points)
+    assert np.setdiff1d(np.arange(len(points)), f.ravel()).size == 0  # every point is in a face
+
+
+def test_ply_of_a_point_set_has_xyz_texture_uv_and_faces(sdp_outputs):
+    import pymeshlab
+
+    root, points, uv, faces = sdp_outputs
+    ms = pymeshlab.MeshSet()
+    ms.load_new_mesh(str(root / "m.ply"))
+    mesh = ms.current_mesh()
+    assert mesh.vertex_number() == len(points) and mesh.face_number() == len(faces)
+    assert np.allclose(mesh.vertex_matrix(), points, atol=1e-6)
+    assert mesh.has_vertex_tex_coord()
+    assert np.allclose(mesh.vertex_tex_coord_matrix(), uv, atol=1e-5 * np.abs(uv).max())
+    assert _same_faces(mesh.face_matrix().astype(np.int64), faces)
+
+
+def test_inspect_writes_loop_coverage(bump_xyz, tmp_path, capsys):
+    src, points = bump_xyz
+    out = tmp_path / "front.json"
+    assert main(["inspect", str(src), "-o", str(out)]) == 0
+    cov = json.loads(out.read_text())["selfcheck"]["coverage"]
+    assert cov["passed"] and 0 < cov["n_candidates"] < len(points) and cov["n_uncovered"] < cov["n_candidates"]
+    assert "loop coverage ok" in capsys.readouterr().out

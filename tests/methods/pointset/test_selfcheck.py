@@ -1,0 +1,200 @@
+"""A point-set map checks itself: uv triangulation with loops, flips, degenerates, turning, coverage."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from matplotlib.path import Path
+
+from methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
+from methods.pointset.uv_triangulation import triangulate_uv
+
+
+def _ring(n):
+    """Indices of the boundary of an n x n grid (row-major), counter-clockwise."""
+    idx = np.arange(n * n).reshape(n, n)
+    return np.r_[idx[0, :-1], idx[:-1, -1], idx[-1, :0:-1], idx[:0:-1, 0]]
+
+
+def _area(uv, faces):
+    d1, d2 = uv[faces[:, 1]] - uv[faces[:, 0]], uv[faces[:, 2]] - uv[faces[:, 0]]
+    return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+
+def _grid_with_hole(n=21, hole=5.0):
+    """A flat n x n grid of spacing 1 without the points within ``hole`` of the centre."""
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    pts = np.c_[x.ravel(), y.ravel(), np.zeros(n * n)]
+    c = (n - 1) / 2
+    keep = np.hypot(pts[:, 0] - c, pts[:, 1] - c) > hole
+    old_to_new = np.cumsum(keep) - 1
+    outer = old_to_new[_ring(n)]
+    pts = pts[keep]
+    rim_mask = np.hypot(pts[:, 0] - c, pts[:, 1] - c) <= hole + 1.5
+    rim = np.flatnonzero(rim_mask)
+    # The hole loop clockwise (holes turn -1 seen from the normals' side).
+    rim = rim[np.argsort(-np.arctan2(pts[rim, 1] - c, pts[rim, 0] - c))]
+    return pts, outer, rim
+
+
+def test_cdt_of_a_square_annulus_keeps_the_hole_empty():
+    # 5 x 5 grid without its centre: outer ring of 16 points, hole ring of 8 around the centre.
+    idx = np.arange(25).reshape(5, 5)
+    x, y = np.meshgrid(np.arange(5.0), np.arange(5.0))
+    uv_full = np.c_[x.ravel(), y.ravel()]
+    keep = np.arange(25) != 12
+    new = np.cumsum(keep) - 1
+    uv = uv_full[keep]
+    outer = new[_ring(5)]
+    hole = new[np.r_[idx[1, 1:3], idx[1:3, 3], idx[3, 3:1:-1], idx[3:1:-1, 1]]][::-1]
+    tri = triangulate_uv(uv, [outer, hole])
+    assert tri.kind == "cdt"
+    # Every vertex is a boundary vertex: T = 2n - b - 2 + 2h = 48 - 24 - 2 + 2 = 24, area 16 - 4.
+    assert len(tri.faces) == 24
+    assert np.all(_area(uv, tri.faces) > 0)
+    assert _area(uv, tri.faces).sum() == pytest.approx(12.0)
+    centroids = uv[tri.faces].mean(axis=1)
+    assert not Path(uv[hole]).contains_points(centroids).any()
+
+
+def test_self_intersecting_boundary_falls_back_to_delaunay():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.2]], dtype=float)
+    bow_tie = [np.array([0, 2, 1, 3])]  # crossing segments: Triangle would add a vertex
+    tri = triangulate_uv(square, bow_tie)
+    assert tri.kind == "delaunay-fallback"
+    assert tri.faces.max() < len(square)
+
+
+def test_identity_and_mirror_of_a_flat_patch_pass():
+    pts, outer, rim = _grid_with_hole()
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    check = check_pointset_map(pts, pts[:, :2], normals, [outer, rim])
+    assert check["passed"] and check["reason"] == "ok" and check["failed"] == []
+    assert check["n_flipped"] == 0 and check["n_degenerate"] == 0 and not check["mirrored"]
+    assert check["turning_numbers"] == [1.0, -1.0]
+    json.dumps(check)  # JSON-serialisable
+    mirror = check_pointset_map(pts, pts[:, :2] * [-1.0, 1.0], normals, [outer, rim])
+    assert mirror["passed"] and mirror["mirrored"] and mirror["turning_numbers"] == [-1.0, 1.0]
+
+
+def test_a_local_fold_is_counted_as_flipped():
+    pts, outer, rim = _grid_with_hole()
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    uv = pts[:, :2].copy()
+    inner = np.flatnonzero((pts[:, 0] == 3) & (pts[:, 1] == 3))[0]
+    uv[inner] += [1.6, 1.6]  # pushed past its diagonal neighbour: the triangles around it fold
+    check = check_pointset_map(pts, uv, normals, [outer, rim])
+    assert not check["passed"] and "flipped" in check["failed"] and check["n_flipped"] > 0
+    assert "flipped" in check["reason"]
+
+
+def test_a_spinning_boundary_fails_the_turning_check():
+    r, t = np.meshgrid(np.linspace(0.3, 1.0, 8), np.linspace(0, 2 * np.pi, 48, endpoint=False))
+    pts = np.c_[(r * np.cos(t)).ravel(), (r * np.sin(t)).ravel(), np.zeros(r.size)]
+    z = (pts[:, 0] + 1j * pts[:, 1]) ** 2  # winds the boundary twice
+    outer = np.flatnonzero(np.isclose(r.ravel(), 1.0))
+    outer = outer[np.argsort(np.arctan2(pts[outer, 1], pts[outer, 0]))]
+    check = check_pointset_map(pts, np.c_[z.real, z.imag], np.tile([0.0, 0.0, 1.0], (len(pts), 1)), [outer])
+    assert not check["passed"] and "turning" in check["failed"]
+    assert check["turning_numbers"][0] == pytest.approx(2.0, abs=1e-6)
+
+
+def test_a_missing_hole_loop_shows_as_bridging_triangles_and_uncovered_candidates():
+    pts, outer, rim = _grid_with_hole()
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    candidates = np.zeros(len(pts), dtype=bool)
+    candidates[outer] = candidates[rim] = True
+    check = check_pointset_map(pts, pts[:, :2], normals, [outer], candidates=candidates)
+    assert not check["passed"]
+    # The hole is triangulated over: triangles across it are longer than 4 spacings in 3D
+    # (with the hole loop given there are none, see the identity test).
+    assert check["n_bridging"] > 0 and check["n_degenerate"] >= check["n_bridging"]
+    cov = check["coverage"]
+    assert "coverage" in check["failed"] and not cov["passed"]
+    assert cov["n_uncovered"] == len(rim) and cov["largest_uncovered_group"] == len(rim)
+
+
+def test_coverage_passes_when_every_candidate_is_near_a_loop():
+    pts, outer, rim = _grid_with_hole()
+    knn = np.argsort(np.linalg.norm(pts[:, None] - pts[None], axis=-1), axis=1)[:, 1:9]
+    candidates = np.zeros(len(pts), dtype=bool)
+    candidates[outer] = candidates[rim] = True
+    cov = loop_coverage(pts, [outer, rim], candidates, knn, spacing=1.0)
+    assert cov == {"n_candidates": len(outer) + len(rim), "n_uncovered": 0, "largest_uncovered_group": 0,
+                   "passed": True}
+
+
+def test_non_finite_map_fails_without_raising():
+    pts, outer, rim = _grid_with_hole()
+    uv = pts[:, :2].copy()
+    uv[0] = np.nan
+    check = check_pointset_map(pts, uv, np.tile([0.0, 0.0, 1.0], (len(pts), 1)), [outer, rim])
+    assert check["passed"] is False and "non-finite" in check["reason"]
+
+
+def test_pointset_faces_without_loops_drop_bridging_triangles():
+    pts, _, _ = _grid_with_hole()  # hole of radius 5 around (10, 10), spacing 1
+
+    def near_centre(faces):
+        return np.hypot(*(pts[:, :2][faces].mean(axis=1) - 10.0).T) < 3.0
+
+    assert near_centre(triangulate_uv(pts[:, :2]).faces).any()  # plain Delaunay covers the hole
+    faces = pointset_faces(pts, pts[:, :2], None)
+    assert not near_centre(faces).any()
+    assert np.all(_area(pts[:, :2], faces) > 0)
+
+
+def test_suggestions_name_a_parameter_of_the_method():
+    assert suggest_fix(["flipped", "turning"], {"k": 1.0, "k_nn": 8}, "scp-tan") == "try --param k=10"
+    assert suggest_fix(["coverage"], {"boundary_angle_deg": 120.0}, "ocp") == "try --param boundary_angle_deg=100"
+    assert suggest_fix(["flipped"], {"n_neighbors": 12}, "ltsa-sklearn") == "try --param n_neighbors=16"
+    assert "--method ocp" in suggest_fix(["flipped"], {}, "isomap-sklearn")
+
+
+@pytest.fixture(scope="module")
+def bump():
+    from datasets_gen.registry import make_surface
+
+    return make_surface("bump", 900, sampling="jittered", seed=0).points_only()
+
+
+def test_every_pointset_method_result_carries_its_check(bump):
+    from methods import get_method
+
+    spinning = get_method("scp-tan")(bump)
+    check = spinning.diagnostics["selfcheck"]
+    assert check["passed"] is False and "turning" in check["failed"]
+    assert check["turning_numbers"][0] > 1.5  # the spinning of Sec. 4.2
+    assert spinning.uv.shape == (bump.n_points, 2) and np.all(np.isfinite(spinning.uv))  # map kept
+    good = get_method("sdp")(bump).diagnostics["selfcheck"]
+    assert good["passed"] and good["triangulation"] == "cdt" and good["coverage"]["passed"]
+    json.dumps(good)
+
+
+def test_candidates_for_coverage_are_the_front_ends_own(bump):
+    from methods.pointset.frontend import build_frontend
+    from methods.pointset.plugin_support import frontend_candidates
+
+    front = build_frontend(bump.points)
+    candidates = frontend_candidates(front)
+    assert not front.diagnostics["boundary"]["retried_with_wider_balls"]
+    assert candidates.sum() == front.diagnostics["boundary"]["n_candidates"] > 0
+    assert candidates[front.boundary_mask].mean() > 0.9  # loop points pass the angle criterion
+    assert frontend_candidates(front.without_balls()) is None
+
+
+def test_check_runs_on_the_distinct_points_when_some_coincide(bump):
+    import warnings
+
+    from datasets_gen.surface import Surface
+    from methods import get_method
+
+    points = np.r_[bump.points, bump.points[:5]]  # five copies: merged before the method runs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = get_method("sdp")(Surface(points=points, name="copies"))
+    check = result.diagnostics["selfcheck"]
+    # Same front end, same map on the distinct points: the check with its loops (CDT) passes.
+    assert check["passed"] and check["triangulation"] == "cdt" and check["coverage"] is not None

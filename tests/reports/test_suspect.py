@@ -1,0 +1,47 @@
+"""The report shows suspect cells: status text, counts, their own list; their metrics count."""
+
+import pandas as pd
+
+from reports.labels import add_labels
+from reports.load import normalise_rows
+from reports.tables import failures_table, overview_table, summarise, summary_tables, suspect_table
+
+
+def _row(method, seed, status="ok", error="", **metrics):
+    base = {"cell_id": f"bump-{method}-{seed}", "dataset": "bump", "size": 100, "sampling": "grid",
+            "noise": 0.0, "seed": seed, "method": method, "params": "{}", "n_points": 100, "status": status,
+            "error_type": "SelfCheck" if status == "suspect" else "", "error": error}
+    base.update(metrics)
+    return base
+
+
+def _rows():
+    return add_labels(normalise_rows(pd.DataFrame([
+        _row("a", 0, qc_mean=1.1, foldovers=0),
+        _row("a", 1, status="suspect", error="loop 0 turns +2.00 (expected +1)", qc_mean=1.9, foldovers=3),
+        _row("b", 0, qc_mean=1.2, foldovers=0),
+        _row("c", 0, status="failed", error="boom"),
+    ])))
+
+
+def test_suspect_seeds_count_in_medians_and_are_named_in_the_status():
+    summary = summarise(_rows())
+    a = summary[summary["variant"] == "a"].iloc[0]
+    assert a["n_ok"] == 1 and a["n_suspect"] == 1 and a["qc_mean"] == 1.5  # median of 1.1 and 1.9
+    assert not a["has_failure"] and a["has_suspect"]
+    assert a["status"] == "suspect: 1 of 2 seeds fail the self-check: loop 0 turns +2.00 (expected +1)"
+    b = summary[summary["variant"] == "b"].iloc[0]
+    assert b["status"] == "ok" and not b["has_suspect"]
+    cell = next(r[-1] for r in summary_tables(summary)["bump · 100 pts · grid"].rows if r[0].text == "a")
+    assert cell.classes == ("status", "suspect")
+
+
+def test_suspect_cells_are_listed_apart_from_failures():
+    rows = _rows()
+    suspects = suspect_table(rows)
+    assert len(suspects.rows) == 1 and suspects.rows[0][1].text == "a" and "turns" in suspects.rows[0][3].text
+    failures = failures_table(rows)
+    assert len(failures.rows) == 1 and failures.rows[0][1].text == "c"
+    overview = overview_table(summarise(rows))
+    a_row = next(r for r in overview.rows if r[0].text == "a")
+    assert "failed" not in a_row[1].text  # a suspect seed is not a failure
