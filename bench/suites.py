@@ -67,10 +67,10 @@ SUITES = {
     "full": Suite(
         name="full",
         datasets=("plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions",
-                  "gnome-strip", "real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k",
+                  "gnome-strip", "slit", "fold", "real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k",
                   "real/chameleon"),
         sizes=(2000, 10000, 50000),
-        samplings=("grid", "jittered", "random"),
+        samplings=("grid", "jittered", "random", "graded"),
         seeds=(0, 1, 2),
         param_grids=True,
     ),
