@@ -17,6 +17,8 @@ import numpy as np
 from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
 from datasets_gen.surface import Surface
 
+from .pose import run_in_unit_pose
+
 __all__ = ["Parameterization", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
 
 
@@ -189,7 +191,8 @@ class Method:
                 "use a point-set method (e.g. 'ocp') or give a mesh file."
             )
         start = time.perf_counter()
-        result = self.run(surface, **resolved)
+        # Scale and pose: the method sees a centred, unit-size copy; uv comes back in input units.
+        result = run_in_unit_pose(self.run, surface, resolved)
         result.timings["total"] = time.perf_counter() - start
         result.params = resolved
         result.method = self.name
