@@ -17,6 +17,7 @@ import numpy as np
 from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
 from datasets_gen.surface import Surface
 
+from .hints import method_hints
 from .pose import run_in_unit_pose
 
 __all__ = ["Parameterization", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
@@ -192,7 +193,9 @@ class Method:
             )
         start = time.perf_counter()
         # Scale and pose: the method sees a centred, unit-size copy; uv comes back in input units.
-        result = run_in_unit_pose(self.run, surface, resolved)
+        # Error hints name only this method's parameters (methods/hints.py).
+        with method_hints(self.defaults, resolved):
+            result = run_in_unit_pose(self.run, surface, resolved)
         result.timings["total"] = time.perf_counter() - start
         result.params = resolved
         result.method = self.name
