@@ -17,6 +17,9 @@ import numpy as np
 from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
 from datasets_gen.surface import Surface
 
+from .hints import method_hints
+from .pose import run_in_unit_pose
+
 __all__ = ["Parameterization", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
 
 
@@ -200,14 +203,10 @@ class Method:
                 "use a point-set method (e.g. 'ocp') or give a mesh file."
             )
         start = time.perf_counter()
-        if self.needs_faces:
-            result = self.run(surface, **resolved)
-        else:
-            # Coincident points: run on one per group, copy its uv to the others. Imported
-            # here because methods.pointset imports this module.
-            from .pointset.coincident import run_on_representatives
-
-            result = run_on_representatives(self._run_and_check, surface, resolved)
+        # Scale and pose: the method sees a centred, unit-size copy; uv comes back in input units.
+        # Error hints name only this method's parameters (methods/hints.py).
+        with method_hints(self.defaults, resolved):
+            result = run_in_unit_pose(self._run_point_or_mesh, surface, resolved)
         # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
         check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)
         result.timings["total"] = time.perf_counter() - start - check_seconds
@@ -218,6 +217,16 @@ class Method:
                 f"method {self.name!r} returned {result.uv.shape[0]} uv rows for {surface.n_points} points (a bug)."
             )
         return result
+
+    def _run_point_or_mesh(self, surface: Surface, **params: Any) -> Parameterization:
+        """Mesh methods: :meth:`run`. Point-set methods: :meth:`_run_and_check` on one point
+        per group of coincident points, its uv copied to the others."""
+        if self.needs_faces:
+            return self.run(surface, **params)
+        # Imported here because methods.pointset imports this module.
+        from .pointset.coincident import run_on_representatives
+
+        return run_on_representatives(self._run_and_check, surface, params)
 
     def _run_and_check(self, surface: Surface, **params: Any) -> Parameterization:
         """:meth:`run`, then the point-set self-check on the same points (``diagnostics["selfcheck"]``).

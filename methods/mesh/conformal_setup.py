@@ -11,6 +11,7 @@ from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
 from datasets_gen.surface import Surface
 
 from ..base import StageTimer
+from ..hints import Hint, hinted
 from ..spectral import ConformalProblem
 from .pins import farthest_pair
 from .topology import require_connected_disk_like
@@ -132,6 +133,7 @@ def scale_to_surface_area(z: np.ndarray, problem: ConformalProblem, points: np.n
     area_uv = float(np.real(np.vdot(z, problem.area @ z)))
     area_3d = float(np.sum(igl.doublearea(points, faces)) / 2.0)
     if not area_uv > 0:
-        raise SolverError(f"the map encloses area {area_uv:.3g} <= 0 (collapsed or inverted); try other weights.")
+        raise hinted(SolverError, f"the map encloses area {area_uv:.3g} <= 0 (collapsed or inverted)",
+                     Hint("try other weights", "weights"))
     zc = (z - z.mean()) * np.sqrt(area_3d / area_uv)
     return np.column_stack([zc.real, zc.imag])

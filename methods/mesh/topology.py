@@ -1,4 +1,4 @@
-"""Topology of triangle meshes: disk checks and ordered boundary loops."""
+"""Topology of triangle meshes: manifold and disk checks, ordered boundary loops."""
 
 from __future__ import annotations
 
@@ -9,7 +9,18 @@ from scipy.sparse.csgraph import connected_components
 
 from datasets_gen.errors import DisconnectedError, NotADiskError
 
-__all__ = ["boundary_loops", "require_disk", "require_connected_disk_like"]
+__all__ = [
+    "boundary_loops",
+    "duplicate_faces",
+    "non_manifold_edges",
+    "non_manifold_vertices",
+    "require_manifold",
+    "require_disk",
+    "require_connected_disk_like",
+]
+
+#: How many offending indices an error message lists.
+_EXAMPLES = 3
 
 
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
@@ -29,6 +40,149 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     loops = igl.boundary_loop_all(np.ascontiguousarray(faces, dtype=np.int64))
     loops = [np.asarray(loop, dtype=np.int64) for loop in loops if len(loop) > 0]
     return sorted(loops, key=len, reverse=True)
+
+
+def duplicate_faces(faces: np.ndarray) -> np.ndarray:
+    """Faces over the same three vertices as an earlier face (either orientation).
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    (D, 2) numpy.ndarray of int64
+        Rows ``(repeat, first)``: a face index and the index of the earlier face it
+        repeats, in increasing ``repeat`` order.
+    """
+    key = np.sort(faces, axis=1)
+    # lexsort is stable: within a run of equal keys the earliest face comes first
+    order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
+    ordered = key[order]
+    same = np.all(ordered[1:] == ordered[:-1], axis=1)
+    run_start = np.maximum.accumulate(np.where(np.concatenate([[True], ~same]), np.arange(order.size), 0))
+    repeat, first = order[1:][same], order[run_start[1:][same]]
+    by_repeat = np.argsort(repeat)
+    return np.column_stack([repeat[by_repeat], first[by_repeat]]).astype(np.int64)
+
+
+def _half_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per half-edge ``3 f + k``: start corner (= its index), end corner, undirected-edge id.
+
+    Corner ``3 f + k`` is vertex ``faces[f, k]`` in face f.
+    """
+    m = faces.shape[0]
+    start = np.arange(3 * m)
+    end = (3 * np.arange(m)[:, None] + (np.arange(3) + 1) % 3).ravel()
+    flat = faces.ravel()
+    lo, hi = np.minimum(flat[start], flat[end]), np.maximum(flat[start], flat[end])
+    # one int64 per undirected edge: a 1-D unique is several times faster than unique(axis=0)
+    _, edge_id = np.unique(lo * (int(flat.max()) + 1) + hi, return_inverse=True)
+    return start, end, edge_id.ravel()
+
+
+def non_manifold_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edges shared by more than two faces.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    edges : (E, 2) numpy.ndarray of int64
+        Vertex pairs ``i < j``, sorted.
+    counts : (E,) numpy.ndarray of int64
+        Number of faces on each.
+    """
+    flat = faces.ravel()
+    start, end, edge_id = _half_edges(faces)
+    counts = np.bincount(edge_id)
+    bad = np.flatnonzero(counts > 2)
+    # one half-edge per bad edge gives its vertices
+    first = np.full(counts.size, -1, dtype=np.int64)
+    first[edge_id[::-1]] = start[::-1]
+    h = first[bad]
+    edges = np.sort(np.column_stack([flat[h], flat[end[h]]]), axis=1)
+    return edges.astype(np.int64), counts[bad].astype(np.int64)
+
+
+def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Vertices whose faces form more than one fan (e.g. two cones touching at a tip: a bowtie).
+
+    Faces around a vertex belong to one fan when they are linked through edges at that
+    vertex shared by exactly two faces. Call on an edge-manifold mesh (see
+    :func:`non_manifold_edges`); edges on three or more faces link nothing here.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+    n_vertices : int
+
+    Returns
+    -------
+    (K,) numpy.ndarray of int64
+        Sorted vertex indices.
+    """
+    flat = faces.ravel()
+    start, end, edge_id = _half_edges(faces)
+    order = np.argsort(edge_id, kind="stable")
+    counts = np.bincount(edge_id)
+    ptr = np.concatenate([[0], np.cumsum(counts)])
+    two = np.flatnonzero(counts == 2)
+    h1, h2 = order[ptr[two]], order[ptr[two] + 1]
+    # link the corners of the two faces that sit at the same vertex, at both ends of the edge
+    h2_at_start_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], start[h2], end[h2])
+    h2_at_end_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], end[h2], start[h2])
+    i = np.concatenate([start[h1], end[h1]])
+    j = np.concatenate([h2_at_start_of_h1, h2_at_end_of_h1])
+    n_corners = flat.size
+    graph = sp.coo_matrix((np.ones(i.size), (i, j)), shape=(n_corners, n_corners))
+    _, fan = connected_components(graph, directed=False)
+    vertex_fan = np.unique(flat * np.int64(fan.max() + 1) + fan)
+    fans_per_vertex = np.bincount(vertex_fan // (fan.max() + 1), minlength=n_vertices)
+    return np.flatnonzero(fans_per_vertex > 1).astype(np.int64)
+
+
+def _examples(items) -> str:
+    shown = ", ".join(str(x) for x in items[:_EXAMPLES])
+    return shown + (", ..." if len(items) > _EXAMPLES else "")
+
+
+def require_manifold(faces: np.ndarray, n_vertices: int) -> None:
+    """Raise unless the mesh has no duplicate faces, non-manifold edges or non-manifold vertices.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+    n_vertices : int
+
+    Raises
+    ------
+    NotADiskError
+        With how many offenders there are, the first few indices and a repair to apply.
+    """
+    dup = duplicate_faces(faces)
+    if dup.size:
+        pairs = [f"face {int(r)} = face {int(f)}" for r, f in dup]
+        raise NotADiskError(
+            f"the mesh has {len(dup)} duplicate face(s) over the same three vertices ({_examples(pairs)}); "
+            "remove them (pymeshlab meshing_remove_duplicate_faces) or use --points-only."
+        )
+    edges, counts = non_manifold_edges(faces)
+    if edges.size:
+        shown = [f"{int(a)}-{int(b)} on {int(c)} faces" for (a, b), c in zip(edges, counts)]
+        raise NotADiskError(
+            f"the mesh has {len(edges)} non-manifold edge(s) shared by more than two faces (vertices {_examples(shown)}); "
+            "repair them (pymeshlab meshing_repair_non_manifold_edges) or use --points-only."
+        )
+    verts = non_manifold_vertices(faces, n_vertices)
+    if verts.size:
+        raise NotADiskError(
+            f"the mesh has {verts.size} non-manifold vertex/vertices where separate fans of faces meet "
+            f"(vertex {_examples(verts.tolist())}); repair them (pymeshlab meshing_repair_non_manifold_vertices) "
+            "or use --points-only."
+        )
 
 
 def _component_count(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
@@ -58,10 +212,11 @@ def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_
     DisconnectedError
         Unreferenced vertices or several components.
     NotADiskError
-        Non-manifold edges or vertices, a closed surface, or (``allow_holes=False``)
+        Duplicate faces, non-manifold edges or vertices (:func:`require_manifold`), a closed surface, or (``allow_holes=False``)
         more than one boundary loop or Euler characteristic != 1.
     """
     n = points.shape[0]
+    require_manifold(faces, n)
     used = np.zeros(n, dtype=bool)
     used[faces.ravel()] = True
     if not used.all():
@@ -75,13 +230,6 @@ def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_
             f"the mesh has {n_comp} connected components; flatten each component separately "
             "(pymeshlab generate_splitting_by_connected_components)."
         )
-    if not igl.is_edge_manifold(faces):
-        raise NotADiskError("the mesh has non-manifold edges (more than two faces on an edge); repair it first "
-                            "(pymeshlab meshing_repair_non_manifold_edges).")
-    vm = np.asarray(igl.is_vertex_manifold(faces)).ravel()
-    if not np.all(vm):
-        raise NotADiskError(f"the mesh has {int((~vm.astype(bool)).sum())} non-manifold vertices; repair them first "
-                            "(pymeshlab meshing_repair_non_manifold_vertices).")
     loops = boundary_loops(faces)
     if not loops:
         raise NotADiskError("the mesh is closed (no boundary loop); cut it open along a seam before flattening.")

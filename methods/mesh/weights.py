@@ -57,6 +57,8 @@ import scipy.sparse as sp
 
 from datasets_gen.errors import InvalidInputError, UnknownNameError
 
+from ..hints import Hint, hinted
+
 __all__ = ["WEIGHT_KINDS", "mesh_weights", "laplacian", "negative_cotangent_vertices", "corner_angles"]
 
 #: Accepted values of ``kind``.
@@ -260,9 +262,12 @@ def mesh_weights(points: np.ndarray, faces: np.ndarray, kind: str, normalized: b
         sums = np.asarray(w.sum(axis=1)).ravel()
         bad = sums <= 0
         if bad.any():
-            raise InvalidInputError(
+            raise hinted(
+                InvalidInputError,
                 f"{int(bad.sum())} row(s) of the {kind} weights sum to <= 0 (first: vertex {int(np.flatnonzero(bad)[0])}) "
-                "and cannot be normalized; use normalized=False or kind='hybrid' to replace bad rows."
+                "and cannot be normalized",
+                Hint("use normalized=False", "normalized", False),
+                Hint("use weights='hybrid' to replace bad rows", "weights", "hybrid"),
             )
         w = sp.csr_matrix(sp.diags(1.0 / sums) @ w)
     return w

@@ -15,10 +15,14 @@ from datasets_gen.errors import ConvergenceError, ResourceLimitError, SolverErro
 from datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
+from ..hints import Hint, hinted
+from ..pointset.plugin_support import require_neighbours
 from ..registry import register
 
 
 def _embed(estimator, points: np.ndarray, name: str) -> np.ndarray:
+    require_neighbours(points.shape[0], estimator.n_neighbors, "n_neighbors")
+    more = Hint("try a larger n_neighbors", "n_neighbors")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -26,11 +30,11 @@ def _embed(estimator, points: np.ndarray, name: str) -> np.ndarray:
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
         message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         if "converge" in message.lower() or "arpack" in message.lower():
-            raise ConvergenceError(f"{name}: the eigen-solver did not converge ({message}); "
-                                   "try more neighbours or eigen_solver='dense' on small inputs.") from None
-        raise SolverError(f"{name} failed: {message}; try more neighbours.") from None
+            raise hinted(ConvergenceError, f"{name}: the eigen-solver did not converge ({message})", more,
+                         Hint("use eigen_solver='dense' on small inputs", "eigen_solver", "dense")) from None
+        raise hinted(SolverError, f"{name} failed: {message}", more) from None
     if not np.all(np.isfinite(uv)):
-        raise SolverError(f"{name} returned non-finite coordinates; try more neighbours.")
+        raise hinted(SolverError, f"{name} returned non-finite coordinates", more)
     return np.ascontiguousarray(uv, dtype=np.float64)
 
 

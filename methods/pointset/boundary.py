@@ -280,8 +280,8 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int) -
         )
     return NoBoundaryError(
         f"{n_candidates} points pass the {angle_deg:g}-degree angle criterion but no boundary loop closes: "
-        "the boundary is too ragged or sparsely sampled; sample the boundary curve more densely, or raise "
-        "k_nn or ball_eps_factor."
+        "a closed surface (cut it open before flattening) or a boundary too ragged or sparsely sampled "
+        "(sample the boundary curve more densely, or raise k_nn or ball_eps_factor)."
     )
 
 

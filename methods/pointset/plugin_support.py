@@ -9,14 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from datasets_gen.errors import SolverError
+from datasets_gen.errors import SolverError, TooFewPointsError
 from datasets_gen.surface import Surface
 
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
 
-__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "scale_to_spacing", "frontend_diagnostics", "frontend_candidates",
-           "selfcheck_result"]
+__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
+           "frontend_candidates", "selfcheck_result"]
 
 #: Front-end parameters every point-set method accepts (paper Sec. 6 defaults).
 FRONTEND_DEFAULTS: dict[str, Any] = {
@@ -37,10 +37,13 @@ def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: 
 
     Raises
     ------
+    TooFewPointsError
+        ``k_nn`` is not below the number of points (each point needs ``k_nn`` others).
     ParambenchError
         Whatever :func:`~methods.pointset.frontend.build_frontend` raises.
     """
     kwargs = {k: params[k] for k in FRONTEND_DEFAULTS if k in params}
+    require_neighbours(surface.n_points, kwargs.get("k_nn", FRONTEND_DEFAULTS["k_nn"]), "k_nn")
     front = build_frontend(surface.points, surface.normals, weights=weights, **kwargs)
     for stage in STAGES:
         timer.timings[stage] = timer.timings.get(stage, 0.0) + front.timings.get(stage, 0.0)
@@ -146,6 +149,21 @@ def selfcheck_result(surface: Surface, result) -> dict:
     check["seconds"] = round(time.perf_counter() - start, 4)  # with the inputs' estimation, if any
     result.diagnostics["selfcheck"] = check
     return check
+
+
+def require_neighbours(n_points: int, k: Any, param: str) -> None:
+    """Raise unless ``n_points`` points can each have ``k`` neighbours (the parameter named ``param``).
+
+    Raises
+    ------
+    TooFewPointsError
+        ``n_points <= k``; the message names ``param``, both numbers and the largest usable value.
+    """
+    if isinstance(k, (int, np.integer)) and n_points <= k:
+        raise TooFewPointsError(
+            f"{param}={k} asks for {k} neighbours per point but there are only {n_points} points; "
+            f"lower {param} to at most {n_points - 1}, or sample the surface more densely."
+        )
 
 
 def scale_to_spacing(uv: np.ndarray, front: FrontEnd) -> np.ndarray:

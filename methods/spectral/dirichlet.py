@@ -16,6 +16,7 @@ import scipy.sparse.linalg as sla
 
 from datasets_gen.errors import ConvergenceError, SolverError
 
+from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
 
 __all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize"]
@@ -109,14 +110,15 @@ def smallest_nontrivial_pair(a_mat: sp.spmatrix, b_mat: sp.spmatrix, *, perm: np
         mu, vecs = sla.eigs(linop, k=nev, ncv=ncv, which="LM", tol=tol, v0=v0 - v0.mean(),
                             maxiter=max(1000, 20 * n))
     except sla.ArpackNoConvergence:
-        raise ConvergenceError("the eigen-solver (ARPACK, shift-invert) did not converge; try more neighbours "
-                               "(k_nn) or larger reg_eps.") from None
+        raise hinted(ConvergenceError, "the eigen-solver (ARPACK, shift-invert) did not converge",
+                     Hint("try a larger k_nn", "k_nn"), Hint("try a larger reg_eps", "reg_eps")) from None
     keep = np.abs(mu) > 1e-12 * np.abs(mu).max()
     vals = sigma + 1.0 / mu[keep]
     vals, pair = _real_pair(vals, vecs[:, keep])
     if vals[0] < -1e-8 * scale:
-        raise SolverError(f"the Dirichlet problem has a negative eigenvalue ({vals[0]:.3e}): the energy is not "
-                          "bounded below with these weights. Try a larger reg_eps or other weights.")
+        raise hinted(SolverError, f"the Dirichlet problem has a negative eigenvalue ({vals[0]:.3e}): the energy "
+                     "is not bounded below with these weights", Hint("try a larger reg_eps", "reg_eps"),
+                     Hint("try other weights", "weights"))
     pair = pair - pair.mean(axis=0)
     norms = np.linalg.norm(pair, axis=0)
     if np.any(norms == 0) or not np.all(np.isfinite(pair)):

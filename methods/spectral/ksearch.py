@@ -34,6 +34,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from datasets_gen.errors import ConvergenceError, InvalidInputError
 
+from ..hints import Hint, hinted
 from .turning import is_regular_turning, turning_penalty
 
 __all__ = ["KPoint", "KSearchResult", "line_search", "penalized_energy", "DEFAULT_R"]
@@ -162,15 +163,18 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
             raise InvalidInputError(f"a k bracket must satisfy 0 < lower < upper, got {bracket}.")
         p_hi = ev(hi)
         if not p_hi.good:
-            raise ConvergenceError(
+            raise hinted(
+                ConvergenceError,
                 f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: at k = {hi:g} the boundary turning numbers are "
-                f"{p_hi.turning.tolist()} and the energy {p_hi.energy:.3g}; widen the bracket upwards or let the "
-                "search bracket by itself."
+                f"{p_hi.turning.tolist()} and the energy {p_hi.energy:.3g}",
+                Hint("widen the bracket upwards or let the search bracket by itself", "bracket"), Hint("use k_search='direct'", "k_search", "direct"),
             )
         if ev(lo).good:
-            raise ConvergenceError(
+            raise hinted(
+                ConvergenceError,
                 f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: the map is already regular with positive "
-                "energy at the lower end, so k_opt lies below it; lower the bracket."
+                "energy at the lower end, so k_opt lies below it",
+                Hint("lower the bracket", "bracket"), Hint("use k_search='direct'", "k_search", "direct"),
             )
     else:
         k = float(k0)
@@ -192,10 +196,12 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
             k, p = k_next, p_next
         else:
             direction = "down" if step < 1 else "up"
-            raise ConvergenceError(
+            raise hinted(
+                ConvergenceError,
                 f"no t = 1 crossing found stepping {direction} from k = {k0:g} to k = {k:g} in {max_steps} steps "
                 f"(last turning numbers {p.turning.tolist()}, energy {p.energy:.3g}); the weights' scale is far "
-                "from the conformal one: try normalized=False, or k_search='direct'."
+                "from the conformal one",
+                Hint("try normalized=False", "normalized", False), Hint("use k_search='direct'", "k_search", "direct"),
             )
 
     # The t = 1 bowl can be a tiny part of the bracket (cotangent DNCP: about 3e-5 of a
@@ -212,12 +218,13 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
     res = minimize_scalar(lambda kk: penalized_energy(ev(kk), r), bounds=(lo, hi), method="bounded",
                           options={"xatol": xatol * hi, "maxiter": maxiter})
     if not res.success:
-        raise ConvergenceError(f"the bounded k minimisation in [{lo:g}, {hi:g}] did not converge ({res.message}); "
-                               "raise maxiter or try k_search='direct'.")
+        raise hinted(ConvergenceError,
+                     f"the bounded k minimisation in [{lo:g}, {hi:g}] did not converge ({res.message})",
+                     Hint("raise maxiter", "maxiter"), Hint("use k_search='direct'", "k_search", "direct"))
     regular = [p for p in cache.values() if p.regular]
     if not regular:
-        raise ConvergenceError(f"every map evaluated in [{lo:g}, {hi:g}] spins (turning numbers != 1); "
-                               "try k_search='direct'.")
+        raise hinted(ConvergenceError, f"every map evaluated in [{lo:g}, {hi:g}] spins (turning numbers != 1)",
+                     Hint("use k_search='direct'", "k_search", "direct"))
     best = min(regular, key=lambda p: penalized_energy(p, r))
     best = _polish_root(ev, regular + [best], best) if best.energy != 0.0 else best
     return KSearchResult(k_opt=best.k, best=best, bracket=(lo, hi), landscape=landscape, n_evaluations=len(cache))

@@ -27,6 +27,7 @@ import scipy.sparse as sp
 
 from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
 
+from ..hints import Hint, hinted
 from .ksearch import DEFAULT_R, KPoint, line_search
 from .operators import area_matrix, boundary_indicator, check_loops, conformal_operator, is_symmetric, rayleigh_energy
 from .ordering import nested_dissection
@@ -247,7 +248,8 @@ class ConformalProblem:
             with single_threaded_blas():
                 z_k[free] = la.solve(op[np.ix_(free, free)], -op[np.ix_(free, ip)] @ pin_values)
         except la.LinAlgError:
-            raise SolverError(f"the DNCP system is singular at k = {k:g}; move the pins apart or change k.") from None
+            raise hinted(SolverError, f"the DNCP system is singular at k = {k:g}",
+                         Hint("move the pins apart", "pins"), Hint("change k", "k")) from None
         self._counts["linear_solves"] += 1
         w = np.zeros(keep.size)
         w[: self.boundary.size] = 1.0
@@ -292,8 +294,9 @@ class ConformalProblem:
             p = self._scp_sparse(k * (1.0 + step), True)
             step *= 2.0
         if not p.regular:
-            raise SolverError(f"the exact SCP map near the subspace k_opt = {k:.6g} is not regular (turning numbers "
-                              f"{p.turning.tolist()}); use backend='boundary' for an exact k search.")
+            raise hinted(SolverError, f"the exact SCP map near the subspace k_opt = {k:.6g} is not regular "
+                         f"(turning numbers {p.turning.tolist()})",
+                         Hint("use backend='boundary' for an exact k search", "backend", "boundary"))
         return p
 
     # ------------------------------------------------------------- sparse solves
@@ -377,10 +380,11 @@ class ConformalProblem:
                 z_k = self._scp_reduced(float(mus[i])).state[0]
             if is_regular_turning(loop_turning_numbers(z_k, local)):
                 return float(mus[i]), red.extend(z_k)
-        raise SolverError(
+        raise hinted(
+            SolverError,
             f"none of the {n_cand} largest near-real k with zero conformal energy gives a regular "
-            f"map (largest: {mus[0]:.6g}); with these non-symmetric weights the optimum has positive energy. "
-            "Use k_search='line'."
+            f"map (largest: {mus[0]:.6g}); with these non-symmetric weights the optimum has positive energy",
+            Hint("use k_search='line'", "k_search", "line"),
         )
 
     def scp(self, k: float = 1.0, *, backend: str = "sparse", allow_negative: bool = False) -> ConformalSolution:
@@ -397,8 +401,8 @@ class ConformalProblem:
         if self._use_boundary(backend) and self.b_on_boundary:
             p = self._scp_reduced(k)
             if not allow_negative and p.energy < -1e-10 * abs(k):
-                raise SolverError(f"the conformal energy is indefinite at k = {k:g} (smallest eigenvalue "
-                                  f"{p.energy:.3e} < 0), so the map spins; use k_search='line' or 'direct'.")
+                raise hinted(SolverError, f"the conformal energy is indefinite at k = {k:g} (smallest eigenvalue "
+                             f"{p.energy:.3e} < 0), so the map spins", Hint("use k_search='line'", "k_search", "line"), Hint("use k_search='direct'", "k_search", "direct"))
             z = self._reduction().extend(p.state[0])
             used = "boundary"
         else:
@@ -510,9 +514,11 @@ class ConformalProblem:
             diag.update(landscape=result.landscape, bracket=list(result.bracket), n_k_evaluations=result.n_evaluations)
         regular = is_regular_turning(sol.turning)
         if not regular and k_search != "none":
-            raise SolverError(
+            raise hinted(
+                SolverError,
                 f"the {mode} map at k_opt = {sol.k:.6g} is not a regular flattening: boundary turning numbers "
-                f"{sol.turning.tolist()} (expected one +1 and -1 per hole). Try other weights or pins."
+                f"{sol.turning.tolist()} (expected one +1 and -1 per hole)",
+                Hint("try other weights", "weights"), Hint("try other pins", "pins"),
             )
         # With k fixed the map is the method's answer even when its boundary curls over
         # (a quality defect the benchmark measures, like foldovers), so it is returned

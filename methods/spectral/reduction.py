@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 from datasets_gen.errors import SolverError
 
+from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 
@@ -237,8 +238,8 @@ def _dense_real_pencil(a: np.ndarray, b: np.ndarray, hermitian: bool, imag_tol: 
         try:
             vals, vecs = la.eigh(0.5 * (ar + ar.conj().T), 0.5 * (br + br.T))
         except la.LinAlgError:
-            raise SolverError("the reduced Dirichlet matrix is not positive definite (negative total weights?); "
-                              "k_opt cannot be computed directly. Use k_search='line'.") from None
+            raise hinted(SolverError, "the reduced Dirichlet matrix is not positive definite (negative total "
+                         "weights?); k_opt cannot be computed directly", Hint("use k_search='line'", "k_search", "line")) from None
         vals = vals.astype(np.complex128)
     else:
         vals, vecs = la.eig(ar, br)
@@ -246,9 +247,9 @@ def _dense_real_pencil(a: np.ndarray, b: np.ndarray, hermitian: bool, imag_tol: 
     real = finite & (np.abs(vals.imag) <= imag_tol * np.maximum(np.abs(vals), np.finfo(float).tiny))
     cand = np.flatnonzero(real & (vals.real > 0))
     if cand.size == 0:
-        raise SolverError("no real k > 0 makes the conformal energy vanish (the area/Dirichlet pencil has no real "
-                          "positive eigenvalue); use k_search='line', or check that the outer loop runs "
-                          "counter-clockwise as seen from the normals.")
+        raise hinted(SolverError, "no real k > 0 makes the conformal energy vanish (the area/Dirichlet pencil has "
+                     "no real positive eigenvalue)", Hint("use k_search='line'", "k_search", "line"),
+                     Hint("check that the outer loop runs counter-clockwise as seen from the normals"))
     cand = cand[np.argsort(-vals.real[cand])]
     z = q @ vecs[:, cand]
     return vals.real[cand], z / np.linalg.norm(z, axis=0)

@@ -23,6 +23,7 @@ import scipy.sparse.linalg as sla
 
 from datasets_gen.errors import ConvergenceError, SolverError, UnknownNameError
 
+from ..hints import Hint, hinted
 from .threads import single_threaded_blas
 
 __all__ = ["SparseFactor", "EigenResult", "smallest_eigenpair", "MIXED_PRECISION_FROM"]
@@ -98,8 +99,9 @@ class SparseFactor:
         try:
             return sla.splu(a, **self._opts)
         except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
-            raise SolverError(f"sparse factorisation failed ({exc}); the system is singular. Check that the mesh is "
-                              "connected and the weights are not degenerate, or try other weights.") from None
+            raise hinted(SolverError, f"sparse factorisation failed ({exc}); the system is singular",
+                         Hint("check that the mesh is connected and the weights are not degenerate"),
+                         Hint("try other weights", "weights")) from None
 
     def _fall_back_to_double(self) -> None:
         self.mixed = False
@@ -202,8 +204,9 @@ def _nearest(k_mat, b_mat, factor: SparseFactor, sigma: float, nev: int, tol: fl
     try:
         theta, vecs = sla.eigs(op, k=nev, which="LM", v0=v0, ncv=ncv, tol=tol, maxiter=max(1000, 20 * ncv))
     except sla.ArpackNoConvergence as exc:
-        raise ConvergenceError(f"shift-invert eigen-solve did not converge ({exc}); try b_matrix='mass', other "
-                               "weights, or check the mesh for near-degenerate triangles.") from None
+        raise hinted(ConvergenceError, f"shift-invert eigen-solve did not converge ({exc})",
+                     Hint("try b_matrix='mass'", "b_matrix", "mass"), Hint("try other weights", "weights"),
+                     Hint("check the mesh for near-degenerate triangles")) from None
     keep = np.abs(theta) > 0
     lam = sigma + 1.0 / theta[keep]
     order = np.argsort(lam.real)
@@ -330,9 +333,11 @@ def _smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: bo
     factor = factor_at(sigma)
     below = factor.negative_pivots() if hermitian and check_inertia else None
     if below and not allow_negative:
-        raise SolverError(
+        raise hinted(
+            SolverError,
             f"the conformal energy is indefinite: {below} eigenvalue(s) below zero at this k, so the map "
-            "would spin (turning number > 1). Use k_search='line' or 'direct', or unnormalized weights."
+            "would spin (turning number > 1)",
+            Hint("use k_search='line'", "k_search", "line"), Hint("use k_search='direct'", "k_search", "direct"), Hint("use normalized=False", "normalized", False),
         )
     if below:
         sigma, factor = _isolate_smallest(factor_at, sigma, below, scale, max_shifts)
@@ -343,12 +348,13 @@ def _smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: bo
     z = vecs[:, 0]
     value = complex(lam[0])
     if not allow_negative and value.real < -1e-8 * scale:
-        raise SolverError(f"smallest eigenvalue {value.real:.3e} is negative: the conformal energy is indefinite "
-                          "at this k (non-symmetric weights). Use k_search='line' or 'direct'.")
+        raise hinted(SolverError, f"smallest eigenvalue {value.real:.3e} is negative: the conformal energy is "
+                     "indefinite at this k (non-symmetric weights)", Hint("use k_search='line'", "k_search", "line"), Hint("use k_search='direct'", "k_search", "direct"))
     res = _residual(k_mat, b_mat, z, value)
     if not res <= 1e-8:
-        raise SolverError(f"eigenvector residual {res:.2e} is too large; the shift-invert solve is unreliable "
-                          "(near-singular system). Check for degenerate triangles or try b_matrix='mass'.")
+        raise hinted(SolverError, f"eigenvector residual {res:.2e} is too large; the shift-invert solve is "
+                     "unreliable (near-singular system)", Hint("check for degenerate triangles"),
+                     Hint("try b_matrix='mass'", "b_matrix", "mass"))
     z = z - z.mean()
     return EigenResult(vector=z / np.linalg.norm(z), value=value, values=lam, residual=res,
                        n_solves=n_solves, n_factorizations=n_fact)

@@ -33,6 +33,7 @@ import scipy.sparse.linalg as sla
 
 from datasets_gen.errors import SolverError
 
+from ..hints import Hint, hinted
 from .ksearch import KPoint
 from .reduction import BoundaryReduction
 from .threads import single_threaded_blas
@@ -214,7 +215,8 @@ class BoundarySubspace:
             try:
                 t = sla.spsolve(precond, r)
             except RuntimeError:
-                raise SolverError("the boundary preconditioner is singular; use backend='boundary'.") from None
+                raise hinted(SolverError, "the boundary preconditioner is singular",
+                             Hint("use backend='boundary'", "backend", "boundary")) from None
             new = np.column_stack([t.real, t.imag])
             new -= new.mean(axis=0)
             for _ in range(2):  # classical Gram-Schmidt, twice is enough

@@ -6,6 +6,7 @@ import pytest
 from datasets_gen.errors import MissingFacesError, UnknownNameError
 from datasets_gen.surface import Surface
 from methods import Method, Parameterization, get_method, method_names, register
+from methods.pose import surface_pose
 from methods.registry import all_methods
 
 
@@ -53,5 +54,7 @@ def test_registered_plugin_runs_and_is_timed(clean_registry):
 
     pts = np.random.default_rng(1).random((20, 3))
     result = get_method("test-xy-projection")(Surface(pts), scale=2.0)
-    np.testing.assert_allclose(result.uv, pts[:, :2] * 2.0)
+    # plugins see the centred, unit-size principal-frame copy (methods.pose); uv comes back in input units
+    pose = surface_pose(pts)
+    np.testing.assert_allclose(result.uv, pose.to_unit(pts)[:, :2] * pose.scale * 2.0)
     assert result.params == {"scale": 2.0} and result.timings["total"] >= 0

@@ -1,0 +1,119 @@
+"""Mesh topology checks that fire (issue #11 item 7): duplicate faces, non-manifold edges, bowties.
+
+Before: ``igl.is_edge_manifold`` returns a tuple, whose truth is always True, so a
+non-manifold edge passed the check (the libigl baselines ran on it) and a duplicate face
+surfaced as "a boundary loop has 1 vertices".
+"""
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import NotADiskError, TopologyError
+from datasets_gen.mesh_loops import mesh_boundary
+from datasets_gen.surface import Surface
+from methods import get_method
+from methods.mesh.topology import (
+    duplicate_faces,
+    non_manifold_edges,
+    non_manifold_vertices,
+    require_connected_disk_like,
+)
+
+MESH_METHODS = ["scp", "dncp-opt", "scp-igl", "lscm-igl"]
+
+
+def _grid(n: int = 6, offset=(0.0, 0.0, 0.0)):
+    """An n x n vertex grid of the unit square in z = 0, two triangles per cell, counter-clockwise."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    pts = np.column_stack([i.ravel() / (n - 1), j.ravel() / (n - 1), np.zeros(n * n)]) + np.asarray(offset)
+    v = lambda a, b: a * n + b  # noqa: E731
+    faces = []
+    for a in range(n - 1):
+        for b in range(n - 1):
+            faces += [[v(a, b), v(a + 1, b), v(a + 1, b + 1)], [v(a, b), v(a + 1, b + 1), v(a, b + 1)]]
+    return pts, np.array(faces, dtype=np.int64)
+
+
+def _with_duplicate_face():
+    pts, faces = _grid()
+    return pts, np.vstack([faces, faces[7][::-1]]), 1
+
+
+def _with_fin():
+    # a third triangle on an interior edge, standing out of the plane: a non-manifold edge
+    pts, faces = _grid()
+    a, b = faces[12, 0], faces[12, 2]
+    tip = len(pts)
+    pts = np.vstack([pts, (pts[a] + pts[b]) / 2 + [0.0, 0.0, 0.5]])
+    return pts, np.vstack([faces, [a, b, tip]]), 1
+
+
+def _bowtie():
+    # two grids touching at one corner: one component, one vertex with two fans of faces
+    pts, faces = _grid(4)
+    pts2, faces2 = _grid(4, offset=(1.0, 1.0, 0.0))
+    shared = len(pts) - 1  # (1, 1, 0): the first grid's last vertex is the second grid's vertex 0
+    remap = np.concatenate([[shared], np.arange(1, len(pts2)) + len(pts) - 1])
+    return np.vstack([pts, pts2[1:]]), np.vstack([faces, remap[faces2]]), shared
+
+
+def test_duplicate_faces_found_in_either_orientation():
+    faces = np.array([[0, 1, 2], [0, 2, 3], [2, 1, 0], [3, 2, 0], [1, 2, 0]])
+    np.testing.assert_array_equal(duplicate_faces(faces), [[2, 0], [3, 1], [4, 0]])
+    assert duplicate_faces(_grid()[1]).shape == (0, 2)
+
+
+def test_non_manifold_edge_found_with_its_face_count():
+    edges, counts = non_manifold_edges(np.array([[0, 1, 2], [0, 2, 3], [0, 4, 2]]))
+    np.testing.assert_array_equal(edges, [[0, 2]])
+    np.testing.assert_array_equal(counts, [3])
+    assert non_manifold_edges(_grid()[1])[0].shape == (0, 2)
+
+
+def test_bowtie_vertex_found_and_fans_are_not():
+    np.testing.assert_array_equal(non_manifold_vertices(np.array([[0, 1, 2], [0, 3, 4]]), 5), [0])
+    # a closed fan (interior vertex) and an open fan (boundary vertex) are manifold
+    assert non_manifold_vertices(np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1]]), 4).size == 0
+    assert non_manifold_vertices(_grid()[1], 36).size == 0
+    # inconsistently oriented neighbours still form one fan
+    assert non_manifold_vertices(np.array([[0, 1, 2], [0, 3, 2]]), 4).size == 0
+    pts, faces, shared = _bowtie()
+    np.testing.assert_array_equal(non_manifold_vertices(faces, len(pts)), [shared])
+
+
+@pytest.mark.parametrize("case, words", [
+    (_with_duplicate_face, ["1 duplicate face", "face 50 = face 7", "meshing_remove_duplicate_faces"]),
+    (_with_fin, ["1 non-manifold edge", "on 3 faces", "meshing_repair_non_manifold_edges"]),
+    (_bowtie, ["1 non-manifold vertex", "meshing_repair_non_manifold_vertices"]),
+])
+def test_topology_check_names_the_problem(case, words):
+    pts, faces, example = case()
+    with pytest.raises(NotADiskError) as err:
+        require_connected_disk_like(pts, faces)
+    message = str(err.value)
+    for word in words:
+        assert word in message
+    if case is _bowtie:
+        assert f"vertex {example}" in message
+    assert "boundary loop has" not in message
+
+
+@pytest.mark.parametrize("method", MESH_METHODS)
+@pytest.mark.parametrize("case", [_with_duplicate_face, _with_fin, _bowtie])
+def test_every_mesh_method_refuses_non_manifold_input(method, case):
+    pts, faces, _ = case()
+    with pytest.raises(TopologyError, match="non-manifold|duplicate face"):
+        get_method(method)(Surface(pts, faces, name=case.__name__))
+
+
+def test_clean_grid_passes():
+    pts, faces = _grid()
+    loops = require_connected_disk_like(pts, faces)
+    assert len(loops) == 1 and loops[0].size == 20
+
+
+def test_loaded_mesh_loops_undefined_on_non_manifold_edges():
+    pts, faces, _ = _with_fin()
+    assert mesh_boundary(faces, len(pts)) == (None, None)
+    loops, mask = mesh_boundary(_grid()[1], 36)
+    assert len(loops) == 1 and mask.sum() == 20

@@ -1,0 +1,120 @@
+"""Error messages name only parameters of the method in use (issue #12 messages, #11 item 7).
+
+Before: ``k_nn`` larger than the point count said "at least 51 points are needed" without
+naming ``k_nn``; shared numerics told ``ocp`` users to set ``normalized`` (ocp has no such
+parameter) and told a ``k_search='direct'`` run to try ``k_search='direct'``.
+"""
+
+import re
+
+import numpy as np
+import pytest
+
+from datasets_gen.errors import ConvergenceError, NoBoundaryError, ParambenchError, SolverError, TooFewPointsError
+from datasets_gen.registry import make_surface
+from datasets_gen.surface import Surface
+from methods import Parameterization, get_method
+from methods.hints import FALLBACK, Hint, fit_hints, hinted, method_hints
+from methods.registry import all_methods
+from methods.spectral.ksearch import KPoint, line_search
+
+#: Every parameter name of every registered method that could not pass for an English word.
+PARAM_NAMES = {p for cls in all_methods().values() for p in cls.defaults if "_" in p}
+
+
+def named_parameters(message: str) -> set[str]:
+    """Parameters a message names: ``name=`` and quoted ``'name'`` forms, and known snake_case names."""
+    assigned = set(re.findall(r"\b([A-Za-z_]\w*)=", message))
+    quoted = {q for q in re.findall(r"'([A-Za-z_]\w*)'", message) if q in PARAM_NAMES}
+    bare = {w for w in re.findall(r"\b[a-z]\w*_\w+\b", message) if w in PARAM_NAMES}
+    return assigned | quoted | bare
+
+
+def _sphere(n: int) -> np.ndarray:
+    p = np.random.default_rng(0).normal(size=(n, 3))
+    return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+
+TRIGGERS = {
+    "too few points": (lambda: Surface(np.random.default_rng(1).random((6, 3))), {}, TooFewPointsError),
+    "k_nn above count": (lambda: Surface(np.random.default_rng(2).random((30, 3))), {"k_nn": 50}, TooFewPointsError),
+    "closed sphere": (lambda: Surface(_sphere(1500)), {}, NoBoundaryError),
+}
+
+
+@pytest.mark.parametrize("trigger", sorted(TRIGGERS))
+@pytest.mark.parametrize("name", ["ocp", "sdp", "lem"])
+def test_hints_name_only_parameters_of_the_method(name, trigger):
+    make, params, error = TRIGGERS[trigger]
+    method = get_method(name)
+    with pytest.raises(error) as err:
+        method(make(), **params)
+    named = named_parameters(str(err.value))
+    assert named, f"the message names no parameter to change: {err.value}"
+    assert named <= set(method.defaults), f"{sorted(named - set(method.defaults))} not parameters of {name}"
+
+
+def test_k_nn_above_the_point_count_says_k_nn_the_count_and_the_limit():
+    with pytest.raises(TooFewPointsError) as err:
+        get_method("ocp")(Surface(np.random.default_rng(2).random((30, 3))), k_nn=50)
+    message = str(err.value)
+    assert "k_nn=50" in message and "only 30 points" in message and "k_nn to at most 29" in message
+
+
+@pytest.mark.parametrize("name", ["ltsa-sklearn", "isomap-sklearn"])
+def test_sklearn_peers_name_n_neighbors(name):
+    with pytest.raises(TooFewPointsError) as err:
+        get_method(name)(Surface(np.random.default_rng(1).random((6, 3))))
+    assert "n_neighbors" in str(err.value) and "at most 5" in str(err.value)
+    assert named_parameters(str(err.value)) <= set(get_method(name).defaults)
+
+
+def _spinning(k: float) -> KPoint:
+    # every k gives a map that winds twice: the k search finds no crossing
+    return KPoint(k=k, energy=-1.0, turning=np.array([2]))
+
+
+def _with_failing_k_search(name: str):
+    """The registered method ``name`` whose run ends in the shared k search failing."""
+    base = type(get_method(name))
+
+    class Failing(base):
+        def run(self, surface, **params) -> Parameterization:
+            line_search(_spinning, max_steps=3)
+            raise AssertionError("unreachable")
+
+    return Failing()
+
+
+def test_k_search_hints_follow_the_method():
+    surface = make_surface("plane", 200, sampling="random", seed=0)
+    # scp has `normalized`; ocp does not
+    with pytest.raises(ConvergenceError) as scp_err:
+        _with_failing_k_search("scp")(surface, normalized=True)
+    assert "normalized=False" in str(scp_err.value) and "k_search='direct'" in str(scp_err.value)
+    with pytest.raises(ConvergenceError) as unnormalized_err:
+        _with_failing_k_search("scp")(surface, normalized=False)
+    assert "normalized" not in str(unnormalized_err.value)
+    with pytest.raises(ConvergenceError) as ocp_err:
+        _with_failing_k_search("ocp")(surface.points_only())
+    assert "normalized" not in str(ocp_err.value) and "k_search='direct'" in str(ocp_err.value)
+    # no circle: a run that used k_search='direct' is not told to use it
+    with pytest.raises(ConvergenceError) as direct_err:
+        _with_failing_k_search("ocp")(surface.points_only(), k_search="direct")
+    assert "k_search" not in str(direct_err.value) and FALLBACK in str(direct_err.value)
+    for err, name in [(scp_err, "scp"), (ocp_err, "ocp"), (direct_err, "ocp")]:
+        assert named_parameters(str(err.value)) <= set(get_method(name).defaults)
+
+
+def test_fit_hints_keeps_existing_parameters_and_other_values():
+    exc = hinted(SolverError, "it failed", Hint("use b_matrix='mass'", "b_matrix", "mass"),
+                 Hint("try a larger reg_eps", "reg_eps"), Hint("check the mesh"))
+    assert str(exc) == "it failed; use b_matrix='mass', or try a larger reg_eps, or check the mesh."
+    fit_hints(exc, {"b_matrix": "boundary", "weights": "cotangent"}, {"b_matrix": "mass"})
+    assert str(exc) == "it failed; check the mesh."
+
+
+def test_errors_without_hints_pass_unchanged():
+    with pytest.raises(ParambenchError, match=r"^plain; try normalized=True\.$"):
+        with method_hints({"k_nn": 8}, {"k_nn": 8}):
+            raise SolverError("plain; try normalized=True.")
