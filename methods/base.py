@@ -206,7 +206,7 @@ class Method:
         # Scale and pose: the method sees a centred, unit-size copy; uv comes back in input units.
         # Error hints name only this method's parameters (methods/hints.py).
         with method_hints(self.defaults, resolved):
-            result = run_in_unit_pose(self._run_point_or_mesh, surface, resolved)
+            result = self._run_point_or_mesh(surface, **resolved)
         # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
         check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)
         result.timings["total"] = time.perf_counter() - start - check_seconds
@@ -219,14 +219,18 @@ class Method:
         return result
 
     def _run_point_or_mesh(self, surface: Surface, **params: Any) -> Parameterization:
-        """Mesh methods: :meth:`run`. Point-set methods: :meth:`_run_and_check` on one point
-        per group of coincident points, its uv copied to the others."""
+        """Mesh methods: :meth:`run` in unit pose. Point-set methods: :meth:`_run_and_check`
+        in unit pose on one point per group of coincident points (the pose is that of the
+        distinct points, so copies change nothing), its uv copied to the others."""
         if self.needs_faces:
-            return self.run(surface, **params)
+            return run_in_unit_pose(self.run, surface, params)
         # Imported here because methods.pointset imports this module.
         from .pointset.coincident import run_on_representatives
 
-        return run_on_representatives(self._run_and_check, surface, params)
+        def checked_in_unit_pose(distinct: Surface, **kwargs: Any) -> Parameterization:
+            return run_in_unit_pose(self._run_and_check, distinct, kwargs)
+
+        return run_on_representatives(checked_in_unit_pose, surface, params)
 
     def _run_and_check(self, surface: Surface, **params: Any) -> Parameterization:
         """:meth:`run`, then the point-set self-check on the same points (``diagnostics["selfcheck"]``).

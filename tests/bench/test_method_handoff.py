@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
+
+from methods.pose import surface_pose
 import pytest
 
 from bench.cells import Cell
@@ -56,7 +58,8 @@ def test_generated_surface_reaches_methods_without_ground_truth(spies, noise):
         assert row["status"] in ("ok", "suspect"), row["error"]
         (given,) = spy.seen
         assert _no_ground_truth(given) and given.normals is None
-        np.testing.assert_array_equal(given.points, truth.points)
+        # methods see the centred, unit-size principal-frame copy of the points (methods.pose)
+        np.testing.assert_allclose(given.points, surface_pose(truth.points).to_unit(truth.points), atol=1e-12)
     assert point_spy.seen[0].faces is None
     np.testing.assert_array_equal(mesh_spy.seen[0].faces, truth.faces)
     # evaluation still gets the ground truth: the exact-map error is measured
@@ -72,7 +75,8 @@ def test_file_normals_are_data_until_noise_moves_the_points(spies):
     assert truth.params["normals"] == "file"
     compute_cell(Cell("real/chameleon", 0, "", 0.0, 0, point_spy.name))
     (given,) = point_spy.seen
-    np.testing.assert_allclose(given.normals, truth.normals, atol=1e-15)  # as `flatten` would pass them
+    # as `flatten` would pass them, turned into the unit pose's frame (methods.pose)
+    np.testing.assert_allclose(given.normals, truth.normals @ surface_pose(truth.points).rotation.T, atol=1e-12)
     assert _no_ground_truth(given)
     # once noise has moved the points, the file's normals describe the clean surface: withheld
     noisy = make_surface("real/chameleon", seed=0, noise=0.5)

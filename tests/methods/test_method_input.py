@@ -5,6 +5,8 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+
+from methods.pose import surface_pose
 import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
@@ -98,8 +100,9 @@ def test_every_point_set_method_gets_distinct_points_and_no_faces():
         out = _Spy()(Surface(np.vstack([pts, pts[[5, 7, 5]]]), faces, name="spy"))
     given = _Spy.seen[0]
     assert given.n_points == 40 and given.faces is None
-    np.testing.assert_array_equal(given.points, pts)
-    np.testing.assert_array_equal(out.uv[40:], pts[[5, 7, 5], :2])
+    # the distinct points, in the unit pose every method sees (methods.pose)
+    np.testing.assert_allclose(given.points, surface_pose(pts).to_unit(pts), atol=1e-12)
+    np.testing.assert_array_equal(out.uv[40:], out.uv[[5, 7, 5]])
 
 
 def test_no_copies_no_warning_and_same_surface():
@@ -108,7 +111,8 @@ def test_no_copies_no_warning_and_same_surface():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _Spy()(surface)
-    assert _Spy.seen[0] is surface
+    # nothing merged: the method sees all points, only moved to the unit pose (methods.pose)
+    np.testing.assert_allclose(_Spy.seen[0].points, surface_pose(surface.points).to_unit(surface.points), atol=1e-12)
 
 
 # --- cut seams ---------------------------------------------------------------------------
