@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import traceback
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -39,15 +40,17 @@ def surface_for(dataset: str, size: int, sampling: str, noise: float, seed: int)
     return make_surface(dataset, size, sampling=sampling, seed=seed, noise=noise)
 
 
-def _method_input(surface: Surface, needs_faces: bool) -> Surface:
+def _method_input(surface: Surface, needs_faces: bool, wants_loops: bool = False) -> Surface:
     """What a cell's method is given: no ground truth (see :meth:`Surface.method_input`).
 
     A file's own normals are data (``flatten`` passes them too), kept for point-set methods
     while the positions are the file's; a generator's normals, or a file's once noise has
-    moved the points, are ground truth and withheld.
+    moved the points, are ground truth and withheld. ``wants_loops``: the cell asked for
+    the true boundary (e.g. ``fbcp-pc boundary=given``), so ``boundary_loops`` is kept.
     """
     file_normals = surface.params.get("normals") == "file" and not surface.params.get("noise")
-    return surface.method_input(needs_faces, keep_normals=file_normals)
+    given = surface.method_input(needs_faces, keep_normals=file_normals)
+    return replace(given, boundary_loops=surface.boundary_loops) if wants_loops else given
 
 
 def _loops_arrays(prefix: str, loops) -> dict:
@@ -145,8 +148,9 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
         surface = surface_for(cell.dataset, cell.size, cell.sampling, cell.noise, cell.seed)
         row.update(n_points=surface.n_points, n_faces=0 if surface.faces is None else int(len(surface.faces)))
         method = get_method(cell.method)
-        given = _method_input(surface, method.needs_faces)
         params = cell.params_dict
+        wants_loops = getattr(method, "wants_given_boundary", None)
+        given = _method_input(surface, method.needs_faces, bool(wants_loops and wants_loops(params)))
         if "seed" in method.defaults:
             params.setdefault("seed", cell.seed)
         peak = PeakMemory()

@@ -191,6 +191,14 @@ class FbcpPc(Method):
     defaults = {**FRONTEND_DEFAULTS, "k_local": 16, "boundary": "detected", "free_boundary": "spectral"}
     param_grid = {"boundary": list(BOUNDARY_SOURCES)}
 
+    def wants_given_boundary(self, params: dict) -> bool:
+        """True when ``params`` ask for the caller's loops (``boundary="given"``).
+
+        The sweep (:func:`bench.run_cell.compute_cell`) asks this before it strips the
+        ground truth, and keeps ``surface.boundary_loops`` for such cells only.
+        """
+        return params.get("boundary", self.defaults["boundary"]) == "given"
+
     def run(self, surface: Surface, **params) -> Parameterization:
         boundary, solver = params["boundary"], params["free_boundary"]
         if boundary not in BOUNDARY_SOURCES:

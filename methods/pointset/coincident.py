@@ -118,6 +118,21 @@ def coincident_groups(points: np.ndarray) -> CoincidentGroups:
     return CoincidentGroups(first[order], rank[labels].astype(np.int64), tol)
 
 
+def _loops_on_representatives(loops, groups: CoincidentGroups):
+    """Given boundary loops (``boundary="given"`` of ``fbcp-pc``) renumbered to the representatives.
+
+    A copy's index becomes its representative's; a repeat of the previous point is dropped.
+    """
+    if loops is None:
+        return None
+    out = []
+    for loop in loops:
+        ids = groups.inverse[np.asarray(loop, dtype=np.int64)]
+        keep = ids != np.roll(ids, 1)
+        out.append(ids[keep] if keep.any() else ids[:1])
+    return out
+
+
 def run_on_representatives(run: Callable[..., Any], surface: Surface, params: dict) -> Any:
     """Run a point-set method on one representative per group of coincident points.
 
@@ -161,7 +176,8 @@ def run_on_representatives(run: Callable[..., Any], surface: Surface, params: di
         CoincidentPointsWarning, stacklevel=3)
     normals = None if surface.normals is None else surface.normals[reps]
     distinct = replace(surface, points=surface.points[reps], faces=None, normals=normals,
-                       boundary_mask=None, boundary_loops=None, exact_uv=None, exact_map_kind=None)
+                       boundary_mask=None, boundary_loops=_loops_on_representatives(surface.boundary_loops, groups),
+                       exact_uv=None, exact_map_kind=None)
     result = run(distinct, **params)
     result.uv = result.uv[groups.inverse]
     if result.faces is not None:
