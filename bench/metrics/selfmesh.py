@@ -119,9 +119,10 @@ def uv_loop_faces(points, uv, loops) -> np.ndarray:
     uv = check_uv(uv, pts.shape[0])
     loops = [np.asarray(lp, dtype=np.int64) for lp in loops]
     if not any(lp.size >= 3 for lp in loops):
-        raise InvalidInputError("no boundary loop of 3 or more points; the self mesh needs the method's detected loops.")
+        raise InvalidInputError("no boundary loop of 3 or more points; pass the method's detected loops "
+                                "(diagnostics['boundary_loops']) to build the self mesh.")
     if any(lp.size and (lp.min() < 0 or lp.max() >= pts.shape[0]) for lp in loops):
-        raise InvalidInputError(f"boundary loop indices must lie in [0, {pts.shape[0] - 1}].")
+        raise InvalidInputError(f"boundary loop indices must lie in [0, {pts.shape[0] - 1}]; indices are 0-based.")
     try:
         tri = Delaunay(uv).simplices.astype(np.int64)
     except QhullError as exc:
