@@ -45,8 +45,8 @@ hybrid
     function with a vertex mask. Here ``uniform_at`` is a vertex set (indices, a
     ``"3,17,42"`` string or a boolean mask) or ``"negative"`` (also the default, None):
     every vertex with a negative cotangent weight in its row, so no negative weight is
-    left (on real scans that is half the mesh or more, and it raises QC, measured 1.03 to
-    1.72 on ``real/camelhead``). (Replacing rows only, the literal reading, gives a
+    left (on a noisy scan that can be half the mesh: measured on ``real/camelhead``, 51 %
+    of the vertices, QC 1.073 -> 2.017). (Replacing rows only, the literal reading, gives a
     non-symmetric operator whose k landscape is erratic and whose optimum had *more*
     foldovers than plain cotangent SCP in our trials.)
 
