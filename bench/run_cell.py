@@ -20,13 +20,15 @@ from methods import get_method
 
 from .cells import Cell
 from .memory import PeakMemory
-from .metrics import evaluate, per_face_qc, uv_delaunay_faces
+from .metrics import SELFMESH_KEYS, evaluate, per_face_qc, self_scored, uv_delaunay_faces
 from .storage import ResultStore
 
 __all__ = ["compute_cell", "failed_row", "run_cell", "store_cell", "surface_for", "METRIC_COLUMNS", "ARTIFACT_MAX_POINTS"]
 
 METRIC_COLUMNS = ("qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
-                  "area_distortion", "turning_numbers", "exact_error", "n_eval_faces")
+                  "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
+                  "mu_mean", "mu_sd", "mu_p95", "area_distortion_normalized", "sigma_ratio_max",
+                  "angle_error_mean", "flipped_share", "angle_hist") + tuple(f"selfmesh_{k}" for k in SELFMESH_KEYS)
 
 #: Cells on larger surfaces store no arrays: pictures of a million triangles are not drawn.
 ARTIFACT_MAX_POINTS = 200_000
@@ -161,8 +163,19 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
         metrics = evaluate(surface.points, faces, result.uv, exact_uv=surface.exact_uv,
                            boundary_loops=surface.boundary_loops if use_gt_loops else None,
                            diameter=surface.diameter)
+        loops = result.diagnostics.get("boundary_loops")
+        if not method.needs_faces and loops:
+            # Point-set maps are also scored without ground truth, on their own uv triangulation.
+            # Loops that bound nothing in uv leave these columns empty rather than failing a
+            # cell whose ground-truth metrics are valid.
+            try:
+                metrics.update(self_scored(surface.points, result.uv, loops))
+            except ParambenchError:
+                pass
         row.update({c: metrics.get(c) for c in METRIC_COLUMNS})
         row["turning_numbers"] = json.dumps(metrics.get("turning_numbers", []))
+        # Counts over bench.metrics.ANGLE_HIST_EDGES_DEG, as JSON like the turning numbers.
+        row["angle_hist"] = json.dumps(metrics.get("angle_hist"))
         row.update(status=_status(result), eval_mesh=eval_kind, time_total=result.timings.get("total"),
                    timings=json.dumps(result.timings, sort_keys=True),
                    diagnostics=_jsonable_diagnostics(result.diagnostics),

@@ -3,8 +3,10 @@
 Everything is per triangle of an evaluation mesh (the surface's own faces, or for a point
 set a Delaunay triangulation of the uv layout) and area-weighted with the 3D areas.
 
-Public API: :func:`evaluate` (all metrics as a flat dict), :func:`per_face_qc` (for
-pictures), and the building blocks below. :func:`turning_number` (re-exported from
+Public API: :func:`evaluate` (all metrics as a flat dict: QC, foldovers, area distortion,
+the Beltrami coefficient, angle error and its histogram, flipped share), :func:`self_scored`
+(a point-set map scored on its own uv triangulation, without ground truth),
+:func:`per_face_qc` (for pictures), and the building blocks below. :func:`turning_number` (re-exported from
 :mod:`methods.geometry2d`) is +1 for a counter-clockwise simple polygon, -1 for a
 clockwise one.
 """
@@ -12,11 +14,13 @@ clockwise one.
 from methods.geometry2d import signed_area_2d, turning_number
 
 from .alignment import exact_map_error, similarity_align
-from .distortion import area_distortion, weighted_quantile
+from .angles import ANGLE_HIST_EDGES_DEG, angle_differences_deg, angle_histogram, triangle_corner_angles
+from .distortion import area_distortion, normalized_area_distortion, weighted_quantile
 from .eval_mesh import uv_delaunay_faces
 from .evaluate import METRIC_KEYS, evaluate
-from .jacobian import jacobian_singular_values, per_face_qc, quasi_conformal
-from .orientation import count_collapsed, count_foldovers, majority_orientation
+from .jacobian import beltrami_abs, jacobian_singular_values, per_face_qc, quasi_conformal, sigma_ratio_excess
+from .orientation import count_collapsed, count_foldovers, flipped_share, majority_orientation
+from .selfmesh import SELFMESH_KEYS, points_in_loops, self_scored, uv_loop_faces
 
 __all__ = [
     "evaluate",
@@ -34,4 +38,16 @@ __all__ = [
     "similarity_align",
     "exact_map_error",
     "uv_delaunay_faces",
+    "beltrami_abs",
+    "sigma_ratio_excess",
+    "normalized_area_distortion",
+    "flipped_share",
+    "ANGLE_HIST_EDGES_DEG",
+    "triangle_corner_angles",
+    "angle_differences_deg",
+    "angle_histogram",
+    "SELFMESH_KEYS",
+    "points_in_loops",
+    "uv_loop_faces",
+    "self_scored",
 ]

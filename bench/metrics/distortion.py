@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area_distortion", "weighted_quantile"]
+__all__ = ["area_distortion", "normalized_area_distortion", "weighted_quantile"]
 
 
 def area_distortion(s1: np.ndarray, s2: np.ndarray, area_3d: np.ndarray) -> float:
@@ -36,6 +36,39 @@ def area_distortion(s1: np.ndarray, s2: np.ndarray, area_3d: np.ndarray) -> floa
     w = w[keep]
     mean = np.average(log_ratio, weights=w)
     return float(np.sqrt(np.average((log_ratio - mean) ** 2, weights=w)))
+
+
+def normalized_area_distortion(s1: np.ndarray, s2: np.ndarray, area_3d: np.ndarray) -> float:
+    """Area-weighted mean of ``|log r_t|``, ``r_t`` the triangle's share of the uv area over its share of the 3D area.
+
+    Both total areas are normalised to 1 first, so ``r_t = (s1_t s2_t / R)`` with
+    ``R = sum_t s1_t s2_t A_t / sum_t A_t`` the overall uv / 3D area ratio; a similarity
+    gives 0, and a triangle with twice its fair share of uv area contributes ``log 2``.
+    Unlike :func:`area_distortion` (a standard deviation of ``log r``) this is the mean
+    absolute deviation from the undistorted value, the form the area-preservation
+    literature reports.
+
+    Parameters
+    ----------
+    s1, s2 : (M,) array_like of float64
+        Singular values per triangle.
+    area_3d : (M,) array_like of float64
+        3D areas (weights).
+
+    Returns
+    -------
+    float
+        NaN when no triangle has a positive area ratio; triangles with ``s1 * s2 == 0``
+        (collapsed) are left out of the mean but their (zero) uv area is in the totals.
+    """
+    ratio = np.asarray(s1, dtype=np.float64) * np.asarray(s2, dtype=np.float64)
+    w = np.asarray(area_3d, dtype=np.float64)
+    keep = ratio > 0
+    total_3d = w.sum()
+    if not keep.any() or total_3d <= 0 or w[keep].sum() <= 0:
+        return float("nan")
+    overall = float(np.dot(ratio, w)) / float(total_3d)
+    return float(np.average(np.abs(np.log(ratio[keep] / overall)), weights=w[keep]))
 
 
 def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:

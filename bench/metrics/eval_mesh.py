@@ -11,7 +11,7 @@ from datasets_gen.surface import DEGENERATE_AREA_TOL, validate_points
 from ._inputs import check_uv
 from .orientation import collapsed_mask
 
-__all__ = ["uv_delaunay_faces", "KNN_EDGE_K"]
+__all__ = ["uv_delaunay_faces", "keep_valid_ccw", "KNN_EDGE_K"]
 
 #: Neighbours per point used for the reference edge length.
 KNN_EDGE_K = 6
@@ -66,26 +66,60 @@ def uv_delaunay_faces(points, uv, max_edge_factor: float = 3.0) -> np.ndarray:
     dist, _ = cKDTree(pts).query(pts, k=KNN_EDGE_K + 1)
     ref_edge = float(dist[:, 1:].mean())  # column 0 is the point itself
 
-    p = pts[tri]  # (M, 3, 3)
-    edges = np.roll(p, -1, axis=1) - p
-    edge_len = np.sqrt(np.einsum("ijk,ijk->ij", edges, edges))
-    area2_3d = np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1)
-    q = uv[tri]
-    d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
-    signed_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-
+    edge_len = _edge_lengths_3d(pts, tri)
     keep = edge_len.max(axis=1) <= max_edge_factor * ref_edge
-    if keep.any():
-        # Same zero-area rule (and scale) as datasets_gen.surface.validate_faces applied to the
-        # kept faces, so the result always passes validation.
-        scale = max(float(np.mean(edge_len[keep, 0])) ** 2, np.finfo(float).tiny)
-        keep &= area2_3d > DEGENERATE_AREA_TOL * scale
-        keep &= ~collapsed_mask(signed_uv)
-    if not keep.any():
+    tri = keep_valid_ccw(pts, uv, tri, keep, edge_len)
+    if tri is None:
         raise InvalidInputError(
             "no uv Delaunay triangle has 3D edges shorter than max_edge_factor x the mean neighbour distance; "
             "the map scrambles neighbourhoods, or max_edge_factor is too small."
         )
+    return tri
+
+
+def _edge_lengths_3d(pts: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    p = pts[tri]  # (M, 3, 3)
+    edges = np.roll(p, -1, axis=1) - p
+    return np.sqrt(np.einsum("ijk,ijk->ij", edges, edges))
+
+
+def keep_valid_ccw(pts: np.ndarray, uv: np.ndarray, tri: np.ndarray, keep: np.ndarray,
+                   edge_len: np.ndarray | None = None) -> np.ndarray | None:
+    """The triangles selected by ``keep`` that are valid evaluation faces, counter-clockwise in uv.
+
+    Drops faces with (numerically) zero 3D area, by the rule and scale of
+    :func:`datasets_gen.surface.validate_faces` applied to the kept faces (so the result
+    always passes validation), and faces collapsed in uv.
+
+    Parameters
+    ----------
+    pts : (N, 3) numpy.ndarray of float64
+    uv : (N, 2) numpy.ndarray of float64
+    tri : (M, 3) numpy.ndarray of int64
+        Candidate triangles (e.g. qhull's, in arbitrary vertex order).
+    keep : (M,) numpy.ndarray of bool
+        Preselection.
+    edge_len : (M, 3) numpy.ndarray of float64, optional
+        3D edge lengths of ``tri`` if already computed.
+
+    Returns
+    -------
+    (K, 3) numpy.ndarray of int64, or None when no triangle is left.
+    """
+    if edge_len is None:
+        edge_len = _edge_lengths_3d(pts, tri)
+    keep = keep.copy()
+    if keep.any():
+        p = pts[tri]
+        area2_3d = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+        q = uv[tri]
+        d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+        signed_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+        scale = max(float(np.mean(edge_len[keep, 0])) ** 2, np.finfo(float).tiny)
+        keep &= area2_3d > DEGENERATE_AREA_TOL * scale
+        keep &= ~collapsed_mask(signed_uv)
+    if not keep.any():
+        return None
     tri, signed_uv = tri[keep], signed_uv[keep]
     flip = signed_uv < 0
     tri[flip] = tri[flip][:, ::-1]  # qhull's vertex order is arbitrary; make every face CCW in uv

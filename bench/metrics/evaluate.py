@@ -10,10 +10,11 @@ from methods.mesh.topology import boundary_loops as mesh_boundary_loops
 
 from ._inputs import check_mesh, check_uv
 from .alignment import exact_map_error
-from .distortion import area_distortion, weighted_quantile
+from .angles import angle_differences_deg, angle_error_per_face, angle_histogram
+from .distortion import area_distortion, normalized_area_distortion, weighted_quantile
 from .eval_mesh import uv_delaunay_faces
-from .jacobian import face_jacobian_sv, quasi_conformal
-from .orientation import collapsed_mask, majority_orientation
+from .jacobian import beltrami_abs, face_jacobian_sv, quasi_conformal, sigma_ratio_excess
+from .orientation import collapsed_mask, flipped_share, majority_orientation
 
 __all__ = ["evaluate", "METRIC_KEYS"]
 
@@ -21,6 +22,8 @@ __all__ = ["evaluate", "METRIC_KEYS"]
 METRIC_KEYS = (
     "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
     "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
+    "mu_mean", "mu_sd", "mu_p95", "area_distortion_normalized", "sigma_ratio_max", "angle_error_mean",
+    "flipped_share", "angle_hist",
 )
 
 
@@ -75,7 +78,19 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
         - ``exact_error``: :func:`exact_map_error` or None.
         - ``n_eval_faces`` (int).
 
-        QC and area values are None when every face collapsed.
+        - ``mu_mean``, ``mu_sd``, ``mu_p95``: 3D-area-weighted mean, standard deviation
+          and 95th percentile of the Beltrami coefficient's modulus
+          ``|mu| = (s1 - s2) / (s1 + s2)`` (:func:`beltrami_abs`), over the same faces as QC.
+        - ``area_distortion_normalized``: :func:`normalized_area_distortion` (mean
+          ``|log|`` of the area ratio with both total areas normalised to 1).
+        - ``sigma_ratio_max``: ``max(s1/s2 + s2/s1) - 2`` (:func:`sigma_ratio_excess`).
+        - ``angle_error_mean``: 3D-area-weighted mean over faces of the mean
+          ``|angle in uv - angle in 3D|`` over the face's three corners, in degrees.
+        - ``flipped_share``: :func:`flipped_share`, ``min(p, 1 - p)``.
+        - ``angle_hist``: list of int, counts of the signed corner-angle changes (degrees)
+          of the non-collapsed faces over :data:`ANGLE_HIST_EDGES_DEG`.
+
+        QC, Beltrami, angle and area values are None when every face collapsed.
 
     Raises
     ------
@@ -102,8 +117,20 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
         qc_p95 = weighted_quantile(qc, w, 0.95)
         qc_max = float(qc.max())
         area_dist = area_distortion(s1[live], s2[live], w)
+        mu = beltrami_abs(s1[live], s2[live])
+        mu_mean = float(np.average(mu, weights=w))
+        mu_sd = float(np.sqrt(np.average((mu - mu_mean) ** 2, weights=w)))
+        mu_p95 = weighted_quantile(mu, w, 0.95)
+        area_norm = normalized_area_distortion(s1, s2, area)
+        sigma_max = float(sigma_ratio_excess(s1[live], s2[live]).max())
+        diff = angle_differences_deg(pts, tri[live], uv)
+        angle_err = float(np.average(angle_error_per_face(diff), weights=w))
+        hist = angle_histogram(diff).tolist()
+        flipped = flipped_share(signed)
     else:
         qc_mean = qc_p95 = qc_max = area_dist = None
+        mu_mean = mu_sd = mu_p95 = area_norm = sigma_max = angle_err = None
+        hist = flipped = None
 
     loops = mesh_boundary_loops(tri) if boundary_loops is None else _check_loops(boundary_loops, pts.shape[0])
     turning = [float(orient * turning_number(uv[loop])) for loop in loops]
@@ -123,4 +150,12 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
         "turning_numbers": turning,
         "exact_error": exact_error,
         "n_eval_faces": n_faces,
+        "mu_mean": mu_mean,
+        "mu_sd": mu_sd,
+        "mu_p95": mu_p95,
+        "area_distortion_normalized": area_norm,
+        "sigma_ratio_max": sigma_max,
+        "angle_error_mean": angle_err,
+        "flipped_share": flipped,
+        "angle_hist": hist,
     }

@@ -6,7 +6,8 @@ import numpy as np
 
 from ._inputs import check_mesh
 
-__all__ = ["jacobian_singular_values", "quasi_conformal", "per_face_qc", "face_jacobian_sv"]
+__all__ = ["jacobian_singular_values", "quasi_conformal", "beltrami_abs", "sigma_ratio_excess", "per_face_qc",
+           "face_jacobian_sv"]
 
 
 def face_jacobian_sv(
@@ -95,6 +96,51 @@ def quasi_conformal(s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
     out = np.full(np.broadcast(s1, s2).shape, np.inf)
     np.divide(s1, s2, out=out, where=s2 > 0)
     return out
+
+
+def beltrami_abs(s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
+    """Modulus of the Beltrami coefficient per triangle, ``|mu| = (s1 - s2) / (s1 + s2)``.
+
+    0 for a conformal triangle, towards 1 as the triangle collapses to a segment; the same
+    information as QC (``|mu| = (QC - 1) / (QC + 1)``) on the bounded scale the conformal
+    geometry literature reports. Like QC it ignores orientation.
+
+    Parameters
+    ----------
+    s1, s2 : (M,) array_like of float64
+        Singular values, ``s1 >= s2 >= 0``.
+
+    Returns
+    -------
+    (M,) numpy.ndarray of float64
+        In [0, 1]; NaN where ``s1 == s2 == 0`` (a triangle collapsed to a point).
+    """
+    s1 = np.asarray(s1, dtype=np.float64)
+    s2 = np.asarray(s2, dtype=np.float64)
+    den = s1 + s2
+    out = np.full(np.broadcast(s1, s2).shape, np.nan)
+    np.divide(s1 - s2, den, out=out, where=den > 0)
+    return out
+
+
+def sigma_ratio_excess(s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
+    """``s1/s2 + s2/s1 - 2`` per triangle: the MIPS conformal energy above its minimum.
+
+    0 for a conformal triangle; ``(a - 1)^2 / a`` for a stretch by ``a``.
+
+    Parameters
+    ----------
+    s1, s2 : (M,) array_like of float64
+        Singular values, ``s1 >= s2 >= 0``.
+
+    Returns
+    -------
+    (M,) numpy.ndarray of float64
+        ``inf`` where ``s2 == 0``.
+    """
+    qc = quasi_conformal(s1, s2)
+    with np.errstate(divide="ignore"):
+        return qc + 1.0 / qc - 2.0
 
 
 def per_face_qc(points, faces, uv) -> np.ndarray:

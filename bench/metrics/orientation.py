@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["COLLAPSE_REL_TOL", "collapsed_mask", "majority_orientation", "count_foldovers", "count_collapsed"]
+__all__ = ["COLLAPSE_REL_TOL", "collapsed_mask", "majority_orientation", "count_foldovers", "count_collapsed",
+           "flipped_share"]
 
 #: A uv triangle whose |area| is below this fraction of the mean |uv area| counts as collapsed.
 #: Relative, so the test does not depend on the (arbitrary) scale of uv; 1e-12 in area is
@@ -80,3 +81,30 @@ def count_collapsed(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TO
     int
     """
     return int(np.count_nonzero(collapsed_mask(signed_area_uv, rel_tol)))
+
+
+def flipped_share(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> float:
+    """``min(p, 1 - p)`` with ``p`` the share of non-collapsed triangles with negative uv area.
+
+    The share of triangles in the minority orientation, so a global mirror image of the map
+    gives the same value. Collapsed triangles (see :func:`collapsed_mask`) are left out of
+    both the count and the total.
+
+    Parameters
+    ----------
+    signed_area_uv : (M,) array_like of float64
+    rel_tol : float
+        See :func:`collapsed_mask`.
+
+    Returns
+    -------
+    float
+        In [0, 0.5]; NaN when every triangle collapsed.
+    """
+    a = np.asarray(signed_area_uv, dtype=np.float64)
+    live = ~collapsed_mask(a, rel_tol)
+    n_live = int(live.sum())
+    if n_live == 0:
+        return float("nan")
+    p = np.count_nonzero(a[live] < 0) / n_live
+    return float(min(p, 1.0 - p))

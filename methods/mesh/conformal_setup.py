@@ -7,7 +7,7 @@ from typing import Any
 import igl
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
+from datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
 from datasets_gen.surface import Surface
 
 from ..base import StageTimer
@@ -15,9 +15,10 @@ from ..hints import Hint, hinted
 from ..spectral import ConformalProblem
 from .pins import farthest_pair
 from .topology import require_connected_disk_like
-from .weights import laplacian, mesh_weights, negative_cotangent_vertices
+from .weights import laplacian, mesh_weights, uniform_vertex_mask
 
-__all__ = ["B_MATRICES", "build_mesh_problem", "resolve_pins", "scale_to_surface_area", "default_k_search"]
+__all__ = ["B_MATRICES", "build_mesh_problem", "resolve_pins", "scale_to_surface_area", "default_k_search",
+           "solve_with_k_rule"]
 
 B_MATRICES = ("boundary", "mass")
 
@@ -25,10 +26,66 @@ B_MATRICES = ("boundary", "mass")
 def default_k_search(weights: str, normalized: bool) -> str:
     """``"none"`` (k = 1) for weights at the cotangent scale, ``"line"`` for the others.
 
-    Cotangent and (regular-polygon scaled) uniform weights have k_opt within about 1e-3
-    of 1; authalic, mean-value, hybrid and every normalized kind need the search.
+    Cotangent, (regular-polygon scaled) uniform and hybrid weights (a mix of the two) have
+    k_opt within about 1e-3 of 1 where k = 1 is positive semi-definite; authalic,
+    mean-value and every normalized kind need the search. Where k = 1 is indefinite
+    (uniform weights on an irregular scan) :func:`solve_with_k_rule` falls back to the search.
     """
-    return "none" if weights in ("cotangent", "uniform") and not normalized else "line"
+    return "none" if weights in ("cotangent", "uniform", "hybrid") and not normalized else "line"
+
+
+def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, weights: str, normalized: bool,
+                      pins: tuple[int, int] | None = None):
+    """Solve with the given ``k_search``, or for ``"auto"`` with k = 1 and the line search as fallback.
+
+    Parameters
+    ----------
+    problem : ConformalProblem
+    mode : {"scp", "dncp"}
+    k_search : {"auto", "none", "line", "direct"}
+        ``"auto"``: :func:`default_k_search`; when that is k = 1 and the solve fails (the
+        energy is indefinite at k = 1, so the map would spin) or the boundary spins, the
+        line search (Eq. 16).
+    weights, normalized
+        The weights the problem was built with.
+    pins : (int, int), optional
+        DNCP's pinned vertices.
+
+    Returns
+    -------
+    ConformalSolution
+        ``diagnostics["k_fallback"]`` is True when k = 1 failed or spun and the searched
+        map is returned.
+
+    Raises
+    ------
+    SolverError, ConvergenceError
+        From :meth:`ConformalProblem.solve` (for ``"auto"``, the search's error).
+    """
+    if k_search != "auto":
+        return problem.solve(mode, k_search, pins=pins)
+    k_search = default_k_search(weights, normalized)
+    if k_search != "none":
+        return problem.solve(mode, k_search, pins=pins)
+    try:
+        sol = problem.solve(mode, "none", pins=pins)
+    except SolverError:
+        # k = 1 is only guaranteed positive semi-definite for cotangent weights; where it
+        # is not, the search finds the k at which the map stops spinning instead of refusing.
+        sol = problem.solve(mode, "line", pins=pins)
+        sol.diagnostics["k_fallback"] = True
+        return sol
+    if sol.diagnostics.get("regular_boundary", True):
+        return sol
+    # A boundary that spins at k = 1 (uniform or hybrid weights are not the exact Dirichlet
+    # energy) is what the search of Eq. 16 is for; if it finds nothing, the k = 1 map is
+    # the answer, reported with regular_boundary = False as before.
+    try:
+        searched = problem.solve(mode, "line", pins=pins)
+    except (SolverError, ConvergenceError):
+        return sol
+    searched.diagnostics["k_fallback"] = True
+    return searched
 
 
 def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, normalized: bool, uniform_at: Any,
@@ -42,7 +99,8 @@ def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, nor
     timer : StageTimer
         Stages ``topology`` and ``weights`` are recorded.
     weights, normalized, uniform_at
-        See :func:`methods.mesh.weights.mesh_weights`.
+        See :func:`methods.mesh.weights.mesh_weights` (a hybrid ``uniform_at`` of
+        ``"auto"`` must be resolved first: :mod:`methods.mesh.hybrid`).
     b_matrix : {"boundary", "mass"}
         Mullen's boundary indicator, or libigl's Voronoi mass matrix (what
         ``igl.spectra.lscm`` uses).
@@ -72,10 +130,9 @@ def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, nor
     info: dict = {"n_boundary_loops": len(loops)}
     with timer("weights"):
         if weights == "hybrid":
-            uniform_at = "auto" if uniform_at is None else uniform_at
+            uniform_at = uniform_vertex_mask(uniform_at, pts, faces)
+            info["n_uniform_rows"] = int(uniform_at.sum())
         w = mesh_weights(pts, faces, weights, normalized=bool(normalized), uniform_at=uniform_at)
-        if weights == "hybrid" and (isinstance(uniform_at, str) and uniform_at == "auto"):
-            info["n_uniform_rows"] = int(negative_cotangent_vertices(pts, faces).sum())
         b = "boundary" if b_matrix == "boundary" else igl.massmatrix(pts, faces, igl.MASSMATRIX_TYPE_VORONOI)
         # Cotangent weights give the exact Dirichlet energy of the piecewise-linear map,
         # which bounds the image area on every triangle: the energy is PSD for k >= 1.

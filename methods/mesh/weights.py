@@ -37,11 +37,18 @@ mean-value
     *at x_i* in the faces beside edge ij, halved likewise.
 hybrid
     Cotangent weights, except uniform weights on every edge at a vertex of
-    ``uniform_at`` (its row and, to keep W symmetric, its column): ``"auto"`` (default)
-    picks every vertex with a negative cotangent weight in its row (Fig. 12), so no
-    negative weight is left; an index array picks given vertices. (Replacing rows only,
-    the literal reading, gives a non-symmetric operator whose k landscape is erratic and
-    whose optimum had *more* foldovers than plain cotangent SCP in our trials.)
+    ``uniform_at`` (its row and, to keep W symmetric, its column). Which vertices is the
+    point of Sec. 5 / Fig. 12: uniform weights only where negative cotangent weights fold
+    the map. That needs the map, so the plugins' default ``uniform_at="auto"`` is the
+    fold-driven rule of :mod:`methods.mesh.hybrid` (solve with cotangent weights, make
+    the vertices around flipped triangles uniform, solve again), which calls this
+    function with a vertex mask. Here ``uniform_at`` is a vertex set (indices, a
+    ``"3,17,42"`` string or a boolean mask) or ``"negative"`` (also the default, None):
+    every vertex with a negative cotangent weight in its row, so no negative weight is
+    left (on a noisy scan that can be half the mesh: measured on ``real/camelhead``, 51 %
+    of the vertices, QC 1.073 -> 2.017). (Replacing rows only, the literal reading, gives a
+    non-symmetric operator whose k landscape is erratic and whose optimum had *more*
+    foldovers than plain cotangent SCP in our trials.)
 
 ``normalized=True`` divides each row by its sum (the rows of I - W then sum to zero and
 the diagonal is 1).
@@ -59,7 +66,8 @@ from datasets_gen.errors import InvalidInputError, UnknownNameError
 
 from ..hints import Hint, hinted
 
-__all__ = ["WEIGHT_KINDS", "mesh_weights", "laplacian", "negative_cotangent_vertices", "corner_angles"]
+__all__ = ["WEIGHT_KINDS", "mesh_weights", "laplacian", "negative_cotangent_vertices", "uniform_vertex_mask",
+           "corner_angles"]
 
 #: Accepted values of ``kind``.
 WEIGHT_KINDS = ("uniform", "cotangent", "authalic", "mean-value", "hybrid")
@@ -171,16 +179,41 @@ def negative_cotangent_vertices(points: np.ndarray, faces: np.ndarray) -> np.nda
     return mask
 
 
-def _uniform_rows(uniform_at: Any, points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The vertices a hybrid ``uniform_at`` value selects.
+
+    Parameters
+    ----------
+    uniform_at : None, "negative", str, array of int or (N,) array of bool
+        See :func:`mesh_weights`.
+    points : (N, 3) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    (N,) numpy.ndarray of bool
+
+    Raises
+    ------
+    InvalidInputError
+        ``"auto"`` (the plugins' fold-driven rule needs a solve: see
+        :mod:`methods.mesh.hybrid`), an unparsable string, indices out of range or a
+        boolean mask of the wrong length.
+    """
     n = points.shape[0]
-    if uniform_at is None or (isinstance(uniform_at, str) and uniform_at == "auto"):
+    if uniform_at is None or (isinstance(uniform_at, str) and uniform_at == "negative"):
         return negative_cotangent_vertices(points, faces)
+    if isinstance(uniform_at, str) and uniform_at == "auto":
+        raise InvalidInputError(
+            "uniform_at='auto' is the fold-driven rule of the scp and dncp-opt methods (it needs their solve, "
+            "see methods.mesh.hybrid); mesh_weights takes 'negative' or a vertex set."
+        )
     if isinstance(uniform_at, str):
         try:
             idx = np.array([int(s) for s in uniform_at.replace(";", ",").split(",") if s.strip()], dtype=np.int64)
         except ValueError:
             raise InvalidInputError(
-                f"uniform_at={uniform_at!r} is neither 'auto' nor a comma-separated list of vertex indices."
+                f"uniform_at={uniform_at!r} is neither 'auto', 'negative' nor a comma-separated list of vertex indices."
             ) from None
     else:
         arr = np.asarray(uniform_at)
@@ -198,12 +231,12 @@ def _uniform_rows(uniform_at: Any, points: np.ndarray, faces: np.ndarray) -> np.
 
 def _hybrid(points: np.ndarray, faces: np.ndarray, uniform_at: Any) -> sp.csr_matrix:
     n = points.shape[0]
-    chosen = _uniform_rows(uniform_at, points, faces)
+    chosen = uniform_vertex_mask(uniform_at, points, faces)
     cot = _cotangent(points, faces).tocoo()
     uni = _uniform(faces, n).tocsr()
     # Every edge touching a chosen vertex (its row and its column) becomes uniform, so W
-    # stays symmetric and, with "auto", no negative cotangent weight survives (both ends
-    # of a negative edge are chosen).
+    # stays symmetric and, with "negative", no negative cotangent weight survives (both
+    # ends of a negative edge are chosen).
     swap = chosen[cot.row] | chosen[cot.col]
     vals = cot.data.copy()
     vals[swap] = np.asarray(uni[cot.row[swap], cot.col[swap]]).ravel()
@@ -222,10 +255,11 @@ def mesh_weights(points: np.ndarray, faces: np.ndarray, kind: str, normalized: b
         See the module docstring for each formula and its scale.
     normalized : bool
         Divide each row by its sum.
-    uniform_at : None, "auto", str, array of int or (N,) array of bool
-        Only for ``kind="hybrid"``: vertices whose row is uniform. None or ``"auto"``: the
-        vertices with a negative cotangent weight; ``"3,17,42"`` or an index array: those
-        vertices; a boolean mask: the True ones.
+    uniform_at : None, "negative", str, array of int or (N,) array of bool
+        Only for ``kind="hybrid"``: vertices whose row is uniform. None or ``"negative"``:
+        the vertices with a negative cotangent weight; ``"3,17,42"`` or an index array:
+        those vertices; a boolean mask: the True ones. (``"auto"``, the methods' default,
+        is resolved by :func:`methods.mesh.hybrid.fold_driven_hybrid` before this call.)
 
     Returns
     -------

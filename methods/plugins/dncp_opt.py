@@ -5,7 +5,8 @@ from __future__ import annotations
 from datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
-from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area
+from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area, solve_with_k_rule
+from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
 from ..registry import register
 
@@ -19,6 +20,8 @@ class DncpOpt(Method):
     ``"farthest"`` (the two boundary vertices farthest apart) or ``"i,j"``. ``k_search``
     is ``"line"`` (Eq. 16), ``"direct"`` (generalised eigenvalue) or ``"none"`` (plain
     DNCP at k = 1). The output is scaled so that its boundary encloses the 3D area.
+    ``weights="hybrid"`` with ``uniform_at="auto"`` (the default) is uniform only around
+    the folds of the cotangent map (:mod:`methods.mesh.hybrid`, Fig. 12).
     """
 
     name = "dncp-opt"
@@ -30,12 +33,24 @@ class DncpOpt(Method):
 
     def run(self, surface: Surface, **params) -> Parameterization:
         timer = StageTimer()
-        problem, loops, info = build_mesh_problem(surface, timer, weights=params["weights"],
-                                                  normalized=params["normalized"], uniform_at=params["uniform_at"],
-                                                  b_matrix="boundary")
-        pins = resolve_pins(params["pins"], surface.points, loops)
+        weights, normalized = params["weights"], bool(params["normalized"])
+        pins = None
+
+        def solve(problem):
+            nonlocal pins
+            pins = resolve_pins(params["pins"], surface.points, problem.loops) if pins is None else pins
+            with timer("solve"):
+                return solve_with_k_rule(problem, "dncp", params["k_search"], weights=weights, normalized=normalized,
+                                         pins=pins)
+
+        if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
+            problem, sol, loops, info = fold_driven_hybrid(surface, timer, solve, normalized=normalized,
+                                                           b_matrix="boundary")
+        else:
+            problem, loops, info = build_mesh_problem(surface, timer, weights=weights, normalized=normalized,
+                                                      uniform_at=params["uniform_at"], b_matrix="boundary")
+            sol = solve(problem)
         with timer("solve"):
-            sol = problem.solve("dncp", params["k_search"], pins=pins)
             uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
         diagnostics = dict(sol.diagnostics, pins=[int(pins[0]), int(pins[1])], **info)
         return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diagnostics)

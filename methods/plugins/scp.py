@@ -5,7 +5,8 @@ from __future__ import annotations
 from datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
-from ..mesh.conformal_setup import build_mesh_problem, default_k_search, scale_to_surface_area
+from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
+from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
 from ..registry import register
 
@@ -18,7 +19,11 @@ class Scp(Method):
     shift-invert iterations. With ``weights="cotangent"`` and ``b_matrix="mass"`` it
     solves the same problem as ``scp-igl``. Other weights need k (Eq. 15): ``k_search``
     ``"line"`` (Eq. 16) or ``"direct"`` (generalised eigenvalue); ``"auto"`` uses k = 1
-    for cotangent and uniform weights and the line search otherwise.
+    for cotangent, uniform and hybrid weights (the line search where k = 1 is
+    indefinite) and the line search otherwise. ``weights="hybrid"`` with
+    ``uniform_at="auto"`` (the default) is uniform only around the folds of the cotangent
+    map (:mod:`methods.mesh.hybrid`, Fig. 12); ``uniform_at="negative"`` or a vertex list
+    fixes the uniform vertices instead.
 
     The output is scaled so that its boundary encloses the 3D surface area.
     """
@@ -32,14 +37,20 @@ class Scp(Method):
 
     def run(self, surface: Surface, **params) -> Parameterization:
         timer = StageTimer()
-        problem, loops, info = build_mesh_problem(surface, timer, weights=params["weights"],
-                                                  normalized=params["normalized"], uniform_at=params["uniform_at"],
-                                                  b_matrix=params["b_matrix"])
-        k_search = params["k_search"]
-        if k_search == "auto":
-            k_search = default_k_search(params["weights"], params["normalized"])
+        weights, normalized, b_matrix = params["weights"], bool(params["normalized"]), params["b_matrix"]
+
+        def solve(problem):
+            with timer("solve"):
+                return solve_with_k_rule(problem, "scp", params["k_search"], weights=weights, normalized=normalized)
+
+        if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
+            problem, sol, loops, info = fold_driven_hybrid(surface, timer, solve, normalized=normalized,
+                                                           b_matrix=b_matrix)
+        else:
+            problem, loops, info = build_mesh_problem(surface, timer, weights=weights, normalized=normalized,
+                                                      uniform_at=params["uniform_at"], b_matrix=b_matrix)
+            sol = solve(problem)
         with timer("solve"):
-            sol = problem.solve("scp", k_search)
             uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
         diagnostics = dict(sol.diagnostics, **info)
         return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diagnostics)

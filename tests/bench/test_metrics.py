@@ -9,7 +9,18 @@ import pytest
 from scipy.spatial import Delaunay
 
 from bench.metrics import (
+    ANGLE_HIST_EDGES_DEG,
     METRIC_KEYS,
+    SELFMESH_KEYS,
+    angle_differences_deg,
+    angle_histogram,
+    beltrami_abs,
+    flipped_share,
+    normalized_area_distortion,
+    points_in_loops,
+    self_scored,
+    sigma_ratio_excess,
+    uv_loop_faces,
     area_distortion,
     count_collapsed,
     count_foldovers,
@@ -449,3 +460,193 @@ def test_bad_shapes_and_degenerate_faces():
     collinear = np.array([[0, 1, 2]])  # grid points 0, 1, 2 lie on the line x = -1
     with pytest.raises(DegenerateFacesError):
         jacobian_singular_values(pts, collinear, pts[:, :2])
+
+
+# ---------------------------------------------------------------- Beltrami, angles, area, flips (issue 13)
+
+
+@pytest.mark.parametrize("a", [1.5, 2.0, 4.0])
+def test_affine_stretch_has_the_hand_derived_beltrami_coefficient(a):
+    # u = a x, v = y: singular values a and 1 on every face, |mu| = (a - 1) / (a + 1).
+    pts, faces = jittered_grid(seed=5)
+    uv = pts[:, :2] * [a, 1.0]
+    r = evaluate(pts, faces, uv)
+    mu = (a - 1) / (a + 1)
+    assert r["mu_mean"] == pytest.approx(mu, abs=1e-12) and r["mu_p95"] == pytest.approx(mu, abs=1e-12)
+    assert r["mu_sd"] < 1e-12
+    assert r["sigma_ratio_max"] == pytest.approx(a + 1 / a - 2, abs=1e-12)
+    # the stretch scales every area by a: nothing left once both totals are normalised
+    assert r["area_distortion_normalized"] < 1e-12
+    assert r["flipped_share"] == 0.0
+
+
+def test_beltrami_matches_qc():
+    s1, s2 = np.array([3.0, 1.0, 2.0]), np.array([1.0, 1.0, 0.0])
+    mu = beltrami_abs(s1, s2)
+    qc = quasi_conformal(s1, s2)
+    assert mu.tolist() == [0.5, 0.0, 1.0]
+    assert np.allclose(mu[:2], (qc[:2] - 1) / (qc[:2] + 1))
+    assert sigma_ratio_excess(s1, s2)[0] == pytest.approx(3 + 1 / 3 - 2)
+
+
+@pytest.mark.parametrize("a", [2.0, 0.5])
+def test_angle_error_of_a_stretched_right_triangle_grid(a):
+    # Every grid face is a right isosceles triangle with its legs on the axes. Under
+    # (x, y) -> (a x, y) the right angle stays, the two 45-degree corners become
+    # atan(a) and atan(1/a): mean |change| per face = 2 |atan(a) - 45 deg| / 3.
+    pts, faces = grid_mesh(6, 6)
+    uv = pts[:, :2] * [a, 1.0]
+    r = evaluate(pts, faces, uv)
+    delta = abs(np.degrees(np.arctan(a)) - 45.0)
+    assert r["angle_error_mean"] == pytest.approx(2 * delta / 3, abs=1e-10)
+    hist = np.asarray(r["angle_hist"])
+    m = len(faces)
+    assert hist.sum() == 3 * m
+    # one corner per face in the bins of 0, +delta and -delta (delta = 18.43 deg at a = 2)
+    assert hist[np.searchsorted(ANGLE_HIST_EDGES_DEG, delta, side="right") - 1] == m
+    assert hist[np.searchsorted(ANGLE_HIST_EDGES_DEG, -delta, side="right") - 1] == m
+    assert hist[np.searchsorted(ANGLE_HIST_EDGES_DEG, 1e-9, side="right") - 1] + \
+        hist[np.searchsorted(ANGLE_HIST_EDGES_DEG, -1e-9, side="right") - 1] == m
+
+
+def test_angle_histogram_keeps_outliers_in_the_end_bins():
+    counts = angle_histogram(np.array([-90.0, -29.5, 0.2, 29.9, 45.0, np.nan]))
+    assert counts.sum() == 5 and counts[0] == 2 and counts[-1] == 2 and counts[30] == 1
+
+
+def test_angle_differences_are_zero_for_a_similarity_and_sum_to_zero_otherwise():
+    pts, faces = jittered_grid(seed=2)
+    pts3 = pts @ random_rotation_3d(4).T
+    assert np.abs(angle_differences_deg(pts3, faces, 2.5 * pts[:, :2] @ rot2(0.7).T)).max() < 1e-10
+    d = angle_differences_deg(pts3, faces, pts[:, :2] ** 3 + pts[:, :2])
+    assert np.abs(d).max() > 1 and np.abs(d.sum(axis=1)).max() < 1e-9
+    r = evaluate(pts3, faces, 2.5 * pts[:, :2] @ rot2(0.7).T)
+    assert r["angle_error_mean"] < 1e-10 and r["area_distortion_normalized"] < 1e-12 and r["mu_mean"] < 1e-12
+
+
+def test_normalized_area_distortion_by_hand():
+    # Grid on [0, 2] x [0, 1]; the right half is stretched 3x in x, the left half kept.
+    # Ratios 1 and 3 on equal 3D areas: overall ratio 2, so the mean |log r| is
+    # (|log 1/2| + |log 3/2|) / 2 = log(3) / 2. Scaling the whole map changes nothing.
+    pts, faces = grid_mesh_from_lines(np.linspace(0, 2, 9), np.linspace(0, 1, 5))
+    x = pts[:, 0]
+    uv = np.column_stack([np.where(x <= 1, x, 1 + 3 * (x - 1)), pts[:, 1]])
+    r = evaluate(pts, faces, uv)
+    assert r["area_distortion_normalized"] == pytest.approx(np.log(3) / 2, abs=1e-12)
+    assert evaluate(pts, faces, 7.0 * uv)["area_distortion_normalized"] == pytest.approx(np.log(3) / 2, abs=1e-12)
+    s1, s2, _, area = jacobian_singular_values(pts, faces, uv)
+    assert normalized_area_distortion(s1, s2, area) == pytest.approx(np.log(3) / 2, abs=1e-12)
+
+
+def separate_triangles(n=10):
+    """n disjoint unit right triangles side by side in z = 0, counter-clockwise from +z."""
+    base = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    pts = np.concatenate([base + [2.0 * i, 0, 0] for i in range(n)])
+    return pts, np.arange(3 * n, dtype=np.int64).reshape(n, 3)
+
+
+def test_flipped_share_three_of_ten_mirrored():
+    pts, faces = separate_triangles(10)
+    uv = pts[:, :2].copy()
+    for f in (1, 4, 8):
+        uv[faces[f], 1] *= -1  # mirror three faces
+    r = evaluate(pts, faces, uv)
+    assert r["flipped_share"] == pytest.approx(0.3)
+    assert r["foldovers"] == 3
+    # a global mirror image flips the other seven: p = 0.7, min(p, 1 - p) is still 0.3
+    assert evaluate(pts, faces, uv * [1.0, -1.0])["flipped_share"] == pytest.approx(0.3)
+    # a mirrored triangle keeps its angles and its |mu|
+    assert r["angle_error_mean"] < 1e-12 and r["mu_mean"] < 1e-12
+    _, _, signed, _ = jacobian_singular_values(pts, faces, uv)
+    assert flipped_share(signed) == pytest.approx(0.3)
+
+
+def test_new_metrics_are_none_when_every_face_collapsed():
+    pts, faces = separate_triangles(3)
+    r = evaluate(pts, faces, np.zeros((len(pts), 2)))
+    assert r["collapsed"] == 3
+    assert all(r[k] is None for k in ("mu_mean", "mu_sd", "mu_p95", "angle_error_mean", "angle_hist",
+                                      "flipped_share", "area_distortion_normalized", "sigma_ratio_max"))
+    json.dumps(r, allow_nan=False)
+
+
+# ---------------------------------------------------------------- self-scored point sets
+
+
+def square_with_square_hole(n=10, lo=0.3, hi=0.7, seed=0):
+    """Grid points of [0, 1]^2 without those strictly inside [lo, hi]^2, with the two loops.
+
+    Points off both loops are jittered (no four cocircular points), loop points stay on
+    their straight sides, so the domain has area exactly 1 - (hi - lo)^2.
+    """
+    xs = np.linspace(0, 1, n + 1)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    xy = np.column_stack([X.ravel(), Y.ravel()])
+    tol = 1e-9
+    in_hole = (xy > lo + tol).all(axis=1) & (xy < hi - tol).all(axis=1)
+    xy = xy[~in_hole]
+    on_outer = (np.abs(xy - 0.5) > 0.5 - tol).any(axis=1)
+    on_hole = ((xy >= lo - tol) & (xy <= hi + tol)).all(axis=1) & ~on_outer
+    rng = np.random.default_rng(seed)
+    free = ~on_outer & ~on_hole
+    xy[free] += rng.uniform(-0.15, 0.15, size=(free.sum(), 2)) / n
+
+    def ring(mask, centre):
+        idx = np.flatnonzero(mask)
+        ang = np.arctan2(xy[idx, 1] - centre[1], xy[idx, 0] - centre[0])
+        return idx[np.argsort(ang)]
+
+    outer = ring(on_outer, (0.5, 0.5))
+    hole = ring(on_hole, (0.5, 0.5))[::-1]
+    return np.column_stack([xy, np.zeros(len(xy))]), [outer, hole]
+
+
+def test_points_in_loops_by_hand():
+    pts, loops = square_with_square_hole()
+    q = np.array([[0.1, 0.1], [0.5, 0.5], [0.35, 0.5], [0.2, 0.5], [1.2, 0.5], [0.5, -0.1], [0.95, 0.65]])
+    assert points_in_loops(q, pts[:, :2], loops).tolist() == [True, False, False, True, False, False, True]
+
+
+def test_self_mesh_covers_the_domain_and_leaves_the_hole_open():
+    pts, loops = square_with_square_hole()
+    faces = uv_loop_faces(pts, pts[:, :2], loops)
+    _, _, signed, area = jacobian_singular_values(pts, faces, pts[:, :2])
+    assert area.sum() == pytest.approx(1 - 0.4 ** 2, abs=1e-12)
+    assert (signed > 0).all()
+    cen = pts[faces].mean(axis=1)
+    assert not ((np.abs(cen[:, 0] - 0.5) < 0.2) & (np.abs(cen[:, 1] - 0.5) < 0.2)).any()
+
+
+@pytest.mark.parametrize("a", [1.0, 3.0])
+def test_self_scored_stretch_has_the_hand_derived_beltrami_coefficient(a):
+    # Any triangle under the same affine map has the same |mu|, whatever the uv Delaunay picks.
+    pts, loops = square_with_square_hole(seed=1)
+    uv = pts[:, :2] * [a, 1.0] @ rot2(0.4).T
+    r = self_scored(pts, uv, loops)
+    assert set(r) == {f"selfmesh_{k}" for k in SELFMESH_KEYS}
+    assert r["selfmesh_mu_mean"] == pytest.approx((a - 1) / (a + 1), abs=1e-12)
+    assert r["selfmesh_qc_mean"] == pytest.approx(a, abs=1e-12)
+    assert r["selfmesh_n_eval_faces"] == len(uv_loop_faces(pts, pts[:, :2], loops))
+
+
+def test_self_scored_needs_loops():
+    pts, loops = square_with_square_hole()
+    with pytest.raises(InvalidInputError, match="loop"):
+        self_scored(pts, pts[:, :2], [])
+    with pytest.raises(InvalidInputError, match="loop"):
+        self_scored(pts, pts[:, :2], [np.array([0, 1, 10_000])])
+
+
+def test_point_set_cell_stores_the_new_and_self_scored_columns():
+    from bench.cells import Cell
+    from bench.run_cell import METRIC_COLUMNS, compute_cell
+
+    row, _ = compute_cell(Cell("bump", 900, "jittered", 0.0, 0, "sdp"))
+    assert row["status"] == "ok"
+    assert all(c in row for c in METRIC_COLUMNS)
+    hist = json.loads(row["angle_hist"])
+    assert len(hist) == len(ANGLE_HIST_EDGES_DEG) - 1 and sum(hist) == 3 * (row["n_eval_faces"] - row["collapsed"])
+    assert 0 < row["mu_mean"] < 1 and row["angle_error_mean"] > 0
+    # the self mesh sees the same map: close to, but not the same as, the ground-truth mesh
+    assert row["selfmesh_n_eval_faces"] > 0.9 * row["n_eval_faces"]
+    assert row["selfmesh_mu_mean"] == pytest.approx(row["mu_mean"], rel=0.2)

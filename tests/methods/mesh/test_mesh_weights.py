@@ -9,7 +9,8 @@ import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
 from datasets_gen.errors import InvalidInputError, UnknownNameError
-from methods.mesh.weights import WEIGHT_KINDS, laplacian, mesh_weights, negative_cotangent_vertices
+from methods.mesh.weights import (WEIGHT_KINDS, laplacian, mesh_weights, negative_cotangent_vertices,
+                                  uniform_vertex_mask)
 
 
 def hexagon_fan() -> tuple[np.ndarray, np.ndarray]:
@@ -122,6 +123,16 @@ def test_hybrid_auto_removes_negative_weights_and_keeps_the_rest():
     touched = chosen[hyb.row] | chosen[hyb.col]
     assert np.allclose(hyb.data[touched], np.asarray(uni[hyb.row[touched], hyb.col[touched]]).ravel())
     assert np.allclose(hyb.data[~touched], np.asarray(cot[hyb.row[~touched], hyb.col[~touched]]).ravel())
+
+
+def test_hybrid_negative_rule_is_the_weights_default_and_auto_needs_a_solve():
+    pts, faces = random_planar(300, seed=3)
+    faces = Delaunay(pts[:, :2] * [1.0, 5.0]).simplices.astype(np.int64)
+    default = mesh_weights(pts, faces, "hybrid")
+    assert abs(mesh_weights(pts, faces, "hybrid", uniform_at="negative") - default).max() == 0
+    assert np.array_equal(uniform_vertex_mask("negative", pts, faces), negative_cotangent_vertices(pts, faces))
+    with pytest.raises(InvalidInputError, match="fold-driven"):
+        mesh_weights(pts, faces, "hybrid", uniform_at="auto")
 
 
 def test_hybrid_explicit_vertex_set():
