@@ -43,9 +43,7 @@ from datasets_gen.errors import ParambenchError
 from datasets_gen.registry import dataset_names, make_surface
 from methods.pointset.boundary import find_boundary
 from methods.registry import get_method
-
-#: extra_info key that marks a case of this file (read by reports.boundary_benchmark).
-CASE_KEY = "realdata_case"
+from reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_REALDATA_SIZES", "2000,20000").split(",") if s.strip()]
 REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k"]
