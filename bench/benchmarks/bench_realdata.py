@@ -1,0 +1,191 @@
+"""The point-set boundary detector and ``ocp`` on data nobody here made (issue 11).
+
+``pytest bench/benchmarks/bench_realdata.py --benchmark-only --benchmark-json=realdata.json``;
+``parambench report RESULTS --benchmark-json realdata.json`` turns the figures into a
+table (:mod:`reports.boundary_benchmark`). Without ``--benchmark-only`` every case is
+skipped: the default run (53 cases) took 3 min 46 s on 2 cores shared with other jobs
+(2 min of CPU), most of it ``ocp`` at 20k points.
+
+Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
+``real/bump-domain``, ``real/bunny10k``); every generated surface with ``random`` and
+``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
+default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
+noise 0.5 spacings (jittered, 2000 points). Every method gets positions only.
+
+Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
+
+- the detector of the previous release (``old_*``) and of this one (``new_*``): loops
+  found (``*_loops``, against ``true_loops``), recall and precision of the detected
+  boundary points against the mesh's boundary vertices, and the error when the front end
+  finds no loop. "Old" is the same front end with the loop-spacing rule off
+  (``find_boundary(..., local_spacing=None)``): on the same balls it returns exactly the
+  loops of commit c0f3201's detector (checked on every case of this file at 2k and 20k
+  points, retries on wider balls included), so no frozen copy is kept;
+- ``frontend_seconds``: the front end alone (the old detector's extra call excluded);
+- ``ocp_qc_mean`` and ``ocp_foldovers`` on the ground-truth mesh, the same for
+  ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
+  ``time_ratio_vs_scp_igl`` (ocp / scp-igl), the self-check verdict
+  ``selfcheck_passed`` and its failed checks, ``ocp_error`` when ocp refused.
+
+``scp-igl`` is the baseline the issue names; on ``real/bunny10k`` (5 holes) it maps holes
+with turning number +1 and folds hundreds of triangles, so a QC ratio there says little.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import methods.pointset.frontend as frontend_module
+from bench.benchmarks.timing import best_of
+from bench.metrics import evaluate
+from datasets_gen.errors import ParambenchError
+from datasets_gen.registry import dataset_names, make_surface
+from methods.pointset.boundary import find_boundary
+from methods.registry import get_method
+from reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
+
+SIZES = [int(s) for s in os.environ.get("PARAMBENCH_REALDATA_SIZES", "2000,20000").split(",") if s.strip()]
+REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k"]
+GENERATED = [name for name in dataset_names() if not name.startswith("real/")]
+NOISY = ["bump", "holes", "saddle", "slit", "fold"]
+NOISE = 0.5
+NOISE_SIZE = 2000
+
+# (dataset, size, sampling, noise); size 0 and sampling "" for the real meshes.
+CASES = ([(name, 0, "", 0.0) for name in REAL]
+         + [(name, n, sampling, 0.0) for n in SIZES for sampling in ("random", "graded") for name in GENERATED]
+         + [(name, NOISE_SIZE, "jittered", NOISE) for name in NOISY])
+
+
+def _case_id(dataset: str, size: int, sampling: str, noise: float) -> str:
+    if not size:
+        return dataset.replace("/", "-")
+    label = f"{dataset}-{sampling}-{size // 1000}k"
+    return label + (f"-noise{noise:g}" if noise else "")
+
+
+@pytest.fixture(autouse=True)
+def _benchmark_only(request):
+    """Minutes of work: run only when benchmarks are asked for."""
+    if not request.config.getoption("benchmark_only", False):
+        pytest.skip("real-data boundary benchmark: run it with --benchmark-only")
+
+
+class _OldDetectorProbe:
+    """Stands in for ``find_boundary`` inside the front end and also runs the old detector.
+
+    Each call returns the new detector's result unchanged, so the front end behaves as
+    released; the old one (loop-spacing rule off) runs on the same points, normals and
+    balls and is kept with the (reordered) points it saw.
+    """
+
+    def __init__(self):
+        self.calls = []
+        self.seconds = 0.0
+
+    def __call__(self, points, normals, ball_indices, coords, **kwargs):
+        start = time.perf_counter()
+        old = find_boundary(points, normals, ball_indices, coords, **dict(kwargs, local_spacing=None))
+        self.calls.append((points, old))
+        self.seconds += time.perf_counter() - start
+        return find_boundary(points, normals, ball_indices, coords, **kwargs)
+
+    def outcome(self):
+        """The old front end's boundary: the first call with loops (the second is its retry
+        on wider balls, made only when the first found none), as (points, BoundaryLoops)."""
+        for points, bnd in self.calls:
+            if bnd.loops:
+                return points, bnd
+        return None, None
+
+
+def _scores(mask: np.ndarray | None, n_loops: int, surface) -> dict:
+    """Loops found, recall and precision of ``mask`` against the true boundary vertices."""
+    if mask is None or not mask.any():
+        return {"loops": n_loops, "recall": 0.0, "precision": None}
+    hits = int(np.count_nonzero(mask & surface.boundary_mask))
+    return {"loops": n_loops, "recall": hits / int(surface.boundary_mask.sum()), "precision": hits / int(mask.sum())}
+
+
+def _detectors(points: np.ndarray, surface, monkeypatch) -> dict:
+    """Old and new detector on the bare points, with the front end's own seconds."""
+    probe = _OldDetectorProbe()
+    new, new_error = None, None
+    with monkeypatch.context() as patch:
+        patch.setattr(frontend_module, "find_boundary", probe)
+        start = time.perf_counter()
+        try:
+            new = frontend_module.build_frontend(points)
+        except ParambenchError as exc:
+            new_error = f"{type(exc).__name__}: {exc}"
+        seconds = time.perf_counter() - start - probe.seconds
+    out = {"frontend_seconds": seconds, "new_error": new_error}
+    new_scores = _scores(None if new is None else new.boundary_mask, 0 if new is None else len(new.boundary_loops),
+                         surface)
+    out.update({f"new_{k}": v for k, v in new_scores.items()})
+    sorted_points, old = probe.outcome()
+    old_mask = None
+    if old is not None:
+        # The front end works in kd-tree order; match its points back to the input rows.
+        _, rows = cKDTree(points).query(sorted_points)
+        old_mask = np.zeros(len(points), dtype=bool)
+        old_mask[rows[old.mask]] = True
+    old_scores = _scores(old_mask, 0 if old is None else len(old.loops), surface)
+    out.update({f"old_{k}": v for k, v in old_scores.items()})
+    out["old_error"] = None if old is not None else "NoBoundaryError: no loop closes"
+    return out
+
+
+def _quality(surface, uv) -> dict:
+    metrics = evaluate(surface.points, surface.faces, uv, boundary_loops=surface.boundary_loops,
+                       diameter=surface.diameter)
+    return {"qc_mean": float(metrics["qc_mean"]), "foldovers": int(metrics["foldovers"])}
+
+
+@pytest.mark.parametrize("dataset,size,sampling,noise", CASES, ids=[_case_id(*c) for c in CASES])
+def test_realdata_boundary_and_ocp(benchmark, monkeypatch, dataset, size, sampling, noise):
+    if dataset.startswith("real/"):
+        surface = make_surface(dataset, seed=0)
+        group = "realdata-real"
+    else:
+        surface = make_surface(dataset, size, sampling=sampling, seed=0, noise=noise)
+        group = f"realdata-noise{noise:g}" if noise else f"realdata-{size // 1000}k"
+    benchmark.group = group
+    given = surface.method_input(False)  # bare positions: no normals, faces or ground truth
+    info = {CASE_KEY: _case_id(dataset, size, sampling, noise), "dataset": dataset, "sampling": sampling or None,
+            "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops)}
+    info.update(_detectors(given.points, surface, monkeypatch))
+
+    scp_igl = get_method("scp-igl")
+    holder = {}
+    base_time = best_of(lambda: holder.setdefault("scp", scp_igl(surface)), repeat=1)
+    base = _quality(surface, holder["scp"].uv)
+
+    ocp = get_method("ocp")
+
+    def run_ocp():
+        try:
+            return ocp(given), None
+        except ParambenchError as exc:  # a refusal is a result of this benchmark, not a skip
+            return None, f"{type(exc).__name__}: {exc}"
+
+    result, error = benchmark.pedantic(run_ocp, rounds=1, iterations=1)
+    info.update(scp_igl_qc_mean=base["qc_mean"], scp_igl_foldovers=base["foldovers"], scp_igl_seconds=base_time,
+                ocp_error=error)
+    if result is None:
+        info.update(ocp_qc_mean=None, ocp_foldovers=None, qc_ratio_vs_scp_igl=None, time_ratio_vs_scp_igl=None,
+                    selfcheck_passed=None, selfcheck_failed=None, ocp_loops=None)
+    else:
+        quality = _quality(surface, result.uv)
+        check = result.diagnostics.get("selfcheck", {})
+        info.update(ocp_qc_mean=quality["qc_mean"], ocp_foldovers=quality["foldovers"],
+                    qc_ratio_vs_scp_igl=quality["qc_mean"] / base["qc_mean"],
+                    time_ratio_vs_scp_igl=benchmark.stats.stats.min / base_time,
+                    selfcheck_passed=bool(check.get("passed", False)), selfcheck_failed=check.get("failed"),
+                    ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
+    benchmark.extra_info.update(info)

@@ -1,0 +1,121 @@
+"""The real-data boundary benchmark's report section, fed a small synthetic benchmark JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from reports.benchmarks import load_benchmarks
+from reports.boundary_benchmark import (CASE_KEY, boundary_benchmark_rows, boundary_benchmark_section,
+                                        boundary_benchmark_table, boundary_ok, ocp_ok)
+from reports.html import render_table
+
+
+def _case(label, *, true_loops=1, old=(1, 1.0, 1.0), new=(1, 1.0, 1.0), ocp_qc=1.01, scp_qc=1.0, folds=0,
+          error=None, passed=True, failed=()):
+    info = {CASE_KEY: label, "dataset": label.split("-")[0], "sampling": "random", "noise": 0.0,
+            "n_points": 2000, "true_loops": true_loops, "frontend_seconds": 0.05,
+            "old_loops": old[0], "old_recall": old[1], "old_precision": old[2], "old_error": None,
+            "new_loops": new[0], "new_recall": new[1], "new_precision": new[2], "new_error": None,
+            "scp_igl_qc_mean": scp_qc, "scp_igl_foldovers": 0, "scp_igl_seconds": 0.1, "ocp_error": error}
+    if error is None:
+        info.update(ocp_qc_mean=ocp_qc, ocp_foldovers=folds, qc_ratio_vs_scp_igl=ocp_qc / scp_qc,
+                    time_ratio_vs_scp_igl=5.0, selfcheck_passed=passed, selfcheck_failed=list(failed))
+    else:
+        info.update(ocp_qc_mean=None, ocp_foldovers=None, qc_ratio_vs_scp_igl=None, time_ratio_vs_scp_igl=None,
+                    selfcheck_passed=None, selfcheck_failed=None)
+    return info
+
+
+def _write(path, infos, seconds=0.5):
+    benches = [{"group": "realdata-2k", "name": f"test_realdata[{info[CASE_KEY]}]", "extra_info": info,
+                "stats": {"min": seconds, "max": seconds, "mean": seconds, "stddev": 0.0, "median": seconds,
+                          "rounds": 1}} for info in infos]
+    path.write_text(json.dumps({"benchmarks": benches}))
+    return path
+
+
+@pytest.fixture
+def stats(tmp_path, mesh_tools):
+    cases = [
+        _case("plane-random-2k"),  # meets every target
+        # old detector: a spurious void ring (2 loops), new one right; ocp 4 % worse with 3 folds
+        _case("bump-random-2k", old=(2, 1.0, 0.8), ocp_qc=1.04, folds=3, passed=False, failed=["flipped"]),
+        # both detectors miss 3 of 5 loops; ocp refuses
+        _case("real-bunny10k", true_loops=5, old=(2, 0.24, 0.96), new=(2, 0.24, 0.96),
+              error="ConvergenceError: no t = 1 crossing found"),
+        # the old front end found nothing at all
+        _case("cap-graded-2k", old=(0, 0.0, None), new=(1, 0.98, 0.91)),
+    ]
+    other = mesh_tools["write_benchmark_json"](tmp_path / "other.json")  # a benchmark file of another kind
+    return load_benchmarks([_write(tmp_path / "realdata.json", cases, seconds=0.25), other])
+
+
+def test_targets_by_hand():
+    assert boundary_ok(1, 1, 0.97, 0.9)
+    assert not boundary_ok(2, 1, 1.0, 1.0)  # a spurious loop
+    assert not boundary_ok(1, 1, 0.969, 1.0)
+    assert not boundary_ok(1, 1, 1.0, 0.899)
+    assert not boundary_ok(0, 1, 0.0, None)  # nothing detected
+    assert ocp_ok(1.03, 0) and ocp_ok(0.99, 0)
+    assert not ocp_ok(1.031, 0)
+    assert not ocp_ok(1.0, 1)
+    assert not ocp_ok(None, None)  # ocp refused
+
+
+def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
+    rows = boundary_benchmark_rows(stats)
+    assert sorted(rows["case"]) == ["bump-random-2k", "cap-graded-2k", "plane-random-2k", "real-bunny10k"]
+    by_case = rows.set_index("case")
+    assert by_case.loc["plane-random-2k", "ocp_seconds"] == pytest.approx(0.25)
+    assert by_case.loc["bump-random-2k", "old_loops"] == 2 and by_case.loc["bump-random-2k", "new_loops"] == 1
+    assert by_case["new_boundary_ok"].to_dict() == {"plane-random-2k": True, "bump-random-2k": True,
+                                                    "real-bunny10k": False, "cap-graded-2k": True}
+    assert by_case["old_boundary_ok"].to_dict() == {"plane-random-2k": True, "bump-random-2k": False,
+                                                    "real-bunny10k": False, "cap-graded-2k": False}
+    assert by_case["ocp_ok"].to_dict() == {"plane-random-2k": True, "bump-random-2k": False,
+                                           "real-bunny10k": False, "cap-graded-2k": True}
+    assert math.isnan(by_case.loc["cap-graded-2k", "old_precision"])
+    assert math.isnan(by_case.loc["real-bunny10k", "ocp_qc_mean"])
+    assert by_case.loc["real-bunny10k", "ocp_error"].startswith("ConvergenceError")
+    assert by_case.loc["bump-random-2k", "selfcheck_passed"] is False
+    assert by_case.loc["real-bunny10k", "selfcheck_passed"] is None
+
+
+def test_table_marks_misses(stats):
+    table = boundary_benchmark_table(stats)
+    assert table is not None and len(table.rows) == 4
+    col = {name: i for i, name in enumerate(table.columns)}
+    rows = {row[0].text: row for row in table.rows}
+    bump = rows["bump-random-2k"]
+    assert bump[col["Loops old"]].text == "2" and "failed" in bump[col["Loops old"]].classes
+    assert "failed" not in bump[col["Loops new"]].classes
+    assert "failed" in bump[col["Precision old"]].classes and "failed" not in bump[col["Recall old"]].classes
+    assert bump[col["QC ratio"]].text == "1.04" and "failed" in bump[col["QC ratio"]].classes
+    assert bump[col["ocp folds"]].text == "3" and "failed" in bump[col["ocp folds"]].classes
+    assert bump[col["Self-check"]].text == "failed: flipped"
+    bunny = rows["real-bunny10k"]
+    assert bunny[col["ocp QC"]].text == "ConvergenceError" and "crossing" in bunny[col["ocp QC"]].title
+    assert "failed" in bunny[col["Recall new"]].classes
+    plane = rows["plane-random-2k"]
+    assert not any("failed" in cell.classes for cell in plane)
+    assert plane[col["Self-check"]].text == "passed"
+    html = render_table(table)
+    assert html.count("<tr>") == 5 and "cap-graded-2k" in html
+
+
+def test_section_summary_counts(stats):
+    section = boundary_benchmark_section(stats)
+    summary = section.blocks[0].text
+    assert "4 case(s)" in summary
+    assert "old detector 1 of 4, new 3 of 4" in summary
+    assert "ocp 2 of 4; 1 refused, 1 failed their self-check" in summary
+
+
+def test_no_section_without_cases(tmp_path, mesh_tools):
+    assert boundary_benchmark_section(None) is None
+    other = load_benchmarks([mesh_tools["write_benchmark_json"](tmp_path / "other.json")])
+    assert boundary_benchmark_section(other) is None
+    assert boundary_benchmark_rows(other).empty
