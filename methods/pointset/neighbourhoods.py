@@ -77,24 +77,35 @@ def knn_graph(points: np.ndarray, k: int = 8) -> KnnGraph:
     return KnnGraph(indices=idx, distances=dist, mean_spacing=float(dist.mean()))
 
 
-def local_spacing(graph: KnnGraph) -> np.ndarray:
+#: Neighbourhood averages of the local spacing (see :func:`local_spacing`).
+LOCAL_SPACING_PASSES = 3
+
+
+def local_spacing(graph: KnnGraph, passes: int = LOCAL_SPACING_PASSES) -> np.ndarray:
     """Sampling spacing around each point: its mean kNN distance, averaged over its kNN.
 
-    The average over the neighbourhood makes the field smooth (one outlier neighbour does
+    The averages over the neighbourhood make the field smooth (one outlier neighbour does
     not halve a point's radius), so balls and area terms sized from it follow the local
-    density of adaptively sampled surfaces instead of the global mean ``l``.
+    density of adaptively sampled surfaces instead of the global mean ``l``. On uniform
+    random samples, where the true density is constant, each pass removes noise: ocp on
+    a 20k random bump had QC 1.0226 after one pass, 1.0159 after three (scp-igl on the
+    true mesh 1.0033), while graded samplings stayed within 0.3 % of scp-igl.
 
     Parameters
     ----------
     graph : KnnGraph
+    passes : int
+        Neighbourhood averages applied to the per-point mean kNN distance.
 
     Returns
     -------
     (N,) numpy.ndarray of float64
         Length units of the points; its mean is close to ``graph.mean_spacing``.
     """
-    own = graph.distances.mean(axis=1)
-    return (own + own[graph.indices].sum(axis=1)) / (graph.k + 1)
+    h = graph.distances.mean(axis=1)
+    for _ in range(int(passes)):
+        h = (h + h[graph.indices].sum(axis=1)) / (graph.k + 1)
+    return h
 
 
 def symmetric_adjacency(graph: KnnGraph) -> sp.csr_matrix:
