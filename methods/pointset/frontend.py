@@ -259,7 +259,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         adjacency = symmetric_adjacency(graph)
         require_connected(adjacency, k_nn)
         spacing = graph.mean_spacing
-        h_around = local_spacing(graph)  # the boundary's loop-spacing rule uses it in both modes
+        h_around = local_spacing(graph, p)  # the boundary's loop-spacing rule uses it in both modes
         h_local = h_around if spacing_mode == "local" else np.full(n, spacing)
 
     with timer("normals"):

@@ -168,15 +168,22 @@ def test_thin_fold_does_not_fool_the_orientation_tree():
 
 def test_local_spacing_of_a_square_grid_by_hand():
     """Interior points of a square grid of step a: 4 neighbours at a and 4 at a*sqrt(2),
-    so the mean 8-NN distance (and its neighbourhood average) is a (1 + sqrt 2) / 2."""
+    so the mean 8-NN distance (and its neighbourhood averages) is a (1 + sqrt 2) / 2. With
+    the points given, edge and corner points (one-sided neighbourhoods, farther kNN) take
+    their neighbours' value, so the whole grid gets it; without, the edge's inflated
+    distances reach a few rings inwards."""
     from methods.pointset.neighbourhoods import knn_graph, local_spacing
 
     a = 0.3
     g = np.stack(np.meshgrid(np.arange(30), np.arange(30)), -1).reshape(-1, 2) * a
     pts = np.column_stack([g, np.zeros(len(g))])
-    h = local_spacing(knn_graph(pts, 8))
-    interior = np.all((g > 2.5 * a) & (g < 26.5 * a), axis=1)
-    np.testing.assert_allclose(h[interior], a * (1 + np.sqrt(2)) / 2, rtol=1e-9)
+    graph = knn_graph(pts, 8)
+    exact = a * (1 + np.sqrt(2)) / 2
+    np.testing.assert_allclose(local_spacing(graph, pts), exact, rtol=1e-9)
+    plain = local_spacing(graph)
+    deep = np.all((g > 5.5 * a) & (g < 23.5 * a), axis=1)
+    np.testing.assert_allclose(plain[deep], exact, rtol=1e-9)
+    assert plain.max() > 1.1 * exact
 
 
 def test_balls_follow_local_density():
