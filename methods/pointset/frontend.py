@@ -45,6 +45,9 @@ DEM_VARIANTS = {
     "paper": {"projection": "length", "front_weight": False, "smoothing": "average"},
 }
 
+#: Neighbourhood averages of the local spacing that sizes balls and area terms.
+SMOOTH_SPACING_PASSES = 10
+
 #: ``spacing`` settings of :func:`build_frontend`.
 SPACING_MODES = ("local", "global")
 
@@ -259,8 +262,11 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         adjacency = symmetric_adjacency(graph)
         require_connected(adjacency, k_nn)
         spacing = graph.mean_spacing
-        h_around = local_spacing(graph, p)  # the boundary's loop-spacing rule uses it in both modes
-        h_local = h_around if spacing_mode == "local" else np.full(n, spacing)
+        # The loop-spacing rule of the boundary needs the spacing right at the loop (one
+        # average); balls and area terms need a smooth field (ten: noise-free on uniform
+        # random samples, still following a graded sampling's density).
+        h_around = local_spacing(graph, passes=1)
+        h_local = local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local" else np.full(n, spacing)
 
     with timer("normals"):
         fitted = pca_normals(p, graph.indices)

@@ -168,10 +168,8 @@ def test_thin_fold_does_not_fool_the_orientation_tree():
 
 def test_local_spacing_of_a_square_grid_by_hand():
     """Interior points of a square grid of step a: 4 neighbours at a and 4 at a*sqrt(2),
-    so the mean 8-NN distance (and its neighbourhood averages) is a (1 + sqrt 2) / 2. With
-    the points given, edge and corner points (one-sided neighbourhoods, farther kNN) take
-    their neighbours' value, so the whole grid gets it; without, the edge's inflated
-    distances reach a few rings inwards."""
+    so the mean 8-NN distance (and its neighbourhood averages) is a (1 + sqrt 2) / 2; the
+    edge's larger distances (one-sided neighbourhoods) reach one ring inwards per pass."""
     from methods.pointset.neighbourhoods import knn_graph, local_spacing
 
     a = 0.3
@@ -179,11 +177,11 @@ def test_local_spacing_of_a_square_grid_by_hand():
     pts = np.column_stack([g, np.zeros(len(g))])
     graph = knn_graph(pts, 8)
     exact = a * (1 + np.sqrt(2)) / 2
-    np.testing.assert_allclose(local_spacing(graph, pts), exact, rtol=1e-9)
-    plain = local_spacing(graph)
-    deep = np.all((g > 5.5 * a) & (g < 23.5 * a), axis=1)
-    np.testing.assert_allclose(plain[deep], exact, rtol=1e-9)
-    assert plain.max() > 1.1 * exact
+    for passes, margin in ((1, 2.5), (3, 4.5)):
+        h = local_spacing(graph, passes)
+        deep = np.all((g > margin * a) & (g < (29 - margin) * a), axis=1)
+        np.testing.assert_allclose(h[deep], exact, rtol=1e-9)
+        assert h.max() > 1.1 * exact  # the corners
 
 
 def test_balls_follow_local_density():
