@@ -65,6 +65,12 @@ _MIN_PERIMETER_BALLS = 2.0
 #: rings of voids 1.3-2.7, true loops (holes included) 0.6-0.9, real meshes 0.6-0.8.
 _MAX_LOOP_SPACING = 1.25
 
+#: Rings around voids are short: random samplings of 2k-100k points gave 8-16 points.
+#: Longer loops are kept whatever their spacing (the boundary of an adaptively sampled
+#: cap is spaced 1.34 local spacings apart along itself: its interior neighbours are
+#: denser than the boundary curve).
+_MAX_VOID_RING = 32
+
 #: Boundary points examined when bridging beyond the ball.
 _BRIDGE_K = 16
 
@@ -321,10 +327,10 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         Raise when no loop is found; when False, return empty ``loops`` instead (the
         caller may retry with wider balls).
     local_spacing : (N,) numpy.ndarray of float64, optional
-        Spacing around each point; when given, loops whose points are spaced along
-        them more than 1.25 local spacings apart are dropped as rings around voids of
-        the sampling (random samplings have such voids; a true boundary is sampled
-        along itself at least as densely as the surface around it).
+        Spacing around each point; when given, loops of fewer than 32 points spaced
+        along them more than 1.25 local spacings apart are dropped as rings around
+        voids of the sampling (random samplings have such voids; a true boundary is
+        sampled along itself about as densely as the surface around it).
 
     Returns
     -------
@@ -366,7 +372,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     kept = [c for c in all_cycles if c.size >= min_loop_size
             and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * max(float(np.median(ball_radius[c])), typical_radius)]
     if local_spacing is not None:
-        kept = [c for c in kept if _loop_spacing(points, c, local_spacing) <= _MAX_LOOP_SPACING]
+        kept = [c for c in kept
+                if c.size >= _MAX_VOID_RING or _loop_spacing(points, c, local_spacing) <= _MAX_LOOP_SPACING]
     n_dropped_loops += len(all_cycles) - len(kept)
     if not kept and require_loop:
         raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size)

@@ -77,24 +77,33 @@ def knn_graph(points: np.ndarray, k: int = 8) -> KnnGraph:
     return KnnGraph(indices=idx, distances=dist, mean_spacing=float(dist.mean()))
 
 
-def local_spacing(graph: KnnGraph) -> np.ndarray:
-    """Sampling spacing around each point: its mean kNN distance, averaged over its kNN.
+def local_spacing(graph: KnnGraph, passes: int = 1) -> np.ndarray:
+    """Sampling spacing around each point: mean kNN distances, averaged over the kNN.
 
-    The average over the neighbourhood makes the field smooth (one outlier neighbour does
-    not halve a point's radius), so balls and area terms sized from it follow the local
-    density of adaptively sampled surfaces instead of the global mean ``l``.
+    Each pass replaces a point's value by the mean over itself and its K neighbours, so
+    the field is smooth (one outlier neighbour does not halve a point's radius) and balls
+    and area terms sized from it follow the local density of adaptively sampled surfaces
+    instead of the global mean ``l``. On uniform random samples, where the true density
+    is constant, passes remove noise: ocp on 20k random points had QC 1.0226 (bump) with
+    one pass, 1.0085 (plane), 1.0050 (cap) with ten, against scp-igl's 1.0033 / 1.0 /
+    1.0042 on the true meshes. Boundary points overstate their spacing (their kNN fill a
+    half disc); many passes spread that over a few rings.
 
     Parameters
     ----------
     graph : KnnGraph
+    passes : int
+        Neighbourhood averages applied to the per-point mean kNN distance.
 
     Returns
     -------
     (N,) numpy.ndarray of float64
         Length units of the points; its mean is close to ``graph.mean_spacing``.
     """
-    own = graph.distances.mean(axis=1)
-    return (own + own[graph.indices].sum(axis=1)) / (graph.k + 1)
+    h = graph.distances.mean(axis=1)
+    for _ in range(int(passes)):
+        h = (h + h[graph.indices].sum(axis=1)) / (graph.k + 1)
+    return h
 
 
 def symmetric_adjacency(graph: KnnGraph) -> sp.csr_matrix:

@@ -27,7 +27,7 @@ FRONTEND_DEFAULTS: dict[str, Any] = {
     "reg_eps": 1e-2,
     "boundary_angle_deg": 120.0,
     "boundary_decimate": 1,
-    "spacing": "global",
+    "spacing": "local",
     "neighbours": "euclidean",
 }
 

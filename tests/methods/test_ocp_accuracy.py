@@ -41,7 +41,9 @@ def _check(ev, ref):
 def test_cap_jittered_matches_scp_and_stereographic_map():
     ev, ref, res = _run("cap", "jittered")
     _check(ev, ref)
-    assert ev["exact_error"] <= 5e-4  # issue target 1e-3; measured 3.8e-4
+    # issue target 1e-3; measured 3.8e-4 with one global ball radius, 7.0e-4 with radii and
+    # area terms from the local spacing (the default since graded samplings need it)
+    assert ev["exact_error"] <= 1e-3
     assert abs(res.diagnostics["k_opt"] - 1.0) < 0.05  # the energy is at the conformal scale
     assert res.diagnostics["energy"] == "neumann"
 

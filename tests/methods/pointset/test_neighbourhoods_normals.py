@@ -168,15 +168,20 @@ def test_thin_fold_does_not_fool_the_orientation_tree():
 
 def test_local_spacing_of_a_square_grid_by_hand():
     """Interior points of a square grid of step a: 4 neighbours at a and 4 at a*sqrt(2),
-    so the mean 8-NN distance (and its neighbourhood average) is a (1 + sqrt 2) / 2."""
+    so the mean 8-NN distance (and its neighbourhood averages) is a (1 + sqrt 2) / 2; the
+    edge's larger distances (one-sided neighbourhoods) reach one ring inwards per pass."""
     from methods.pointset.neighbourhoods import knn_graph, local_spacing
 
     a = 0.3
     g = np.stack(np.meshgrid(np.arange(30), np.arange(30)), -1).reshape(-1, 2) * a
     pts = np.column_stack([g, np.zeros(len(g))])
-    h = local_spacing(knn_graph(pts, 8))
-    interior = np.all((g > 2.5 * a) & (g < 26.5 * a), axis=1)
-    np.testing.assert_allclose(h[interior], a * (1 + np.sqrt(2)) / 2, rtol=1e-9)
+    graph = knn_graph(pts, 8)
+    exact = a * (1 + np.sqrt(2)) / 2
+    for passes, margin in ((1, 2.5), (3, 4.5)):
+        h = local_spacing(graph, passes)
+        deep = np.all((g > margin * a) & (g < (29 - margin) * a), axis=1)
+        np.testing.assert_allclose(h[deep], exact, rtol=1e-9)
+        assert h.max() > 1.1 * exact  # the corners
 
 
 def test_balls_follow_local_density():

@@ -141,7 +141,9 @@ def test_fewer_negative_interior_weights_than_cotangent(make_height_patch, kind)
     off = (cot.row != cot.col) & interior[cot.row]
     cot_negative = float((cot.data[off] < 0).mean())
 
-    fe = build_frontend(patch.points)
+    # The paper's setting (one ball radius 2.5 l): with radii from the local spacing the
+    # balls of a random patch are smaller where it is denser (measured 2.0 % against 3.7 %).
+    fe = build_frontend(patch.points, spacing="global")
     w = fe.W.tocoo()
     tan_negative = float((w.data[interior[w.row]] < 0).mean())
     assert cot_negative > 0.02
