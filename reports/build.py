@@ -8,6 +8,7 @@ and failed cells are reported, not dropped.
 
 from __future__ import annotations
 
+import importlib
 import os
 from pathlib import Path
 
@@ -18,23 +19,37 @@ from datasets_gen.errors import InputFileError
 
 from .benchmarks import load_benchmarks
 from .errors import EmptyResultsError
+from .claims import check_claims, claims_table, sdp_size_curve
 from .figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
-                      checkerboard_figure, landscape_figure, scaling_figure, scaling_fits, uv_layout_figure,
-                      weights_figure)
-from .html import Note, Section, render_report
+                      checkerboard_figure, landscape_figure, scaling_figure, scaling_fits, sdp_curve_figure,
+                      uv_layout_figure, weights_figure)
+from .html import Note, Row, Section, render_report
 from .labels import add_labels
 from .load import CellArrays, Results, load_cell_arrays, load_dataset_arrays, load_results
 from .pdf import write_pdf
 from .selection import PictureView, dataset_npz_candidates, picture_views
-from .tables import (MEASURED_STATUSES, benchmark_table, exponent_table, failures_table, metadata_table,
-                     overview_table, suspect_table,
-                     stage_memory_table, summarise, summary_tables)
+from .tables import (ACCEPTABLE_RULE, MEASURED_STATUSES, benchmark_table, exponent_table, failures_table,
+                     metadata_table, overview_table, stage_memory_table, summarise, summary_tables, suspect_table)
+from .verdict import family_verdicts, verdict_sentences, verdict_table
 
-__all__ = ["build_report", "render_html", "EmptyResultsError", "FORMATS"]
+__all__ = ["build_report", "render_html", "EmptyResultsError", "FORMATS", "OPTIONAL_SECTIONS"]
 
 FORMATS = ("html", "pdf")
 _SOURCE_PACKAGES = ("methods", "datasets_gen", "bench", "reports", "tests")
 _MAX_BOUNDARY_PANELS = 6
+#: Printed height per row of panels of the per-surface uv and checkerboard figures (CSS px):
+#: both figures and a row of small diagnostics fit one A4 landscape page.
+_SURFACE_ROW_PX = 92
+
+#: Sections other modules may add, as (module, function) pairs. The function is called as
+#: ``function(results, rows)`` with the loaded :class:`~reports.load.Results` and the labelled
+#: rows, and returns a :class:`~reports.html.Section` (or None when the run has no data for
+#: it). A module that is not installed is skipped. They are placed after the per-surface
+#: pictures, before the timings.
+OPTIONAL_SECTIONS = (
+    ("reports.boundary_benchmark", "report_section"),
+    ("reports.figures.angle_histogram", "report_section"),
+)
 
 
 def _check_out_dir(out_dir: Path) -> None:
@@ -60,7 +75,7 @@ def _load_arrays(results: Results, artifact: str, warnings: list[str]) -> CellAr
 
 
 def _view_section(results: Results, view: PictureView, warnings: list[str]) -> Section:
-    section = Section(f"Surface: {view.title}", new_page=True)
+    section = Section(f"Surface: {view.title}", new_page=True, css_class="surface")
     panels: list[LayoutPanel] = []
     not_drawn: list[str] = []
     cell_arrays: dict[str, CellArrays] = {}
@@ -82,18 +97,23 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
         surface = None
 
     if panels:
-        section.blocks.append(Section("uv layouts", [uv_layout_figure(panels, view.title)]))
-        section.blocks.append(Section("Checkerboard texture",
-                                      [checkerboard_figure([(p.label, p.arrays) for p in panels], view.title)]))
+        layouts = uv_layout_figure(panels, view.title)
+        checks = checkerboard_figure([(p.label, p.arrays) for p in panels], view.title)
+        for picture in (layouts, checks):
+            picture.config, picture.print_row_px = view.config, _SURFACE_ROW_PX
+        section.blocks.append(Section("uv layouts", [layouts]))
+        section.blocks.append(Section("Checkerboard texture", [checks]))
     else:
         section.blocks.append(Note("No method stored uv arrays for this surface, so there are no layout "
                                    "pictures (cells above the artifact size limit store none).", "muted"))
     if not_drawn:
         section.blocks.append(Note("Not drawn: " + "; ".join(not_drawn) + ".", "muted"))
 
+    # Boundary, landscape and weights are small: one row under the two big figures.
+    small = []
     boundary = _boundary_panels(view, surface, cell_arrays)
     if boundary:
-        section.blocks.append(Section("Boundary detection", [boundary_figure(boundary, view.title)]))
+        small.append(boundary_figure(boundary, view.title))
 
     curves = []
     for row in view.rows.itertuples():
@@ -102,12 +122,17 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
             land = arrays.landscape
             curves.append(LandscapeCurve(row.variant, land["k"], land["E"], land["t"], row.k_opt))
     if curves:
-        section.blocks.append(Section("OCP landscape", [landscape_figure(curves, view.title)]))
+        small.append(landscape_figure(curves, view.title))
 
     if surface is not None:
         picture = weights_figure(surface, view.title)
         if picture is not None:
-            section.blocks.append(Section("Weight histograms", [picture]))
+            small.append(picture)
+    if small:
+        names = {"Boundary": "Boundary detection", "OCP": "OCP landscape", "Weight": "Weight histograms"}
+        title = ", ".join(next((v for k, v in names.items() if p.title.startswith(k)), p.title.split(" — ")[0])
+                          for p in small)
+        section.blocks.append(Section(title, [Row(small, row_height=118)]))
     return section
 
 
@@ -124,14 +149,28 @@ def _boundary_panels(view: PictureView, surface: dict | None, cell_arrays: dict)
         if mask is not None or surface.get("det_loops") is not None:
             panels.append(BoundaryPanel("point-set front end", points, surface_gt, mask, surface.get("det_loops"),
                                         faces))
+    # Methods that share the front end detect the same loops: one panel per distinct detection.
+    seen = {_loops_key(panels[0].det_loops)} if panels and panels[0].det_loops is not None else set()
+    by_key: dict = {}
     for variant, arrays in cell_arrays.items():
         if arrays.det_loops is None:
+            continue
+        key = _loops_key(arrays.det_loops)
+        if key in seen:
+            continue
+        if key in by_key:
+            by_key[key].label += f", {variant}"
             continue
         gt = arrays.gt_loops
         if gt is None and surface is not None and len(surface.get("points", ())) == len(arrays.points):
             gt = surface_gt
-        panels.append(BoundaryPanel(variant, arrays.points, gt, None, arrays.det_loops, arrays.faces))
+        by_key[key] = BoundaryPanel(variant, arrays.points, gt, None, arrays.det_loops, arrays.faces)
+    panels += list(by_key.values())
     return panels[:_MAX_BOUNDARY_PANELS]
+
+
+def _loops_key(loops) -> tuple:
+    return tuple(sorted(tuple(int(i) for i in np.sort(np.asarray(loop))) for loop in loops or []))
 
 
 def _subtitle(run: dict, rows: pd.DataFrame) -> str:
@@ -178,44 +217,73 @@ def render_html(results: Results, benchmark_json=()) -> str:
     n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
     sections: list[Section] = []
 
-    overview = Section("Overview", intro=(
+    verdicts = family_verdicts(summary, rows)
+    verdict = Section("Verdict: which method, where, and why", intro=(
         f"{len(rows)} cells: {n_ok} ok, " + (f"{n_suspect} suspect (map failed its self-check), " if n_suspect else "")
-        + f"{len(rows) - n_ok - n_suspect} failed; {rows['variant'].nunique()} method "
-        f"variant(s) on {rows['config'].nunique()} surface configuration(s). Values are medians over seeds; "
-        f"every metric is lower-is-better."))
+        + f"{len(rows) - n_ok - n_suspect} failed; {rows['variant'].nunique()} method variant(s) on "
+        f"{rows['config'].nunique()} surface configuration(s). Every sentence and cell below is computed from this "
+        f"run's results."))
     if n_ok + n_suspect == 0:
-        overview.blocks.append(Note("Every cell failed: the tables below list the errors.", "warning"))
-    overview.blocks.append(overview_table(summary))
-    sections.append(overview)
+        verdict.blocks.append(Note("Every cell failed: the tables below list the errors.", "warning"))
+    else:
+        verdict.blocks += [Note(text) for text in verdict_sentences(verdicts)]
+        table = verdict_table(verdicts)
+        table.note = ACCEPTABLE_RULE
+        verdict.blocks.append(table)
+    sections.append(verdict)
+    claims = Section("The paper's claims, measured", [claims_table(check_claims(rows))])
+    curve = sdp_size_curve(rows)
+    picture = sdp_curve_figure(curve)
+    if picture is not None:
+        claims.blocks.append(Section("SDP against N on surfaces with holes", [picture]))
+    sections.append(claims)
 
-    summary_section = Section("Summary tables", intro=(
+    overview = Section("Overview", intro="Values are medians over seeds; every metric is lower-is-better. Click a "
+                                         "header to sort, a summary row to see that cell's pictures.")
+    table = overview_table(summary)
+    table.note = ACCEPTABLE_RULE
+    overview.blocks.append(table)
+    summary_blocks = list(summary_tables(summary).values())
+    if summary_blocks:
+        summary_blocks[-1].note = ACCEPTABLE_RULE
+    overview.blocks.append(Section("Summary tables", summary_blocks, intro=(
         "One table per surface configuration, one row per method variant. QC is the quasi-conformal distortion "
         "(1 = conformal), foldovers count flipped triangles, the exact-map error compares with the known map "
-        "where the dataset has one (— where it has none)."))
-    summary_section.blocks.append("<p class=\"legend\"><span class=\"swatch\">best</span> marks the best "
-                                  "value of a column in its table (when at least two methods have one).</p>")
-    summary_section.blocks += list(summary_tables(summary).values())
-    sections.append(summary_section)
+        "where the dataset has one (— where it has none).")))
+    sections.append(overview)
 
     failures = failures_table(rows)
-    sections.append(Section("Failed cells", [failures if failures.rows else Note("No cell failed.", "muted")]))
     suspects = suspect_table(rows)
+    problems = Section("Failed and suspect cells")
+    problems.blocks.append(failures if failures.rows else Note("No cell failed.", "muted"))
     if suspects.rows:
-        sections.append(Section("Suspect cells", [suspects]))
+        problems.blocks.append(suspects)
+    sections.append(problems)
 
-    for view in picture_views(rows, results.root):
-        sections.append(_view_section(results, view, warnings))
+    views = picture_views(rows, results.root)
+    for i, view in enumerate(views):
+        section = _view_section(results, view, warnings)
+        if i == 0:
+            section.intro = ("How to read a surface page: uv layouts are coloured by per-triangle QC on one scale "
+                             "(foldovers red); the checkerboard is mapped onto the surface through each uv (square "
+                             "checks = angle-preserving); the small row shows the detected boundary against the "
+                             "truth (one panel per distinct detection), the k line search and the weight histograms.")
+        sections.append(section)
 
-    scaling = Section("Time against size")
+    for module_name, function_name in OPTIONAL_SECTIONS:
+        extra = _optional_section(module_name, function_name, results, rows, warnings)
+        if extra is not None:
+            sections.append(extra)
+
     picture = scaling_figure(rows)
-    if picture is None:
-        scaling.blocks.append(Note("No method was timed at two or more sizes of one surface: no fit.", "muted"))
-    else:
-        scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
-    memory = stage_memory_table(rows)
-    if memory is not None:
-        scaling.blocks.append(memory)
-    sections.append(scaling)
+    memory = stage_memory_table(rows) if _isolated(results.run) else None
+    if picture is not None or memory is not None:
+        scaling = Section("Time against size")
+        if picture is not None:
+            scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
+        if memory is not None:
+            scaling.blocks.append(memory)
+        sections.append(scaling)
 
     if stats is not None:
         bench = Section("Benchmarks", intro="From " + ", ".join(p.name for p in paths) + ".")
@@ -230,6 +298,27 @@ def render_html(results: Results, benchmark_json=()) -> str:
         run_section.blocks.append(Note("Skipped while reading: " + " | ".join(warnings), "warning"))
     sections.append(run_section)
     return render_report("parambench report", _subtitle(results.run, rows), sections)
+
+
+def _isolated(run: dict) -> bool:
+    """Whether the run measured each cell in its own process (only then is memory per cell)."""
+    params = run.get("parameters") if isinstance(run.get("parameters"), dict) else {}
+    return bool(run.get("isolate") or params.get("isolate") or "--isolate" in str(run.get("command", "")))
+
+
+def _optional_section(module_name: str, function_name: str, results: Results, rows: pd.DataFrame,
+                      warnings: list[str]) -> Section | None:
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.startswith(exc.name):
+            return None  # not installed: the section is optional
+        raise
+    function = getattr(module, function_name, None)
+    if function is None:
+        warnings.append(f"{module_name} has no {function_name}(results, rows): its section is left out.")
+        return None
+    return function(results, rows)
 
 
 def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMATS) -> dict[str, Path]:
