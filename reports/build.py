@@ -52,7 +52,8 @@ OPTIONAL_SECTIONS = (
 )
 
 
-def _check_out_dir(out_dir: Path) -> None:
+def check_out_dir(out_dir: Path) -> None:
+    """Refuse an output folder inside the package sources (raises InputFileError)."""
     repo = Path(__file__).resolve().parent.parent
     target = out_dir.resolve()
     for name in _SOURCE_PACKAGES:
@@ -356,7 +357,7 @@ def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMAT
         raise UnknownNameError(f"Unknown report format(s) {unknown}; choose from {list(FORMATS)}.")
     results = load_results(results_dir)
     out = Path(out_dir) if out_dir is not None else results.root / "report"
-    _check_out_dir(out)
+    check_out_dir(out)
     text = render_html(results, benchmark_json)
     out.mkdir(parents=True, exist_ok=True)
     written: dict[str, Path] = {}

@@ -63,7 +63,7 @@ def _param(row, key: str):
 def _measured(rows: pd.DataFrame, method: str, **params) -> pd.DataFrame:
     sel = rows[(rows["method"] == method) & rows["status"].isin(MEASURED_STATUSES)]
     for key, value in params.items():
-        sel = sel[[_param(r, key) == value for _, r in sel.iterrows()]]
+        sel = sel[np.array([_param(r, key) == value for _, r in sel.iterrows()], dtype=bool)]
     return sel
 
 

@@ -100,9 +100,21 @@ def overlapping_texts(fig: Figure) -> list[tuple[str, str]]:
     list of (str, str)
     """
     renderer = _renderer(fig)
+    tick_labels, drawn_ticks = set(), []
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            for tick in axis.majorTicks + axis.minorTicks:
+                tick_labels.update((id(tick.label1), id(tick.label2)))
+            if ax.axison and axis.get_visible():
+                # Only the ticks the axis draws (inside its view interval), not the spare ones.
+                for tick in axis._update_ticks():
+                    drawn_ticks += [t for t in (tick.label1, tick.label2) if t.get_visible()]
+    texts = [t for t in fig.findobj(Text) if id(t) not in tick_labels] + drawn_ticks
     boxes = []
-    for text in fig.findobj(Text):
+    for text in texts:
         if not text.get_visible() or not text.get_text().strip() or text.figure is None:
+            continue
+        if text.axes is not None and not text.axes.get_visible():
             continue
         box = text.get_window_extent(renderer)
         if box.width > 0 and box.height > 0:
@@ -181,6 +193,11 @@ def figure_to_picture(fig: Figure, title: str, caption: str = "", dpi: int = DPI
         if len(jpeg) < 0.85 * len(data):  # JPEG only when clearly smaller: it blurs thin lines
             data, kind = jpeg, "jpeg"
     width, height = Image.open(io.BytesIO(data)).size
+    # Lay the figure out again at the saved resolution: axis labels are placed in pixels at
+    # draw time, so measuring at another dpi would misplace them against their tick labels.
+    fig.set_dpi(dpi)
+    _renderer(fig)
+    fig.canvas.draw()
     uri = f"data:image/{kind};base64," + base64.b64encode(data).decode("ascii")
     panels = {}
     if panel_axes:
