@@ -103,12 +103,13 @@ def overlapping_texts(fig: Figure) -> list[tuple[str, str]]:
     tick_labels, drawn_ticks = set(), []
     for ax in fig.axes:
         for axis in (ax.xaxis, ax.yaxis):
+            # Only the ticks the axis draws (inside its view interval), not the spare ones; asked
+            # first, because asking may create tick objects.
+            drawn = axis._update_ticks() if ax.axison and axis.get_visible() else []
             for tick in axis.majorTicks + axis.minorTicks:
                 tick_labels.update((id(tick.label1), id(tick.label2)))
-            if ax.axison and axis.get_visible():
-                # Only the ticks the axis draws (inside its view interval), not the spare ones.
-                for tick in axis._update_ticks():
-                    drawn_ticks += [t for t in (tick.label1, tick.label2) if t.get_visible()]
+            for tick in drawn:
+                drawn_ticks += [t for t in (tick.label1, tick.label2) if t.get_visible()]
     texts = [t for t in fig.findobj(Text) if id(t) not in tick_labels] + drawn_ticks
     boxes = []
     for text in texts:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from matplotlib.ticker import NullFormatter
 
 from ._common import Picture, figure_to_picture, new_figure, wrap_label
 
@@ -84,6 +85,9 @@ def _draw(ax_e, ax_t, curves: list[LandscapeCurve], offset: int) -> None:
         ax_e.set_yscale("log")
     # Always a log k axis: the same reading on every surface, whatever the spread of k.
     ax_e.set_xscale("log")
+    # Minor log labels (2x10^-1, 3x10^-1, ...) run into each other on these short axes.
+    for axis in (ax_e.xaxis, ax_e.yaxis, ax_t.xaxis):
+        axis.set_minor_formatter(NullFormatter())
     ax_e.grid(True, which="major", alpha=0.3)
     ax_e.legend(fontsize=7, frameon=False, loc="best")
     ax_e.tick_params(labelsize=7)
