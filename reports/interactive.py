@@ -25,7 +25,8 @@ input.table-filter { font-size: 9pt; margin: 0 0 0.3em; padding: 0.15em 0.4em; w
 table.summary tbody tr[data-variant] { cursor: zoom-in; }
 #detail { position: fixed; top: 3%; right: 2%; max-width: 46%; max-height: 92%; overflow: auto; background: white;
           border: 2px solid #1b3a5c; box-shadow: 0 4px 18px rgba(0,0,0,0.3); padding: 0.6em 0.9em; z-index: 10; }
-#detail .crop { background-repeat: no-repeat; border: 1px solid #dde3ea; margin: 0.3em 0; }
+#detail .crop { background-repeat: no-repeat; border: 1px solid #dde3ea; margin: 0.3em 0.4em 0.3em 0;
+                display: inline-block; vertical-align: top; }
 #detail button { float: right; }
 @media print { .screen-only, #detail { display: none !important; } }
 """
@@ -109,7 +110,9 @@ SCRIPT = r"""
       if (img.getAttribute("data-config") !== config) return;
       var box = JSON.parse(img.getAttribute("data-panels"))[variant];
       if (!box) return;
-      detail.appendChild(crop(img, box, 420));
+      // At most 1.6x the panel's own pixels: larger only blurs it.
+      var native = (box[2] - box[0]) * img.naturalWidth;
+      detail.appendChild(crop(img, box, Math.round(Math.min(320, Math.max(160, 1.6 * native)))));
       found += 1;
     });
     if (!found) {

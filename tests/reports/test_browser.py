@@ -181,7 +181,7 @@ def test_a_click_on_a_summary_row_opens_its_pictures(driver, built_report, artif
     # the uv layout and the checkerboard of that surface, cut from the figures already in the page
     assert len(crops) == 2
     for image, width, height in crops:
-        assert image.startswith('url("data:image/') and 420 <= width <= 424 and height > 100  # 420 + border
+        assert image.startswith('url("data:image/') and 160 <= width <= 324 and height > 100  # + border
     driver.save_screenshot(str(artifacts_dir / "report-detail-view.png"))
     driver.execute_script("document.dispatchEvent(new KeyboardEvent('keydown', {key: 'Escape'}));")
     assert not detail.is_displayed()
