@@ -32,7 +32,8 @@ from .tables import (ACCEPTABLE_RULE, MEASURED_STATUSES, benchmark_table, expone
                      metadata_table, overview_table, stage_memory_table, summarise, summary_tables, suspect_table)
 from .verdict import family_verdicts, verdict_sentences, verdict_table
 
-__all__ = ["build_report", "render_html", "EmptyResultsError", "FORMATS", "OPTIONAL_SECTIONS"]
+__all__ = ["build_report", "render_html", "check_out_dir", "EmptyResultsError", "FORMATS", "OPTIONAL_SECTIONS",
+           "ANGLE_HISTOGRAM"]
 
 FORMATS = ("html", "pdf")
 _SOURCE_PACKAGES = ("methods", "datasets_gen", "bench", "reports", "tests")
@@ -41,15 +42,19 @@ _MAX_BOUNDARY_PANELS = 6
 #: both figures and a row of small diagnostics fit one A4 landscape page.
 _SURFACE_ROW_PX = 92
 
-#: Sections other modules may add, as (module, function) pairs. The function is called as
-#: ``function(results, rows)`` with the loaded :class:`~reports.load.Results` and the labelled
-#: rows, and returns a :class:`~reports.html.Section` (or None when the run has no data for
-#: it). A module that is not installed is skipped. They are placed after the per-surface
-#: pictures, before the timings.
+#: Sections other modules may add, as (module, function, input): a module that is not
+#: installed is skipped. ``input`` says what the function is called with: "results" ->
+#: ``function(results, rows)`` (the loaded :class:`~reports.load.Results` and the labelled
+#: rows), placed after the per-surface pages; "benchmarks" -> ``function(stats)`` (the
+#: pytest-benchmark statistics, only when benchmark files were given), placed in the
+#: Benchmarks section. Each returns a :class:`~reports.html.Section` or None (no data).
 OPTIONAL_SECTIONS = (
-    ("reports.boundary_benchmark", "report_section"),
-    ("reports.figures.angle_histogram", "report_section"),
+    ("reports.boundary_benchmark", "boundary_benchmark_section", "benchmarks"),
 )
+#: A per-surface picture other modules may add to the row of small figures: (module,
+#: function); called as ``function(histograms, edges, title)`` with each drawn variant's
+#: stored ``angle_hist`` and the bin edges of ``bench.metrics.ANGLE_HIST_EDGES_DEG``.
+ANGLE_HISTOGRAM = ("reports.figures.angle_histogram", "angle_histogram_figure")
 
 
 def check_out_dir(out_dir: Path) -> None:
@@ -129,8 +134,12 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
         picture = weights_figure(surface, view.title)
         if picture is not None:
             small.append(picture)
+    picture = _angle_histogram(view, [p.label for p in panels], warnings)
+    if picture is not None:
+        small.append(picture)
     if small:
-        names = {"Boundary": "Boundary detection", "OCP": "OCP landscape", "Weight": "Weight histograms"}
+        names = {"Boundary": "Boundary detection", "OCP": "OCP landscape", "Weight": "Weight histograms",
+                 "Angle": "Angle distortion"}
         title = ", ".join(next((v for k, v in names.items() if p.title.startswith(k)), p.title.split(" — ")[0])
                           for p in small)
         section.blocks.append(Section(title, [Row(small, row_height=118)]))
@@ -271,8 +280,9 @@ def render_html(results: Results, benchmark_json=()) -> str:
                              "truth (one panel per distinct detection), the k line search and the weight histograms.")
         sections.append(section)
 
-    for module_name, function_name in OPTIONAL_SECTIONS:
-        extra = _optional_section(module_name, function_name, results, rows, warnings)
+    for module_name, function_name, kind in OPTIONAL_SECTIONS:
+        function = _optional_function(module_name, function_name, warnings)
+        extra = function(results, rows) if function is not None and kind == "results" else None
         if extra is not None:
             sections.append(extra)
 
@@ -292,6 +302,11 @@ def render_html(results: Results, benchmark_json=()) -> str:
         if picture is not None:
             bench.blocks.append(picture)
         bench.blocks.append(benchmark_table(stats) if len(stats) else Note("The files hold no benchmark.", "muted"))
+        for module_name, function_name, kind in OPTIONAL_SECTIONS:
+            function = _optional_function(module_name, function_name, warnings)
+            extra = function(stats) if function is not None and kind == "benchmarks" else None
+            if extra is not None:
+                bench.blocks.append(extra)
         sections.append(bench)
 
     run_section = Section("Run metadata", [metadata_table(results.run)])
@@ -307,19 +322,36 @@ def _isolated(run: dict) -> bool:
     return bool(run.get("isolate") or params.get("isolate") or "--isolate" in str(run.get("command", "")))
 
 
-def _optional_section(module_name: str, function_name: str, results: Results, rows: pd.DataFrame,
-                      warnings: list[str]) -> Section | None:
+def _optional_function(module_name: str, function_name: str, warnings: list[str]):
+    """``module_name.function_name``, or None when the module is not installed."""
     try:
         module = importlib.import_module(module_name)
     except ModuleNotFoundError as exc:
         if exc.name and module_name.startswith(exc.name):
-            return None  # not installed: the section is optional
+            return None  # not installed: the part is optional
         raise
     function = getattr(module, function_name, None)
     if function is None:
-        warnings.append(f"{module_name} has no {function_name}(results, rows): its section is left out.")
+        warnings.append(f"{module_name} has no {function_name}: its part of the report is left out.")
+    return function
+
+
+def _angle_histogram(view: PictureView, drawn: list[str], warnings: list[str]):
+    if "angle_hist" not in view.rows.columns:
+        return None  # results stored before the column existed
+    function = _optional_function(*ANGLE_HISTOGRAM, warnings)
+    try:
+        from bench.metrics import ANGLE_HIST_EDGES_DEG as edges
+    except ImportError:
         return None
-    return function(results, rows)
+    if function is None:
+        return None
+    rows = view.rows[view.rows["variant"].isin(drawn)]
+    try:
+        return function(list(zip(rows["variant"], rows["angle_hist"])), edges, view.title)
+    except ValueError as exc:  # histograms stored over other edges
+        warnings.append(f"no angle histogram for {view.title}: {exc}")
+        return None
 
 
 def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMATS) -> dict[str, Path]:

@@ -104,7 +104,7 @@ td.claim.met { background: #d9f2d9 !important; color: #14591c; font-weight: 600;
 td.claim.not-met { background: #fdeaea !important; color: #a11; font-weight: 600; }
 td.claim.partly-met { background: #fff4d6 !important; color: #8a5a00; font-weight: 600; }
 td.recommended { color: #14591c; font-weight: 600; }
-table.verdict td, table.claims td { max-width: 34em; }
+table.verdict, table.claims { width: 100%; }
 @media print {
   body { padding: 0; max-width: none; font-size: 9.5pt; }
   section.surface figcaption { display: none; }
@@ -119,7 +119,7 @@ table.verdict td, table.claims td { max-width: 34em; }
   section.new-page { break-before: page; page-break-before: always; }
   thead { display: table-header-group; }
   tr { break-inside: avoid; page-break-inside: avoid; }
-  div.table:not(.for-failures) { break-inside: avoid; page-break-inside: avoid; }
+  div.table:not(.for-failures):not(.for-verdict):not(.for-claims) { break-inside: avoid; page-break-inside: avoid; }
   p.caption { break-after: avoid; page-break-after: avoid; }
   h2, h3, h2 + p, h3 + p { break-after: avoid; page-break-after: avoid; }
   nav.toc ol { columns: 3; }

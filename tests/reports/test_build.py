@@ -147,3 +147,85 @@ def test_bad_benchmark_file_is_a_clear_error(results_dir, tmp_path):
     bad.write_text("{}")
     with pytest.raises(InputFileError, match="benchmark-json"):
         build_report(results_dir, benchmark_json=[bad], formats=("html",))
+
+
+def test_memory_table_only_for_isolated_runs(tmp_path, make_results, spec_type):
+    import json
+
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"bump": [144, 400]}, methods=("scp",), seeds=(0,), failed=(),
+                                 parquet=False))
+    for path in (root / "cells").glob("*.json"):
+        row = json.loads(path.read_text())
+        row["stage_memory_mb"] = json.dumps({"solve": 812.0, "knn": 700.0})
+        path.write_text(json.dumps(row))
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert "Peak resident memory" not in html  # whole-process figures of an in-process sweep say little
+    run = json.loads((root / "run.json").read_text())
+    run["command"] = "parambench run --suite scale --isolate"
+    (root / "run.json").write_text(json.dumps(run))
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert "Peak resident memory" in html and ">812<" in html
+
+
+def test_optional_sections_are_added_when_their_module_exists(tmp_path, make_results, spec_type, monkeypatch,
+                                                              mesh_tools):
+    import sys
+    import types
+
+    from reports import build
+    from reports.html import Note, Section
+
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"saddle": [144]}, methods=("scp",), seeds=(0,), failed=()))
+    module = types.ModuleType("reports_test_extra")
+    module.report_section = lambda results, rows: Section("Extra section", [Note(f"{len(rows)} rows seen")])
+    module.bench_section = lambda stats: Section("Extra benchmark part", [Note(f"{len(stats)} benchmarks seen")])
+    monkeypatch.setitem(sys.modules, "reports_test_extra", module)
+    monkeypatch.setattr(build, "OPTIONAL_SECTIONS", (
+        ("reports_test_extra", "report_section", "results"), ("reports_test_extra", "bench_section", "benchmarks"),
+        ("reports_not_installed_module", "section", "results")))
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert "Extra section" in section_titles(html) and "1 rows seen" in html
+    assert "Extra benchmark part" not in section_titles(html)  # no benchmark file: not called
+    bench = mesh_tools["write_benchmark_json"](tmp_path / "bench.json")
+    html = build_report(root, benchmark_json=[bench], formats=("html",))["html"].read_text()
+    assert "Extra benchmark part" in section_titles(html) and "3 benchmarks seen" in html
+
+
+def test_angle_histograms_join_the_surface_row_when_stored(tmp_path, make_results, spec_type, monkeypatch):
+    import json
+    import sys
+    import types
+
+    import numpy as np
+
+    import bench.metrics
+    from reports import build
+    from reports.figures._common import figure_to_picture, new_figure
+
+    root = tmp_path / "r"
+    make_results(root, spec_type(datasets={"saddle": [144]}, methods=("scp", "lscm"), seeds=(0,), failed=(),
+                                 parquet=False))
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert not any("Angle distortion" in t for t in section_titles(html))  # no angle_hist column: no picture
+    for path in (root / "cells").glob("*.json"):
+        row = json.loads(path.read_text())
+        row["angle_hist"] = json.dumps([1, 5, 1])
+        path.write_text(json.dumps(row))
+    seen = {}
+
+    def figure(histograms, edges, title):
+        seen["labels"], seen["edges"] = sorted(label for label, _ in histograms), list(edges)
+        fig = new_figure(3, 2)
+        fig.subplots().plot([0, 1])
+        return figure_to_picture(fig, f"Angle distortion — {title}")
+
+    module = types.ModuleType("reports_test_angles")
+    module.angle_histogram_figure = figure
+    monkeypatch.setitem(sys.modules, "reports_test_angles", module)
+    monkeypatch.setattr(build, "ANGLE_HISTOGRAM", ("reports_test_angles", "angle_histogram_figure"))
+    monkeypatch.setattr(bench.metrics, "ANGLE_HIST_EDGES_DEG", np.array([-1.0, 0.0, 1.0, 2.0]), raising=False)
+    html = build_report(root, formats=("html",))["html"].read_text()
+    assert any("Angle distortion" in t for t in section_titles(html))
+    assert seen == {"labels": ["lscm", "scp"], "edges": [-1.0, 0.0, 1.0, 2.0]}
