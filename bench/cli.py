@@ -223,8 +223,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     paths, diff = build_comparison(args.results_dir, args.other_dir, out_dir=args.out)
     regressions = diff[diff["change"] == "regression"]
     counts = diff["change"].value_counts()
-    print(", ".join(f"{int(counts[k])} {k}" for k in ("regression", "improvement", "unchanged", "only in A", "only in B")
-                    if k in counts))
+    order = ("regression", "improvement", "unchanged", "only in A", "only in B")
+    print(", ".join(f"{int(counts[k])} {k}" for k in order if k in counts))
     for r in regressions.head(10).itertuples():
         print(f"  REGRESSION {r.config} / {r.variant}: {r.what}")
     if len(regressions) > 10:

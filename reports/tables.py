@@ -3,9 +3,10 @@
 Seeds are repeats: a summary row is one (configuration, method variant) and shows the
 median over its ok seeds. Every metric is "lower is better" (QC >= 1 with 1 conformal,
 foldovers, area distortion, exact-map error, time); the best value of each column within a
-configuration is marked when at least two variants have a value. Failed cells keep their
-row, with the error text in the status column, and are listed once more in full in the
-failures table. "Suspect" cells (a point-set map that failed its self-check) have metrics:
+configuration is marked among the acceptable maps only (:data:`ACCEPTABLE_RULE`, printed under
+the tables), when at least two of them have a value. Failed cells keep their row, with a
+short error text in the status column; the failures table gives each message once, in full,
+with the cells it hit. "Suspect" cells (a point-set map that failed its self-check) have metrics:
 they count in the medians, are named in the status column and listed in their own table.
 """
 

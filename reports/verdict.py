@@ -215,8 +215,9 @@ def verdict_table(verdicts: pd.DataFrame) -> Table:
     caption = (f"Verdict per surface family: recommended = acceptable on every surface of the family and within "
                f"{round((NEAR_BEST - 1) * 100)} % of its best QC; (×r time) = median time over {REFERENCE_METHOD}'s; "
                f"QC +x % = QC mean above the surface's best acceptable one; (on k of n) = surfaces of the family")
-    return Table(["Family", "Surfaces", "Recommended", "Acceptable (QC within 10 %)", "Not acceptable: measured reason"],
-                 body, caption, "verdict", numeric={1})
+    columns = ["Family", "Surfaces", "Recommended", f"Acceptable (QC within {round((QC_BOUND - 1) * 100)} %)",
+               "Not acceptable: measured reason"]
+    return Table(columns, body, caption, "verdict", numeric={1})
 
 
 def verdict_sentences(verdicts: pd.DataFrame) -> list[str]:

@@ -70,8 +70,8 @@ def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: i
         facts.append(f"QC mean {panel.qc_mean:.3f}")
     n_flipped = int(arrays.flipped.sum())
     facts.append(f"{n_flipped} foldover{'s' if n_flipped != 1 else ''}")
-    ax.set_title(wrap_label(title, _PANEL_IN, _TITLE_PT, 2) + "\n" + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2),
-                 fontsize=_TITLE_PT)
+    heading = wrap_label(title, _PANEL_IN, _TITLE_PT, 2) + "\n" + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2)
+    ax.set_title(heading, fontsize=_TITLE_PT)
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])

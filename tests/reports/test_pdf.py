@@ -48,7 +48,8 @@ def test_pdf_pages_render_to_png(pdf_report, require_tool, artifacts_dir):
 def test_pdf_tables_are_extractable_text(pdf_report, require_tool):
     text = pdf_text(require_tool, pdf_report["paths"]["pdf"])
     for expected in ("Summary tables", "QC mean", "QC p95", "Foldovers", "Area dist.", "Exact-map err.",
-                     "Failed and suspect cells", "ConvergenceError", "Verdict", "claims", "Run metadata", "0123456789abcdef", "test_ocp_2k",
+                     "Failed and suspect cells", "ConvergenceError", "Verdict", "claims", "Run metadata",
+                     "0123456789abcdef", "test_ocp_2k",
                      "Time against size", "lscm", "scp", "ocp"):
         assert expected in text, expected
     assert "OCP line search did not reach" in text
