@@ -40,7 +40,7 @@ _SOURCE_PACKAGES = ("methods", "datasets_gen", "bench", "reports", "tests")
 _MAX_BOUNDARY_PANELS = 6
 #: Printed height per row of panels of the per-surface uv and checkerboard figures (CSS px):
 #: both figures and a row of small diagnostics fit one A4 landscape page.
-_SURFACE_ROW_PX = 92
+_SURFACE_ROW_PX = 104
 
 #: Sections other modules may add, as (module, function, input): a module that is not
 #: installed is skipped. ``input`` says what the function is called with: "results" ->
@@ -248,8 +248,12 @@ def render_html(results: Results, benchmark_json=()) -> str:
         claims.blocks.append(Section("SDP against N on surfaces with holes", [picture]))
     sections.append(claims)
 
-    overview = Section("Overview", intro="Values are medians over seeds; every metric is lower-is-better. Click a "
-                                         "header to sort, a summary row to see that cell's pictures.")
+    overview = Section("Overview", intro=(
+        "Values are medians over seeds; every metric is lower-is-better. Click a header to sort, a summary row to "
+        "see that cell's pictures. The surface pages after the tables show, per surface: uv layouts coloured by "
+        "per-triangle QC on one scale (foldovers red); a checkerboard mapped onto the surface through each uv "
+        "(square checks = angle-preserving, about 20 across); and a row with the detected boundary against the "
+        "truth (one panel per distinct detection), the k line search and the weight histograms."))
     table = overview_table(summary)
     table.note = ACCEPTABLE_RULE
     overview.blocks.append(table)
@@ -270,15 +274,8 @@ def render_html(results: Results, benchmark_json=()) -> str:
         problems.blocks.append(suspects)
     sections.append(problems)
 
-    views = picture_views(rows, results.root)
-    for i, view in enumerate(views):
-        section = _view_section(results, view, warnings)
-        if i == 0:
-            section.intro = ("How to read a surface page: uv layouts are coloured by per-triangle QC on one scale "
-                             "(foldovers red); the checkerboard is mapped onto the surface through each uv (square "
-                             "checks = angle-preserving); the small row shows the detected boundary against the "
-                             "truth (one panel per distinct detection), the k line search and the weight histograms.")
-        sections.append(section)
+    for view in picture_views(rows, results.root):
+        sections.append(_view_section(results, view, warnings))
 
     for module_name, function_name, kind in OPTIONAL_SECTIONS:
         function = _optional_function(module_name, function_name, warnings)
