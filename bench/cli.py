@@ -204,11 +204,33 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    if args.other_dir:
+        return _cmd_compare(args)
     from reports.build import build_report
 
     paths = build_report(args.results_dir, benchmark_json=args.benchmark_json or (), out_dir=args.out)
     for kind, path in paths.items():
         print(f"report ({kind}): {path}")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from reports.compare import build_comparison
+
+    if args.benchmark_json:
+        raise InvalidInputError("--benchmark-json is for the report of one results directory; "
+                               "drop it when comparing two (parambench report A B).")
+    paths, diff = build_comparison(args.results_dir, args.other_dir, out_dir=args.out)
+    regressions = diff[diff["change"] == "regression"]
+    counts = diff["change"].value_counts()
+    order = ("regression", "improvement", "unchanged", "only in A", "only in B")
+    print(", ".join(f"{int(counts[k])} {k}" for k in order if k in counts))
+    for r in regressions.head(10).itertuples():
+        print(f"  REGRESSION {r.config} / {r.variant}: {r.what}")
+    if len(regressions) > 10:
+        print(f"  ... and {len(regressions) - 10} more regressions")
+    for kind, path in paths.items():
+        print(f"comparison ({kind}): {path}")
     return 0
 
 
@@ -278,10 +300,13 @@ def build_parser() -> argparse.ArgumentParser:
     insp.add_argument("-o", "--output", required=True, help="output .json")
     insp.set_defaults(func=_cmd_inspect)
 
-    rep = sub.add_parser("report", help="build the HTML and PDF report of a results directory")
+    rep = sub.add_parser("report", help="build the HTML and PDF report of a results directory, or compare two")
     rep.add_argument("results_dir")
+    rep.add_argument("other_dir", nargs="?",
+                     help="a second results directory: compare it (B) with the first (A), cell by cell, "
+                          "regressions first (writes compare.html)")
     rep.add_argument("--benchmark-json", nargs="+", help="pytest-benchmark JSON files")
-    rep.add_argument("--out", help="output directory (default: RESULTS_DIR/report)")
+    rep.add_argument("--out", help="output directory (default: RESULTS_DIR/report; with two: the second's report)")
     rep.set_defaults(func=_cmd_report)
 
     lst = sub.add_parser("list", help="list methods (with parameters) and datasets")

@@ -8,6 +8,7 @@ and failed cells are reported, not dropped.
 
 from __future__ import annotations
 
+import importlib
 import os
 from pathlib import Path
 
@@ -18,26 +19,46 @@ from datasets_gen.errors import InputFileError
 
 from .benchmarks import load_benchmarks
 from .errors import EmptyResultsError
+from .claims import check_claims, claims_table, sdp_size_curve
 from .figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
-                      checkerboard_figure, landscape_figure, scaling_figure, scaling_fits, uv_layout_figure,
-                      weights_figure)
-from .html import Note, Section, render_report
+                      checkerboard_figure, landscape_figure, scaling_figure, scaling_fits, sdp_curve_figure,
+                      uv_layout_figure, weights_figure)
+from .html import Note, Row, Section, render_report
 from .labels import add_labels
 from .load import CellArrays, Results, load_cell_arrays, load_dataset_arrays, load_results
 from .pdf import write_pdf
 from .selection import PictureView, dataset_npz_candidates, picture_views
-from .tables import (MEASURED_STATUSES, benchmark_table, exponent_table, failures_table, metadata_table,
-                     overview_table, suspect_table,
-                     stage_memory_table, summarise, summary_tables)
+from .tables import (ACCEPTABLE_RULE, MEASURED_STATUSES, benchmark_table, exponent_table, failures_table,
+                     metadata_table, overview_table, stage_memory_table, summarise, summary_tables, suspect_table)
+from .verdict import family_verdicts, verdict_sentences, verdict_table
 
-__all__ = ["build_report", "render_html", "EmptyResultsError", "FORMATS"]
+__all__ = ["build_report", "render_html", "check_out_dir", "EmptyResultsError", "FORMATS", "OPTIONAL_SECTIONS",
+           "ANGLE_HISTOGRAM"]
 
 FORMATS = ("html", "pdf")
 _SOURCE_PACKAGES = ("methods", "datasets_gen", "bench", "reports", "tests")
 _MAX_BOUNDARY_PANELS = 6
+#: Printed height per row of panels of the per-surface uv and checkerboard figures (CSS px):
+#: both figures and a row of small diagnostics fit one A4 landscape page.
+_SURFACE_ROW_PX = 104
+
+#: Sections other modules may add, as (module, function, input): a module that is not
+#: installed is skipped. ``input`` says what the function is called with: "results" ->
+#: ``function(results, rows)`` (the loaded :class:`~reports.load.Results` and the labelled
+#: rows), placed after the per-surface pages; "benchmarks" -> ``function(stats)`` (the
+#: pytest-benchmark statistics, only when benchmark files were given), placed in the
+#: Benchmarks section. Each returns a :class:`~reports.html.Section` or None (no data).
+OPTIONAL_SECTIONS = (
+    ("reports.boundary_benchmark", "boundary_benchmark_section", "benchmarks"),
+)
+#: A per-surface picture other modules may add to the row of small figures: (module,
+#: function); called as ``function(histograms, edges, title)`` with each drawn variant's
+#: stored ``angle_hist`` and the bin edges of ``bench.metrics.ANGLE_HIST_EDGES_DEG``.
+ANGLE_HISTOGRAM = ("reports.figures.angle_histogram", "angle_histogram_figure")
 
 
-def _check_out_dir(out_dir: Path) -> None:
+def check_out_dir(out_dir: Path) -> None:
+    """Refuse an output folder inside the package sources (raises InputFileError)."""
     repo = Path(__file__).resolve().parent.parent
     target = out_dir.resolve()
     for name in _SOURCE_PACKAGES:
@@ -60,7 +81,7 @@ def _load_arrays(results: Results, artifact: str, warnings: list[str]) -> CellAr
 
 
 def _view_section(results: Results, view: PictureView, warnings: list[str]) -> Section:
-    section = Section(f"Surface: {view.title}", new_page=True)
+    section = Section(f"Surface: {view.title}", new_page=True, css_class="surface")
     panels: list[LayoutPanel] = []
     not_drawn: list[str] = []
     cell_arrays: dict[str, CellArrays] = {}
@@ -82,18 +103,23 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
         surface = None
 
     if panels:
-        section.blocks.append(Section("uv layouts", [uv_layout_figure(panels, view.title)]))
-        section.blocks.append(Section("Checkerboard texture",
-                                      [checkerboard_figure([(p.label, p.arrays) for p in panels], view.title)]))
+        layouts = uv_layout_figure(panels, view.title)
+        checks = checkerboard_figure([(p.label, p.arrays) for p in panels], view.title)
+        for picture in (layouts, checks):
+            picture.config, picture.print_row_px = view.config, _SURFACE_ROW_PX
+        section.blocks.append(Section("uv layouts", [layouts]))
+        section.blocks.append(Section("Checkerboard texture", [checks]))
     else:
         section.blocks.append(Note("No method stored uv arrays for this surface, so there are no layout "
                                    "pictures (cells above the artifact size limit store none).", "muted"))
     if not_drawn:
         section.blocks.append(Note("Not drawn: " + "; ".join(not_drawn) + ".", "muted"))
 
+    # Boundary, landscape and weights are small: one row under the two big figures.
+    small = []
     boundary = _boundary_panels(view, surface, cell_arrays)
     if boundary:
-        section.blocks.append(Section("Boundary detection", [boundary_figure(boundary, view.title)]))
+        small.append(boundary_figure(boundary, view.title))
 
     curves = []
     for row in view.rows.itertuples():
@@ -102,12 +128,21 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
             land = arrays.landscape
             curves.append(LandscapeCurve(row.variant, land["k"], land["E"], land["t"], row.k_opt))
     if curves:
-        section.blocks.append(Section("OCP landscape", [landscape_figure(curves, view.title)]))
+        small.append(landscape_figure(curves, view.title))
 
     if surface is not None:
         picture = weights_figure(surface, view.title)
         if picture is not None:
-            section.blocks.append(Section("Weight histograms", [picture]))
+            small.append(picture)
+    picture = _angle_histogram(view, [p.label for p in panels], warnings)
+    if picture is not None:
+        small.append(picture)
+    if small:
+        names = {"Boundary": "Boundary detection", "OCP": "OCP landscape", "Weight": "Weight histograms",
+                 "Angle": "Angle distortion"}
+        title = ", ".join(next((v for k, v in names.items() if p.title.startswith(k)), p.title.split(" — ")[0])
+                          for p in small)
+        section.blocks.append(Section(title, [Row(small, row_height=118)]))
     return section
 
 
@@ -124,14 +159,28 @@ def _boundary_panels(view: PictureView, surface: dict | None, cell_arrays: dict)
         if mask is not None or surface.get("det_loops") is not None:
             panels.append(BoundaryPanel("point-set front end", points, surface_gt, mask, surface.get("det_loops"),
                                         faces))
+    # Methods that share the front end detect the same loops: one panel per distinct detection.
+    seen = {_loops_key(panels[0].det_loops)} if panels and panels[0].det_loops is not None else set()
+    by_key: dict = {}
     for variant, arrays in cell_arrays.items():
         if arrays.det_loops is None:
+            continue
+        key = _loops_key(arrays.det_loops)
+        if key in seen:
+            continue
+        if key in by_key:
+            by_key[key].label += f", {variant}"
             continue
         gt = arrays.gt_loops
         if gt is None and surface is not None and len(surface.get("points", ())) == len(arrays.points):
             gt = surface_gt
-        panels.append(BoundaryPanel(variant, arrays.points, gt, None, arrays.det_loops, arrays.faces))
+        by_key[key] = BoundaryPanel(variant, arrays.points, gt, None, arrays.det_loops, arrays.faces)
+    panels += list(by_key.values())
     return panels[:_MAX_BOUNDARY_PANELS]
+
+
+def _loops_key(loops) -> tuple:
+    return tuple(sorted(tuple(int(i) for i in np.sort(np.asarray(loop))) for loop in loops or []))
 
 
 def _subtitle(run: dict, rows: pd.DataFrame) -> str:
@@ -178,44 +227,71 @@ def render_html(results: Results, benchmark_json=()) -> str:
     n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
     sections: list[Section] = []
 
-    overview = Section("Overview", intro=(
+    verdicts = family_verdicts(summary, rows)
+    verdict = Section("Verdict: which method, where, and why", intro=(
         f"{len(rows)} cells: {n_ok} ok, " + (f"{n_suspect} suspect (map failed its self-check), " if n_suspect else "")
-        + f"{len(rows) - n_ok - n_suspect} failed; {rows['variant'].nunique()} method "
-        f"variant(s) on {rows['config'].nunique()} surface configuration(s). Values are medians over seeds; "
-        f"every metric is lower-is-better."))
+        + f"{len(rows) - n_ok - n_suspect} failed; {rows['variant'].nunique()} method variant(s) on "
+        f"{rows['config'].nunique()} surface configuration(s). Every sentence and cell below is computed from this "
+        f"run's results."))
     if n_ok + n_suspect == 0:
-        overview.blocks.append(Note("Every cell failed: the tables below list the errors.", "warning"))
-    overview.blocks.append(overview_table(summary))
-    sections.append(overview)
+        verdict.blocks.append(Note("Every cell failed: the tables below list the errors.", "warning"))
+    else:
+        verdict.blocks += [Note(text) for text in verdict_sentences(verdicts)]
+        table = verdict_table(verdicts)
+        table.note = ACCEPTABLE_RULE
+        verdict.blocks.append(table)
+    sections.append(verdict)
+    claims = Section("The paper's claims, measured", [claims_table(check_claims(rows))])
+    curve = sdp_size_curve(rows)
+    picture = sdp_curve_figure(curve)
+    if picture is not None:
+        claims.blocks.append(Section("SDP against N on surfaces with holes", [picture]))
+    sections.append(claims)
 
-    summary_section = Section("Summary tables", intro=(
+    overview = Section("Overview", intro=(
+        "Values are medians over seeds; every metric is lower-is-better. Click a header to sort, a summary row to "
+        "see that cell's pictures. The surface pages after the tables show, per surface: uv layouts coloured by "
+        "per-triangle QC on one scale (foldovers red); a checkerboard mapped onto the surface through each uv "
+        "(square checks = angle-preserving, about 20 across); and a row with the detected boundary against the "
+        "truth (one panel per distinct detection), the k line search and the weight histograms."))
+    table = overview_table(summary)
+    table.note = ACCEPTABLE_RULE
+    overview.blocks.append(table)
+    summary_blocks = list(summary_tables(summary).values())
+    if summary_blocks:
+        summary_blocks[-1].note = ACCEPTABLE_RULE
+    overview.blocks.append(Section("Summary tables", summary_blocks, intro=(
         "One table per surface configuration, one row per method variant. QC is the quasi-conformal distortion "
         "(1 = conformal), foldovers count flipped triangles, the exact-map error compares with the known map "
-        "where the dataset has one (— where it has none)."))
-    summary_section.blocks.append("<p class=\"legend\"><span class=\"swatch\">best</span> marks the best "
-                                  "value of a column in its table (when at least two methods have one).</p>")
-    summary_section.blocks += list(summary_tables(summary).values())
-    sections.append(summary_section)
+        "where the dataset has one (— where it has none).")))
+    sections.append(overview)
 
     failures = failures_table(rows)
-    sections.append(Section("Failed cells", [failures if failures.rows else Note("No cell failed.", "muted")]))
     suspects = suspect_table(rows)
+    problems = Section("Failed and suspect cells")
+    problems.blocks.append(failures if failures.rows else Note("No cell failed.", "muted"))
     if suspects.rows:
-        sections.append(Section("Suspect cells", [suspects]))
+        problems.blocks.append(suspects)
+    sections.append(problems)
 
     for view in picture_views(rows, results.root):
         sections.append(_view_section(results, view, warnings))
 
-    scaling = Section("Time against size")
+    for module_name, function_name, kind in OPTIONAL_SECTIONS:
+        function = _optional_function(module_name, function_name, warnings)
+        extra = function(results, rows) if function is not None and kind == "results" else None
+        if extra is not None:
+            sections.append(extra)
+
     picture = scaling_figure(rows)
-    if picture is None:
-        scaling.blocks.append(Note("No method was timed at two or more sizes of one surface: no fit.", "muted"))
-    else:
-        scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
-    memory = stage_memory_table(rows)
-    if memory is not None:
-        scaling.blocks.append(memory)
-    sections.append(scaling)
+    memory = stage_memory_table(rows) if _isolated(results.run) else None
+    if picture is not None or memory is not None:
+        scaling = Section("Time against size")
+        if picture is not None:
+            scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
+        if memory is not None:
+            scaling.blocks.append(memory)
+        sections.append(scaling)
 
     if stats is not None:
         bench = Section("Benchmarks", intro="From " + ", ".join(p.name for p in paths) + ".")
@@ -223,6 +299,11 @@ def render_html(results: Results, benchmark_json=()) -> str:
         if picture is not None:
             bench.blocks.append(picture)
         bench.blocks.append(benchmark_table(stats) if len(stats) else Note("The files hold no benchmark.", "muted"))
+        for module_name, function_name, kind in OPTIONAL_SECTIONS:
+            function = _optional_function(module_name, function_name, warnings)
+            extra = function(stats) if function is not None and kind == "benchmarks" else None
+            if extra is not None:
+                bench.blocks.append(extra)
         sections.append(bench)
 
     run_section = Section("Run metadata", [metadata_table(results.run)])
@@ -230,6 +311,44 @@ def render_html(results: Results, benchmark_json=()) -> str:
         run_section.blocks.append(Note("Skipped while reading: " + " | ".join(warnings), "warning"))
     sections.append(run_section)
     return render_report("parambench report", _subtitle(results.run, rows), sections)
+
+
+def _isolated(run: dict) -> bool:
+    """Whether the run measured each cell in its own process (only then is memory per cell)."""
+    params = run.get("parameters") if isinstance(run.get("parameters"), dict) else {}
+    return bool(run.get("isolate") or params.get("isolate") or "--isolate" in str(run.get("command", "")))
+
+
+def _optional_function(module_name: str, function_name: str, warnings: list[str]):
+    """``module_name.function_name``, or None when the module is not installed."""
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.startswith(exc.name):
+            return None  # not installed: the part is optional
+        raise
+    function = getattr(module, function_name, None)
+    if function is None:
+        warnings.append(f"{module_name} has no {function_name}: its part of the report is left out.")
+    return function
+
+
+def _angle_histogram(view: PictureView, drawn: list[str], warnings: list[str]):
+    if "angle_hist" not in view.rows.columns:
+        return None  # results stored before the column existed
+    function = _optional_function(*ANGLE_HISTOGRAM, warnings)
+    try:
+        from bench.metrics import ANGLE_HIST_EDGES_DEG as edges
+    except ImportError:
+        return None
+    if function is None:
+        return None
+    rows = view.rows[view.rows["variant"].isin(drawn)]
+    try:
+        return function(list(zip(rows["variant"], rows["angle_hist"])), edges, view.title)
+    except ValueError as exc:  # histograms stored over other edges
+        warnings.append(f"no angle histogram for {view.title}: {exc}")
+        return None
 
 
 def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMATS) -> dict[str, Path]:
@@ -267,7 +386,7 @@ def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMAT
         raise UnknownNameError(f"Unknown report format(s) {unknown}; choose from {list(FORMATS)}.")
     results = load_results(results_dir)
     out = Path(out_dir) if out_dir is not None else results.root / "report"
-    _check_out_dir(out)
+    check_out_dir(out)
     text = render_html(results, benchmark_json)
     out.mkdir(parents=True, exist_ok=True)
     written: dict[str, Path] = {}

@@ -3,9 +3,10 @@
 Seeds are repeats: a summary row is one (configuration, method variant) and shows the
 median over its ok seeds. Every metric is "lower is better" (QC >= 1 with 1 conformal,
 foldovers, area distortion, exact-map error, time); the best value of each column within a
-configuration is marked when at least two variants have a value. Failed cells keep their
-row, with the error text in the status column, and are listed once more in full in the
-failures table. "Suspect" cells (a point-set map that failed its self-check) have metrics:
+configuration is marked among the acceptable maps only (:data:`ACCEPTABLE_RULE`, printed under
+the tables), when at least two of them have a value. Failed cells keep their row, with a
+short error text in the status column; the failures table gives each message once, in full,
+with the cells it hit. "Suspect" cells (a point-set map that failed its self-check) have metrics:
 they count in the medians, are named in the status column and listed in their own table.
 """
 
@@ -26,6 +27,9 @@ __all__ = [
     "SUMMARY_METRICS",
     "summarise",
     "best_mask",
+    "acceptable_mask",
+    "QC_BOUND",
+    "ACCEPTABLE_RULE",
     "summary_tables",
     "overview_table",
     "failures_table",
@@ -40,6 +44,15 @@ __all__ = [
 
 #: Statuses of cells whose metrics were computed ("suspect": the map failed its self-check).
 MEASURED_STATUSES = ("ok", "suspect")
+#: QC mean of an acceptable map: at most this factor times the best foldover-free QC of its surface.
+QC_BOUND = 1.10
+
+#: The rule behind "acceptable" and "best", printed under the tables that use it.
+ACCEPTABLE_RULE = (
+    f"Shading rule: a value is shaded best only among acceptable maps, those with every seed measured and passing "
+    f"its self-check (not suspect, not failed), no foldovers, and QC mean within {round((QC_BOUND - 1) * 100)} % of "
+    f"the lowest QC mean among the foldover-free, self-check-passing maps of the same surface. A value of an "
+    f"unacceptable map is never shaded, however low (an affine stretch has near-zero area distortion).")
 
 #: (column, header, kind) of the summary's metric columns; all lower-is-better.
 SUMMARY_METRICS = (
@@ -52,7 +65,8 @@ SUMMARY_METRICS = (
     ("time_total", "Time (s)", "time"),
 )
 
-_ERROR_SHORT = 300  # characters of an error shown in a summary cell; the failures table has all of it
+_ERROR_SHORT = 300  # characters of an error shown in the overview's tooltips; the failures table has all of it
+_STATUS_SHORT = 60  # characters of a summary row's status; the full text is its tooltip
 _MISSING = "—"
 
 
@@ -80,6 +94,13 @@ class Table:
         Class of the ``<table>`` element (tests count rows per class).
     numeric : set of int
         Indices of right-aligned columns.
+    row_keys : list of dict, optional
+        Per body row, data attributes for the HTML page (``{"config": ..., "variant": ...}``
+        lets a click on the row open that cell's pictures).
+    interactive : bool
+        Sortable by a click on a header and filterable by a search box (in the HTML).
+    note : str
+        A line printed under the table (e.g. the shading rule).
     """
 
     columns: list
@@ -87,6 +108,9 @@ class Table:
     caption: str = ""
     css_class: str = ""
     numeric: set = field(default_factory=set)
+    row_keys: list = field(default_factory=list)
+    interactive: bool = True
+    note: str = ""
 
 
 def format_number(value, kind: str = "ratio") -> str:
@@ -173,8 +197,28 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
                                       "status", "has_failure", "has_suspect"])
 
 
+def acceptable_mask(summary: pd.DataFrame, by: str = "config") -> pd.Series:
+    """Which summary rows are acceptable maps (see :data:`ACCEPTABLE_RULE`).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Output of :func:`summarise`.
+    by : str
+        The column whose groups are compared (one surface configuration each).
+
+    Returns
+    -------
+    pandas.Series of bool, aligned with ``summary``.
+    """
+    clean = ((summary["n_ok"] == summary["n_cells"]) & (summary["foldovers"].fillna(np.inf) == 0)
+             & summary["qc_mean"].notna())
+    best = summary["qc_mean"].where(clean).groupby(summary[by]).transform("min")
+    return clean & (summary["qc_mean"] <= QC_BOUND * best)
+
+
 def best_mask(summary: pd.DataFrame, by: str = "config") -> pd.DataFrame:
-    """Where each metric column reaches its minimum within each group.
+    """Where each metric column reaches its minimum among the acceptable maps of each group.
 
     Parameters
     ----------
@@ -186,12 +230,14 @@ def best_mask(summary: pd.DataFrame, by: str = "config") -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame of bool
-        Same index as ``summary``, one column per metric. A column of a group is marked only
-        when at least two rows have a value; values that print the same as the minimum (see
+        Same index as ``summary``, one column per metric. Only acceptable rows
+        (:func:`acceptable_mask`) are candidates; a column of a group is marked only when at
+        least two of them have a value; values that print the same as the minimum (see
         :func:`format_number`) are all marked.
     """
     mask = pd.DataFrame(False, index=summary.index, columns=[m[0] for m in SUMMARY_METRICS])
-    for _, group in summary.groupby(by, sort=False):
+    acceptable = acceptable_mask(summary, by)
+    for _, group in summary[acceptable].groupby(by, sort=False):
         for col, _, kind in SUMMARY_METRICS:
             values = group[col].dropna()
             if len(values) < 2:
@@ -219,8 +265,9 @@ def summary_tables(summary: pd.DataFrame) -> dict[str, Table]:
     columns = ["Method", "Seeds ok", *[m[1] for m in SUMMARY_METRICS], "Status"]
     tables: dict[str, Table] = {}
     for config, group in summary.groupby("config", sort=False):
-        body = []
+        body, keys = [], []
         for idx, rec in group.iterrows():
+            keys.append({"config": str(config), "variant": str(rec["variant"])})
             row = [Cell(str(rec["variant"]), ("method",)),
                    Cell(f"{int(rec['n_ok'])}/{int(rec['n_cells'])}")]
             for col, _, kind in SUMMARY_METRICS:
@@ -229,12 +276,13 @@ def summary_tables(summary: pd.DataFrame) -> dict[str, Table]:
                                 "best in this table" if best else ""))
             status_class = (("status", "failed") if rec["has_failure"] else
                             ("status", "suspect") if rec["has_suspect"] else ("status", "ok"))
-            row.append(Cell(str(rec["status"]), status_class))
+            status = str(rec["status"])
+            row.append(Cell(_short(status, _STATUS_SHORT), status_class, status if len(status) > _STATUS_SHORT else ""))
             body.append(row)
         n_points = group["n_points"].median()
         caption = str(config) + ("" if n_points != n_points else f" — {int(n_points)} points")
         tables[str(config)] = Table(columns, body, caption, "summary",
-                                    numeric=set(range(1, 2 + len(SUMMARY_METRICS))))
+                                    numeric=set(range(1, 2 + len(SUMMARY_METRICS))), row_keys=keys)
     return tables
 
 
@@ -242,8 +290,8 @@ def overview_table(summary: pd.DataFrame) -> Table:
     """Method variants x datasets at a glance: median QC mean, failures counted.
 
     A dataset's value is the median, over its configurations (sizes, samplings, noise),
-    of the per-configuration medians; the lowest value of each column is marked when at
-    least two variants have one.
+    of the per-configuration medians; the lowest value of each column among the variants
+    acceptable on every configuration of the dataset is marked when at least two have one.
 
     Parameters
     ----------
@@ -252,16 +300,17 @@ def overview_table(summary: pd.DataFrame) -> Table:
     """
     datasets = list(dict.fromkeys(summary["dataset"]))
     variants = sorted(dict.fromkeys(summary["variant"]))
+    summary = summary.assign(_acceptable=acceptable_mask(summary))
     cells: dict = {}
     for (dataset, variant), group in summary.groupby(["dataset", "variant"], sort=False):
         values = group["qc_mean"].dropna()
         n_failed = int((group["n_cells"] - group["n_ok"] - group["n_suspect"]).sum())
         errors = "; ".join(dict.fromkeys(s for s, f in zip(group["status"], group["has_failure"]) if f))
         cells[(dataset, variant)] = (float(values.median()) if len(values) else np.nan, n_failed,
-                                     int(group["n_cells"].sum()), errors)
+                                     int(group["n_cells"].sum()), errors, bool(group["_acceptable"].all()))
     best = {}
     for dataset in datasets:
-        values = [cells[(dataset, v)][0] for v in variants if (dataset, v) in cells]
+        values = [cells[(dataset, v)][0] for v in variants if (dataset, v) in cells and cells[(dataset, v)][4]]
         values = [v for v in values if v == v]
         best[dataset] = min(values) if len(values) >= 2 else None
     body = []
@@ -271,13 +320,13 @@ def overview_table(summary: pd.DataFrame) -> Table:
             if (dataset, variant) not in cells:
                 row.append(Cell("·", ("absent",), "not run"))
                 continue
-            value, n_failed, n_cells, errors = cells[(dataset, variant)]
+            value, n_failed, n_cells, errors, acceptable = cells[(dataset, variant)]
             if value != value:
                 row.append(Cell("failed" if n_failed else _MISSING, ("failed",) if n_failed else (),
                                 _short(errors, 200)))
                 continue
             text = format_number(value, "ratio")
-            is_best = best[dataset] is not None and text == format_number(best[dataset], "ratio")
+            is_best = acceptable and best[dataset] is not None and text == format_number(best[dataset], "ratio")
             classes = ["best"] if is_best else []
             if n_failed:
                 text += f" ({n_failed} of {n_cells} failed)"
@@ -288,8 +337,14 @@ def overview_table(summary: pd.DataFrame) -> Table:
                  "overview", numeric=set(range(1, 1 + len(datasets))))
 
 
+def _cell_names(group: pd.DataFrame, limit: int = 12) -> str:
+    names = [f"{c} / {v}" + (f" (seed {int(sd)})" if sd == sd and sd else "")
+             for c, v, sd in zip(group["config"], group["variant"], group["seed"])]
+    return "; ".join(names[:limit]) + (f"; and {len(names) - limit} more" if len(names) > limit else "")
+
+
 def failures_table(rows: pd.DataFrame) -> Table:
-    """Every failed cell with its full error text.
+    """Failed cells grouped by their error text: each message once, with the cells it hit.
 
     Parameters
     ----------
@@ -297,16 +352,16 @@ def failures_table(rows: pd.DataFrame) -> Table:
         Labelled rows.
     """
     failed = rows[~rows["status"].isin(MEASURED_STATUSES)].sort_values(["config", "variant", "seed"], kind="stable")
-    body = [[Cell(str(r.config)), Cell(str(r.variant), ("method",)),
-             Cell(format_number(r.seed, "count")), Cell(r.error_type or _MISSING),
-             Cell(r.error or _MISSING, ("error",))]
-            for r in failed.itertuples()]
-    return Table(["Surface", "Method", "Seed", "Error type", "Error"], body,
-                 f"{len(failed)} failed cell(s)", "failures", numeric={2})
+    failed = failed.assign(_message=[_error_text(t, e) for t, e in zip(failed["error_type"], failed["error"])])
+    body = []
+    for message, group in failed.groupby("_message", sort=False):
+        body.append([Cell(message, ("error",)), Cell(str(len(group))), Cell(_cell_names(group))])
+    return Table(["Error", "Cells", "Where (surface / method)"], body,
+                 f"{len(failed)} failed cell(s), {len(body)} distinct error(s)", "failures", numeric={1})
 
 
 def suspect_table(rows: pd.DataFrame) -> Table:
-    """Every suspect cell (its map failed the self-check) with the check's reason.
+    """Suspect cells (their map failed the self-check) grouped by the checks that failed.
 
     Parameters
     ----------
@@ -314,17 +369,29 @@ def suspect_table(rows: pd.DataFrame) -> Table:
         Labelled rows.
     """
     suspect = rows[rows["status"] == "suspect"].sort_values(["config", "variant", "seed"], kind="stable")
-    body = [[Cell(str(r.config)), Cell(str(r.variant), ("method",)),
-             Cell(format_number(r.seed, "count")), Cell(r.error or _MISSING, ("error",))]
-            for r in suspect.itertuples()]
-    return Table(["Surface", "Method", "Seed", "Self-check"], body,
+
+    def failed_checks(diagnostics: str, error: str) -> str:
+        check = (json.loads(diagnostics) if diagnostics else {}).get("selfcheck") or {}
+        kinds = check.get("failed") or []
+        return ", ".join(kinds) if kinds else _short(error or "self-check failed", 80)
+
+    suspect = suspect.assign(_kind=[failed_checks(d, e) for d, e in zip(suspect["diagnostics"], suspect["error"])])
+    body = []
+    for kind, group in suspect.groupby("_kind", sort=False):
+        details = "; ".join(f"{v} on {c}: {_short(e, 90)}" for c, v, e in
+                            zip(group["config"], group["variant"], group["error"]))
+        body.append([Cell(kind, ("key",)), Cell(str(len(group))), Cell(details, ("error",))])
+    return Table(["Failed checks", "Cells", "Cells and the self-check's words"], body,
                  f"{len(suspect)} suspect cell(s): metrics computed, but the map failed its self-check",
-                 "suspects", numeric={2})
+                 "suspects", numeric={1})
 
 
 def _meta_value(value) -> str:
-    if isinstance(value, (dict, list)):
-        return json.dumps(value, indent=1, sort_keys=True)
+    if isinstance(value, dict):
+        # One line of key=value pairs: the run's parameters printed one token per line filled a page.
+        return "; ".join(f"{k}={_meta_value(v)}" for k, v in value.items() if v not in (None, [], {}, ""))
+    if isinstance(value, list):
+        return ", ".join(_meta_value(v) if isinstance(v, (dict, list)) else str(v) for v in value) or _MISSING
     return _MISSING if value is None or value == "" else str(value)
 
 
@@ -354,9 +421,8 @@ def metadata_table(run: dict) -> Table:
     ]
     known = {"package_version", "git_commit", "date", "command", "suite", "machine", "seeds", "parameters"}
     items += [(k.replace("_", " ").capitalize(), v) for k, v in sorted(run.items()) if k not in known]
-    body = [[Cell(k, ("key",)), Cell(_meta_value(v), ("pre",) if isinstance(v, (dict, list)) else ())]
-            for k, v in items]
-    return Table(["Item", "Value"], body, "", "metadata")
+    body = [[Cell(k, ("key",)), Cell(_meta_value(v))] for k, v in items]
+    return Table(["Item", "Value"], body, "", "metadata", interactive=False)
 
 
 def benchmark_table(stats: pd.DataFrame) -> Table:

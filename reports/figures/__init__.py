@@ -6,6 +6,7 @@ from .boundary import BoundaryPanel, boundary_figure, boundary_scores
 from .checkerboard import checkerboard_figure
 from .landscape import LandscapeCurve, landscape_figure
 from .scaling import fit_power_law, scaling_figure, scaling_fits
+from .sdp_curve import sdp_curve_figure
 from .uv_layout import LayoutPanel, uv_layout_figure
 from .weights import negative_fractions, weights_figure
 
@@ -22,6 +23,7 @@ __all__ = [
     "fit_power_law",
     "scaling_figure",
     "scaling_fits",
+    "sdp_curve_figure",
     "LayoutPanel",
     "uv_layout_figure",
     "negative_fractions",

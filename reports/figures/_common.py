@@ -9,10 +9,14 @@ from __future__ import annotations
 
 import base64
 import io
-from dataclasses import dataclass
+import textwrap
+from dataclasses import dataclass, field
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.text import Text
+from PIL import Image
 
 __all__ = [
     "Picture",
@@ -24,6 +28,8 @@ __all__ = [
     "splat",
     "view_projection",
     "face_normals",
+    "overlapping_texts",
+    "wrap_label",
 ]
 
 #: Triangles drawn per panel at most; more are subsampled (foldovers always kept).
@@ -47,6 +53,16 @@ class Picture:
         Pixel size of the PNG.
     rows : int
         Rows of panels (the print layout gives each row about a third of a page).
+    panels : dict of str to (4,) tuple of float
+        Where each labelled panel (with its title) lies in the image, as fractions of its
+        width and height from the top left: ``(left, top, right, bottom)``. The HTML detail
+        view crops these.
+    text_overlaps : list of (str, str)
+        Pairs of texts whose bounding boxes intersect in the rendered image (should be empty).
+    config : str
+        The surface configuration the panels belong to ("" when not per surface).
+    print_row_px : int or None
+        Printed height per row of panels in CSS px (None: the page default).
     """
 
     title: str
@@ -55,15 +71,105 @@ class Picture:
     width_px: int
     height_px: int
     rows: int = 1
+    panels: dict = field(default_factory=dict)
+    text_overlaps: list = field(default_factory=list)
+    config: str = ""
+    print_row_px: int | None = None
 
 
 def new_figure(width_in: float, height_in: float, layout: str | None = "constrained") -> Figure:
-    """A white figure of the given size in inches (constrained layout unless ``layout=None``)."""
-    return Figure(figsize=(width_in, height_in), facecolor="white", layout=layout)
+    """A white figure of the given size in inches (constrained layout unless ``layout=None``).
+
+    It is attached to an Agg canvas, so text extents can be measured after drawing.
+    """
+    fig = Figure(figsize=(width_in, height_in), facecolor="white", layout=layout)
+    FigureCanvasAgg(fig)
+    return fig
 
 
-def figure_to_picture(fig: Figure, title: str, caption: str = "", dpi: int = DPI, rows: int = 1) -> Picture:
-    """Render a figure to a PNG data URI.
+def overlapping_texts(fig: Figure) -> list[tuple[str, str]]:
+    """Pairs of visible, non-empty texts of a drawn figure whose bounding boxes intersect.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        Already drawn (after ``savefig`` or ``canvas.draw``), so positions are final.
+
+    Returns
+    -------
+    list of (str, str)
+    """
+    renderer = _renderer(fig)
+    tick_labels, drawn_ticks = set(), []
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            # Only the ticks the axis draws (inside its view interval), not the spare ones; asked
+            # first, because asking may create tick objects.
+            drawn = axis._update_ticks() if ax.axison and axis.get_visible() else []
+            for tick in axis.majorTicks + axis.minorTicks:
+                tick_labels.update((id(tick.label1), id(tick.label2)))
+            for tick in drawn:
+                drawn_ticks += [t for t in (tick.label1, tick.label2) if t.get_visible()]
+    texts = [t for t in fig.findobj(Text) if id(t) not in tick_labels] + drawn_ticks
+    boxes = []
+    for text in texts:
+        if not text.get_visible() or not text.get_text().strip() or text.figure is None:
+            continue
+        if text.axes is not None and not text.axes.get_visible():
+            continue
+        box = text.get_window_extent(renderer)
+        if box.width > 0 and box.height > 0:
+            boxes.append((text.get_text(), box))
+    out = []
+    for i, (a, box_a) in enumerate(boxes):
+        for b, box_b in boxes[i + 1:]:
+            # Strict overlap: boxes that only touch (stacked tick labels) do not count.
+            if (min(box_a.x1, box_b.x1) - max(box_a.x0, box_b.x0) > 0.5
+                    and min(box_a.y1, box_b.y1) - max(box_a.y0, box_b.y0) > 0.5):
+                out.append((a, b))
+    return out
+
+
+def _renderer(fig: Figure):
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    return canvas.get_renderer()
+
+
+def wrap_label(text: str, width_in: float, fontsize: float, max_lines: int = 3) -> str:
+    """Wrap a panel title to the panel's width (about 0.6 em per character).
+
+    Parameters
+    ----------
+    text : str
+    width_in : float
+        Panel width in inches.
+    fontsize : float
+        In points.
+    max_lines : int
+        Longer text is cut with an ellipsis.
+    """
+    chars = max(8, int(width_in * 72 / (0.62 * fontsize)))
+    lines = []
+    for part in text.split("\n"):
+        lines += textwrap.wrap(part, chars, break_long_words=True, break_on_hyphens=False) or [""]
+    if len(lines) > max_lines:
+        lines = lines[:max_lines]
+        lines[-1] = lines[-1][: chars - 1] + "…"
+    return "\n".join(lines)
+
+
+def _encode(fig: Figure, dpi: int, fmt: str) -> tuple[bytes, str]:
+    buffer = io.BytesIO()
+    if fmt == "jpeg":
+        fig.savefig(buffer, format="jpeg", dpi=dpi, facecolor="white", pil_kwargs={"quality": 82, "optimize": True})
+    else:
+        fig.savefig(buffer, format="png", dpi=dpi, facecolor="white")
+    return buffer.getvalue(), fmt
+
+
+def figure_to_picture(fig: Figure, title: str, caption: str = "", dpi: int = DPI, rows: int = 1,
+                      panel_axes: dict | None = None, fmt: str = "auto") -> Picture:
+    """Render a figure to a data URI (PNG, or JPEG where that is smaller).
 
     Parameters
     ----------
@@ -72,19 +178,37 @@ def figure_to_picture(fig: Figure, title: str, caption: str = "", dpi: int = DPI
     dpi : int
     rows : int
         Rows of panels in the figure.
+    panel_axes : dict of str to matplotlib Axes, optional
+        Panels to locate in the image (:attr:`Picture.panels`).
+    fmt : {"auto", "png", "jpeg"}
+        "auto" keeps the smaller of PNG and JPEG: line plots stay PNG, shaded surfaces
+        become JPEG (often four times smaller, the difference invisible at print size).
 
     Returns
     -------
     Picture
     """
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi, facecolor="white")
-    png = buffer.getvalue()
-    # PNG header: 8-byte signature, then the IHDR chunk whose data starts with width, height.
-    width = int.from_bytes(png[16:20], "big")
-    height = int.from_bytes(png[20:24], "big")
-    uri = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
-    return Picture(title, caption, uri, width, height, rows)
+    data, kind = _encode(fig, dpi, "png" if fmt == "auto" else fmt)
+    if fmt == "auto":
+        jpeg, _ = _encode(fig, dpi, "jpeg")
+        if len(jpeg) < 0.85 * len(data):  # JPEG only when clearly smaller: it blurs thin lines
+            data, kind = jpeg, "jpeg"
+    width, height = Image.open(io.BytesIO(data)).size
+    # Lay the figure out again at the saved resolution: axis labels are placed in pixels at
+    # draw time, so measuring at another dpi would misplace them against their tick labels.
+    fig.set_dpi(dpi)
+    _renderer(fig)
+    fig.canvas.draw()
+    uri = f"data:image/{kind};base64," + base64.b64encode(data).decode("ascii")
+    panels = {}
+    if panel_axes:
+        renderer = _renderer(fig)
+        fw, fh = fig.bbox.width, fig.bbox.height
+        for label, ax in panel_axes.items():
+            box = ax.get_tightbbox(renderer)
+            panels[label] = (max(0.0, box.x0 / fw), max(0.0, 1 - box.y1 / fh), min(1.0, box.x1 / fw),
+                             min(1.0, 1 - box.y0 / fh))
+    return Picture(title, caption, uri, width, height, rows, panels, overlapping_texts(fig))
 
 
 def subsample_faces(n_faces: int, limit: int = MAX_FACES_PER_PANEL, keep: np.ndarray | None = None,

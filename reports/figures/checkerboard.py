@@ -16,13 +16,20 @@ from matplotlib.collections import PolyCollection
 
 from ..load import CellArrays
 from ._common import (MAX_FACES_PER_PANEL, Picture, face_normals, figure_to_picture, new_figure, splat,
-                      subsample_faces, view_projection)
+                      subsample_faces, view_projection, wrap_label)
 
-__all__ = ["subdivision_barycentrics", "checker_parity", "checkerboard_figure", "CHECK_COLORS"]
+__all__ = ["subdivision_barycentrics", "checker_parity", "checks_for_size", "checkerboard_figure", "CHECK_COLORS",
+           "CHECKS_ACROSS"]
 
 #: The two check colours (RGB in [0, 1]).
 CHECK_COLORS = np.array([[0.96, 0.94, 0.88], [0.16, 0.35, 0.62]])
-_NCOLS = 4
+_NCOLS = 8
+_PANEL_IN = 1.75
+_TITLE_PT = 7.5
+#: Lower than the default: eight panels across are printed about 9 inches wide.
+_DPI = 90
+#: Checks across the longer side of the uv bounding box on a large surface (the issue asks ~20).
+CHECKS_ACROSS = 20
 _MAX_LEVEL = 4
 #: Sub-triangles a coarse mesh is split into, about, per panel: enough for crisp check edges.
 _TARGET_PIECES = 12_000
@@ -73,8 +80,26 @@ def checker_parity(uv: np.ndarray, n_checks: int = 8) -> np.ndarray:
     return (cells[:, 0] + cells[:, 1]) % 2
 
 
+def checks_for_size(n_points: int) -> int:
+    """Checks across a surface of ``n_points`` vertices: about :data:`CHECKS_ACROSS`.
+
+    A check should span a couple of mesh edges at least, or it shows the triangulation
+    rather than the map: about sqrt(N) / 2 checks across, capped at :data:`CHECKS_ACROSS`
+    and at least 6.
+
+    Parameters
+    ----------
+    n_points : int
+
+    Returns
+    -------
+    int
+    """
+    return int(min(CHECKS_ACROSS, max(6, round(0.5 * math.sqrt(max(n_points, 1))))))
+
+
 def _draw_panel(ax, label: str, arrays: CellArrays, n_checks: int, max_faces: int, seed: int) -> None:
-    ax.set_title(label, fontsize=9)
+    ax.set_title(wrap_label(label, _PANEL_IN, _TITLE_PT, 3), fontsize=_TITLE_PT)
     ax.set_aspect("equal")
     ax.set_axis_off()
     if not np.isfinite(arrays.uv).all():
@@ -106,7 +131,7 @@ def _draw_panel(ax, label: str, arrays: CellArrays, n_checks: int, max_faces: in
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
 
 
-def checkerboard_figure(panels: list[tuple[str, CellArrays]], title: str, *, n_checks: int = 8,
+def checkerboard_figure(panels: list[tuple[str, CellArrays]], title: str, *, n_checks: int | None = None,
                         max_faces: int = MAX_FACES_PER_PANEL, seed: int = 0) -> Picture:
     """Texture each method's map with a checkerboard and draw it on the surface.
 
@@ -116,8 +141,9 @@ def checkerboard_figure(panels: list[tuple[str, CellArrays]], title: str, *, n_c
         At least one.
     title : str
         The surface's name.
-    n_checks : int
-        Checks along the longer side of each uv bounding box.
+    n_checks : int, optional
+        Checks along the longer side of each uv bounding box; default from the surface's
+        size (:func:`checks_for_size`).
     max_faces : int
         Triangles (after subdivision) drawn per panel, about.
     seed : int
@@ -129,14 +155,18 @@ def checkerboard_figure(panels: list[tuple[str, CellArrays]], title: str, *, n_c
     """
     if not panels:
         raise ValueError("checkerboard_figure needs at least one panel.")
+    if n_checks is None:
+        n_checks = checks_for_size(max(len(a.points) for _, a in panels))
     ncols = min(_NCOLS, len(panels))
     nrows = math.ceil(len(panels) / ncols)
-    fig = new_figure(2.6 * ncols, 2.5 * nrows)
+    fig = new_figure(_PANEL_IN * ncols, (_PANEL_IN + 0.35) * nrows)
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, (label, arrays) in zip(axes, panels):
         _draw_panel(ax, label, arrays, n_checks, max_faces, seed)
+    where = {label: ax for (label, _), ax in zip(panels, axes)}
     for ax in axes[len(panels):]:
         ax.set_axis_off()
     caption = (f"A {n_checks}-check checkerboard mapped onto {title} through each method's uv. Square checks "
                f"mean an angle-preserving map; lozenges show shear, smeared or torn checks show foldovers.")
-    return figure_to_picture(fig, f"Checkerboard texture — {title}", caption, rows=nrows)
+    return figure_to_picture(fig, f"Checkerboard texture — {title}", caption, rows=nrows, panel_axes=where,
+                             dpi=_DPI)

@@ -123,7 +123,7 @@ def scaling_figure(rows: pd.DataFrame) -> Picture | None:
         ax.set_xlabel("points")
         ax.set_ylabel("time (s)")
         ax.grid(True, which="both", alpha=0.25)
-        ax.legend(fontsize=7, frameon=False)
+        ax.legend(fontsize=7, frameon=False, loc="upper center", bbox_to_anchor=(0.5, -0.22))
     for ax in axes[len(families):]:
         ax.set_axis_off()
     caption = ("Total time against number of points on log-log axes. Dots are single cells, solid lines the "

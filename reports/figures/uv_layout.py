@@ -12,13 +12,19 @@ from matplotlib.colors import Normalize
 from matplotlib.cm import ScalarMappable
 
 from ..load import CellArrays
-from ._common import MAX_FACES_PER_PANEL, Picture, figure_to_picture, new_figure, splat, subsample_faces
+from ._common import (MAX_FACES_PER_PANEL, Picture, figure_to_picture, new_figure, splat, subsample_faces,
+                      wrap_label)
 
 __all__ = ["LayoutPanel", "shared_qc_range", "uv_layout_figure", "QC_CMAP", "FOLDOVER_COLOR"]
 
 QC_CMAP = "viridis"
 FOLDOVER_COLOR = "#e0115f"
-_NCOLS = 4
+#: Panels per row: 8 keeps the quick suite's 16 variants to two rows, one page with the checkerboards.
+_NCOLS = 8
+_PANEL_IN = 1.75
+_TITLE_PT = 7.5
+#: Lower than the default: eight panels across are printed about 9 inches wide.
+_DPI = 90
 
 
 @dataclass
@@ -64,7 +70,8 @@ def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: i
         facts.append(f"QC mean {panel.qc_mean:.3f}")
     n_flipped = int(arrays.flipped.sum())
     facts.append(f"{n_flipped} foldover{'s' if n_flipped != 1 else ''}")
-    ax.set_title(title + "\n" + ", ".join(facts), fontsize=9)
+    heading = wrap_label(title, _PANEL_IN, _TITLE_PT, 2) + "\n" + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2)
+    ax.set_title(heading, fontsize=_TITLE_PT)
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])
@@ -115,7 +122,8 @@ def uv_layout_figure(panels: list[LayoutPanel], title: str, *, max_faces: int = 
     Returns
     -------
     Picture
-        Panels on a grid of up to four columns, one colour bar for all.
+        Panels on a grid of up to eight columns, one colour bar for all; ``panels`` locates
+        each method's panel (for the HTML detail view).
     """
     if not panels:
         raise ValueError("uv_layout_figure needs at least one panel.")
@@ -123,19 +131,22 @@ def uv_layout_figure(panels: list[LayoutPanel], title: str, *, max_faces: int = 
     norm = Normalize(vmin=vmin, vmax=vmax, clip=True)
     ncols = min(_NCOLS, len(panels))
     nrows = math.ceil(len(panels) / ncols)
-    fig = new_figure(2.6 * ncols + 0.9, 2.75 * nrows)
+    fig = new_figure(_PANEL_IN * ncols + 0.9, (_PANEL_IN + 0.55) * nrows)
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, panel in zip(axes, panels):
         _draw_panel(ax, panel, norm, max_faces, seed)
+    where = {p.label: ax for p, ax in zip(panels, axes)}
     for ax in axes[len(panels):]:
         ax.set_axis_off()
     bar = fig.colorbar(ScalarMappable(norm=norm, cmap=colormaps[QC_CMAP]), ax=list(axes), shrink=0.85,
-                       extend="max", pad=0.02)
-    bar.set_label("QC distortion (1 = conformal)", fontsize=9)
+                       extend="max", pad=0.01, aspect=30)
+    bar.set_label("QC (1 = conformal)", fontsize=8)
+    bar.ax.tick_params(labelsize=7)
     caption = (f"uv layouts on {title}, triangles coloured by QC distortion on one scale for all methods "
                f"({vmin:g} to {vmax:.3g}; larger values saturate). Foldovers are filled and circled in red, "
                f"ground-truth boundary loops drawn in black.")
     if any(len(p.arrays.faces) > max_faces for p in panels):
         caption += (f" Meshes over {max_faces} triangles are drawn from a random {max_faces} of them (all "
                     f"foldovers kept), each enlarged to close the gaps.")
-    return figure_to_picture(fig, f"uv layouts — {title}", caption, rows=nrows)
+    return figure_to_picture(fig, f"uv layouts — {title}", caption, rows=nrows, panel_axes=where,
+                             dpi=_DPI)

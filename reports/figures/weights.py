@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.ticker import NullFormatter
 
 from ._common import Picture, figure_to_picture, new_figure
 
@@ -108,7 +109,9 @@ def weights_figure(arrays: dict, title: str) -> Picture | None:
         ax.set_title(_TITLES[kind], fontsize=9)
         ax.set_xlabel("weight value")
         ax.set_yscale("log")
-        ax.legend(fontsize=7, frameon=True, framealpha=0.85, loc="best")
+        # Minor log labels (3x10^-1, 4x10^-1, ...) crowd into each other on short axes.
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.legend(fontsize=7, frameon=False, loc="upper center", bbox_to_anchor=(0.5, -0.2))
     axes[0].set_ylabel("density (log)")
     parts = []
     for kind in kinds:

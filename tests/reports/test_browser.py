@@ -118,3 +118,77 @@ def test_the_checks_catch_a_broken_page(driver, tmp_path):
     open_report(driver, page)
     assert len(severe_console_messages(driver)) >= 1
     assert driver.execute_script("return document.images[0].naturalWidth;") == 0
+
+
+def _column(driver, table_css, index):
+    return driver.execute_script(
+        "return Array.from(document.querySelector(arguments[0]).tBodies[0].rows)"
+        ".filter(r => !r.hidden).map(r => r.cells[arguments[1]].textContent);", table_css, index)
+
+
+def test_a_click_on_a_header_sorts_the_table(driver, built_report):
+    open_report(driver, built_report["paths"]["html"])
+    table = "table.summary"
+    qc = driver.execute_script(
+        "return Array.from(document.querySelector('table.summary').tHead.rows[0].cells)"
+        ".map(c => c.textContent).indexOf('QC mean');")
+    before = _column(driver, table, qc)
+    header = driver.execute_script("return document.querySelector('table.summary').tHead.rows[0].cells[arguments[0]];",
+                                   qc)
+    header.click()
+    ascending = _column(driver, table, qc)
+    assert ascending != before or before == sorted(before, key=float)
+    assert [float(v) for v in ascending] == sorted(float(v) for v in before)
+    assert header.get_attribute("aria-sort") == "ascending"
+    header.click()
+    descending = _column(driver, table, qc)
+    assert [float(v) for v in descending] == sorted((float(v) for v in before), reverse=True)
+    assert header.get_attribute("aria-sort") == "descending"
+    # a text column sorts too: the method names come out in order
+    driver.execute_script("document.querySelector('table.summary').tHead.rows[0].cells[0].click();")
+    names = _column(driver, table, 0)
+    assert names == sorted(names)
+    assert severe_console_messages(driver) == []
+
+
+def test_the_filter_box_hides_rows_without_the_text(driver, built_report):
+    open_report(driver, built_report["paths"]["html"])
+    box = driver.execute_script("return document.querySelector('table.summary').previousElementSibling;")
+    assert "table-filter" in box.get_attribute("class")
+    box.send_keys("ocp")
+    names = _column(driver, "table.summary", 0)
+    assert names == ["ocp"]
+    for _ in range(3):
+        box.send_keys("\b")
+    assert len(_column(driver, "table.summary", 0)) == 3
+
+
+def test_a_click_on_a_summary_row_opens_its_pictures(driver, built_report, artifacts_dir):
+    open_report(driver, built_report["paths"]["html"])
+    detail = driver.find_element("id", "detail")
+    assert not detail.is_displayed()
+    # a surface with pictures (bump is drawn at its 400-point size, so not every table has them)
+    config = driver.execute_script("return document.querySelector('img[data-panels]').getAttribute('data-config');")
+    row = driver.execute_script(
+        "return Array.from(document.querySelectorAll('table.summary tr[data-variant=\"ocp\"]'))"
+        ".find(r => r.getAttribute('data-config') === arguments[0]);", config)
+    driver.execute_script("arguments[0].scrollIntoView(); arguments[0].cells[2].click();", row)
+    assert detail.is_displayed()
+    assert detail.find_element("tag name", "h3").text == f"ocp — {config}"
+    crops = driver.execute_script(
+        "return Array.from(document.querySelectorAll('#detail .crop')).map(d => "
+        "[d.style.backgroundImage.slice(0, 20), d.offsetWidth, d.offsetHeight]);")
+    # the uv layout and the checkerboard of that surface, cut from the figures already in the page
+    assert len(crops) == 2
+    for image, width, height in crops:
+        assert image.startswith('url("data:image/') and 160 <= width <= 324 and height > 100  # + border
+    driver.save_screenshot(str(artifacts_dir / "report-detail-view.png"))
+    driver.execute_script("document.dispatchEvent(new KeyboardEvent('keydown', {key: 'Escape'}));")
+    assert not detail.is_displayed()
+    # a surface drawn at another size has no pictures: the view says so instead of showing nothing
+    other = driver.execute_script(
+        "return Array.from(document.querySelectorAll('table.summary tr[data-variant]'))"
+        ".find(r => !document.querySelector('img[data-config=\"' + r.getAttribute('data-config') + '\"]'));")
+    driver.execute_script("arguments[0].cells[0].click();", other)
+    assert detail.is_displayed() and "No picture of this cell" in detail.text
+    assert severe_console_messages(driver) == []

@@ -4,6 +4,7 @@ import base64
 import io
 
 import matplotlib.image
+import PIL.Image
 import numpy as np
 import pandas as pd
 import pytest
@@ -21,10 +22,12 @@ from reports.load import CellArrays, normalise_rows
 
 
 def decode(picture):
-    assert picture.data_uri.startswith("data:image/png;base64,")
-    png = base64.b64decode(picture.data_uri.split(",", 1)[1])
-    image = matplotlib.image.imread(io.BytesIO(png), format="png")
+    kind = picture.data_uri.split(";", 1)[0].removeprefix("data:image/")
+    assert kind in ("png", "jpeg") and picture.data_uri.startswith(f"data:image/{kind};base64,")
+    data = base64.b64decode(picture.data_uri.split(",", 1)[1])
+    image = np.asarray(PIL.Image.open(io.BytesIO(data)).convert("RGB"), dtype=np.float64) / 255.0
     assert image.shape[1] == picture.width_px and image.shape[0] == picture.height_px
+    assert picture.text_overlaps == []  # no title, label or legend text on top of another
     assert picture.width_px > 100 and picture.height_px > 100
     # Not a blank canvas: some pixels differ from white.
     assert (image[..., :3] < 0.95).any()
@@ -154,7 +157,7 @@ def test_negative_fractions_and_bins():
 
 
 def test_uv_layout_and_checkerboard_render(cell):
-    panels = [LayoutPanel("ocp", cell, 1.2, 2.0), LayoutPanel("copy", cell)] * 3  # 6 panels: two rows
+    panels = [LayoutPanel("ocp", cell, 1.2, 2.0), LayoutPanel("copy", cell)] * 5  # 10 panels: two rows of 8
     picture = uv_layout_figure(panels, "bump")
     decode(picture)
     assert picture.rows == 2

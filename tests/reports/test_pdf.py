@@ -48,7 +48,8 @@ def test_pdf_pages_render_to_png(pdf_report, require_tool, artifacts_dir):
 def test_pdf_tables_are_extractable_text(pdf_report, require_tool):
     text = pdf_text(require_tool, pdf_report["paths"]["pdf"])
     for expected in ("Summary tables", "QC mean", "QC p95", "Foldovers", "Area dist.", "Exact-map err.",
-                     "Failed cells", "ConvergenceError", "Run metadata", "0123456789abcdef", "test_ocp_2k",
+                     "Failed and suspect cells", "ConvergenceError", "Verdict", "claims", "Run metadata",
+                     "0123456789abcdef", "test_ocp_2k",
                      "Time against size", "lscm", "scp", "ocp"):
         assert expected in text, expected
     assert "OCP line search did not reach" in text
@@ -73,3 +74,15 @@ def test_pdf_of_results_that_all_failed(tmp_path, make_results, spec_type, requi
     assert set(paths) == {"pdf"} and not (root / "report" / "report.html").exists()
     text = pdf_text(require_tool, paths["pdf"], layout=False)
     assert "Every cell failed" in text and "ConvergenceError" in text
+
+
+def test_no_page_holds_only_a_heading(pdf_report, require_tool):
+    pdf = pdf_report["paths"]["pdf"]
+    listing = subprocess.run([require_tool("pdfimages"), "-list", str(pdf)], check=True, capture_output=True,
+                             text=True).stdout
+    with_images = {int(line.split()[0]) for line in listing.splitlines()[2:] if line.strip()}
+    pages = pdf_text(require_tool, pdf).split("\f")
+    for number, page in enumerate(pages[: page_count(require_tool, pdf)], start=1):
+        lines = [ln.strip() for ln in page.splitlines() if ln.strip()]
+        body = [ln for ln in lines if not re.search(r"parambench report\s+page \d+ of \d+", ln)]
+        assert number in with_images or len(body) > 2, f"page {number} holds only {body}"

@@ -6,8 +6,9 @@ import pytest
 
 from reports.labels import add_labels
 from reports.load import normalise_rows
-from reports.tables import (SUMMARY_METRICS, benchmark_table, best_mask, exponent_table, failures_table,
-                            format_number, metadata_table, overview_table, stage_memory_table, summarise,
+from reports.tables import (ACCEPTABLE_RULE, SUMMARY_METRICS, acceptable_mask, benchmark_table, best_mask,
+                            exponent_table, failures_table, format_number, metadata_table, overview_table,
+                            stage_memory_table, summarise,
                             summary_tables)
 
 
@@ -25,7 +26,9 @@ def hand_rows():
         _row("a", 0, qc_mean=1.10, qc_p95=1.3, qc_max=2.0, foldovers=0, area_distortion=1.2, time_total=1.0),
         _row("a", 1, qc_mean=1.20, qc_p95=1.5, qc_max=4.0, foldovers=2, area_distortion=1.4, time_total=3.0),
         _row("a", 2, status="failed", error_type="SolverError", error="eigensolver did not converge"),
-        _row("b", 0, qc_mean=1.05, qc_p95=1.4, qc_max=3.0, foldovers=1, area_distortion=1.1, time_total=0.5),
+        _row("b", 0, qc_mean=1.05, qc_p95=1.4, qc_max=3.0, foldovers=0, area_distortion=1.1, time_total=0.5),
+        _row("d", 0, qc_mean=1.12, qc_p95=1.2, qc_max=2.5, foldovers=0, area_distortion=1.3, time_total=0.2),
+        _row("e", 0, qc_mean=3.94, qc_p95=4.0, qc_max=5.0, foldovers=0, area_distortion=1e-12, time_total=0.1),
         _row("c", 0, status="failed", error_type="NotADiskError", error="mesh has 2 components"),
         _row("a", 0, dataset="disk", qc_mean=1.0, qc_p95=1.0, qc_max=1.0, foldovers=0, time_total=0.1,
              exact_error=0.002),
@@ -35,7 +38,7 @@ def hand_rows():
 
 def test_summarise_takes_medians_over_ok_seeds_and_keeps_failures(hand_rows):
     summary = summarise(hand_rows)
-    assert len(summary) == 4  # bump: a, b, c; disk: a
+    assert len(summary) == 6  # bump: a, b, c, d, e; disk: a
     a = summary[(summary["dataset"] == "bump") & (summary["variant"] == "a")].iloc[0]
     assert a["n_cells"] == 3 and a["n_ok"] == 2
     assert a["qc_mean"] == pytest.approx(1.15)
@@ -51,41 +54,61 @@ def test_summarise_takes_medians_over_ok_seeds_and_keeps_failures(hand_rows):
     assert b["status"] == "ok" and not b["has_failure"]
 
 
-def test_best_mask_marks_minimum_ties_and_skips_single_values(hand_rows):
+def test_best_mask_marks_minimum_among_acceptable_maps_only(hand_rows):
     summary = summarise(hand_rows)
     mask = best_mask(summary)
     bump = summary["dataset"] == "bump"
     by_variant = {v: i for v, i in zip(summary.loc[bump, "variant"], summary.index[bump])}
-    assert mask.at[by_variant["b"], "qc_mean"] and not mask.at[by_variant["a"], "qc_mean"]
-    assert mask.at[by_variant["a"], "qc_p95"] and mask.at[by_variant["b"], "qc_p95"]  # a tie: median(1.3, 1.5) = 1.4
+    # a has the lowest QC max among all, but a failed seed and foldovers: not acceptable, never shaded
+    assert not mask.loc[by_variant["a"]].any()
+    # e (QC 3.94, an affine stretch) has the lowest area distortion and time, but QC is far above the
+    # 10 % bound: not shaded; among b and d (QC 1.12 <= 1.1 * 1.05, acceptable) the lower values are
+    assert not mask.loc[by_variant["e"]].any()
+    assert mask.at[by_variant["b"], "area_distortion"] and mask.at[by_variant["d"], "time_total"]
+    assert mask.at[by_variant["b"], "qc_mean"] and not mask.at[by_variant["d"], "qc_mean"]
+    assert mask.at[by_variant["d"], "qc_p95"] and not mask.at[by_variant["b"], "qc_p95"]
     assert not mask.loc[by_variant["c"]].any()  # failed: nothing to mark
     disk = summary.index[summary["dataset"] == "disk"][0]
     assert not mask.loc[disk].any()  # one method alone is not "best"
-    # exact_error has a single value in the bump table (none) -> never marked there
-    assert not mask.loc[bump, "exact_error"].any()
+    assert not mask.loc[bump, "exact_error"].any()  # no value in the bump table
+
+
+def test_acceptable_mask_states_the_rule(hand_rows):
+    summary = summarise(hand_rows)
+    accepted = dict(zip(summary["variant"] + "/" + summary["dataset"], acceptable_mask(summary)))
+    assert accepted == {"a/bump": False, "b/bump": True, "c/bump": False, "d/bump": True, "e/bump": False,
+                        "a/disk": True}
+    assert "10 %" in ACCEPTABLE_RULE and "foldovers" in ACCEPTABLE_RULE
 
 
 def test_summary_tables_render_rows_best_cells_and_error_text(hand_rows):
     tables = summary_tables(summarise(hand_rows))
     assert list(tables) == ["bump · 100 pts · grid", "disk · 100 pts · grid"]
     bump = tables["bump · 100 pts · grid"]
-    assert len(bump.rows) == 3
+    assert len(bump.rows) == 5
     assert len(bump.columns) == 3 + len(SUMMARY_METRICS)
     texts = {row[0].text: row for row in bump.rows}
     qc_col = bump.columns.index("QC mean")
     assert texts["b"][qc_col].text == "1.05" and "best" in texts["b"][qc_col].classes
     assert "best" not in texts["a"][qc_col].classes
+    assert len(bump.rows) == len(bump.row_keys) and bump.row_keys[0]["config"] == "bump · 100 pts · grid"
     assert texts["c"][qc_col].text == "—"
     assert "NotADiskError: mesh has 2 components" in texts["c"][-1].text
     assert "failed" in texts["c"][-1].classes
     assert texts["a"][1].text == "2/3"
 
 
-def test_failures_table_lists_every_failed_cell_in_full(hand_rows):
+def test_failures_table_lists_each_message_once_with_its_cells(hand_rows):
     table = failures_table(hand_rows)
     assert len(table.rows) == 2
-    errors = sorted(row[-1].text for row in table.rows)
-    assert errors == ["eigensolver did not converge", "mesh has 2 components"]
+    errors = sorted(row[0].text for row in table.rows)
+    assert errors == ["NotADiskError: mesh has 2 components", "SolverError: eigensolver did not converge"]
+    extra = hand_rows.iloc[[0]].assign(cell_id="x", seed=5.0, status="failed", error_type="SolverError",
+                                       error="eigensolver did not converge")
+    grouped = failures_table(pd.concat([hand_rows, extra], ignore_index=True))
+    solver = next(r for r in grouped.rows if r[0].text.startswith("SolverError"))
+    assert solver[1].text == "2" and "seed 2" in solver[2].text and "seed 5" in solver[2].text
+    assert len(grouped.rows) == 2  # one row per distinct message, not per cell
 
 
 def test_overview_is_method_by_dataset_with_failures_counted(hand_rows):
@@ -97,6 +120,7 @@ def test_overview_is_method_by_dataset_with_failures_counted(hand_rows):
     assert "NotADiskError" in cells["c"][0].title
     assert [c.text for c in cells["b"]] == ["1.05", "·"]
     assert "best" in cells["b"][0].classes and "best" not in cells["a"][0].classes
+    assert [c.text for c in cells["e"]] == ["3.94", "·"] and "best" not in cells["e"][0].classes
     assert "best" not in cells["a"][1].classes  # alone on disk
 
 
@@ -113,7 +137,7 @@ def test_long_error_is_shortened_in_the_summary_but_not_in_the_failures_table():
                                                         error=long_error)])))
     status = summary_tables(summarise(rows))["bump · 100 pts · grid"].rows[0][-1].text
     assert len(status) < 400 and status.endswith("…")
-    assert failures_table(rows).rows[0][-1].text == long_error
+    assert failures_table(rows).rows[0][0].text == "E: " + long_error
 
 
 def test_format_number():
@@ -135,7 +159,7 @@ def test_metadata_table_shows_every_recorded_item():
     assert values["Git commit"] == "abc123"
     assert values["Seeds"] == "0, 1, 2"
     assert values["Machine"] == "hostname: h, cpu_count: 2"
-    assert '"sizes"' in values["Parameters"]
+    assert values["Parameters"] == "sizes=1, 2"  # one line, not one token per line
     assert values["Extra field"] == "kept"
     assert {row[0].text: row[1].text for row in metadata_table({}).rows}["Git commit"] == "—"
 
@@ -152,7 +176,8 @@ def test_benchmark_and_exponent_tables():
 
 
 def test_values_that_print_alike_are_both_best():
-    rows = [_row("a", 0, qc_mean=1.061041), _row("b", 0, qc_mean=1.060962), _row("c", 0, qc_mean=1.0625)]
+    rows = [_row("a", 0, qc_mean=1.061041, foldovers=0), _row("b", 0, qc_mean=1.060962, foldovers=0),
+            _row("c", 0, qc_mean=1.0625, foldovers=0)]
     summary = summarise(add_labels(normalise_rows(pd.DataFrame(rows))))
     marked = summary.loc[best_mask(summary)["qc_mean"], "variant"]
     assert list(marked) == ["a", "b"]  # both print as 1.061
