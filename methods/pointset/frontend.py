@@ -76,9 +76,11 @@ class FrontEnd:
     mean_spacing : float
         ``l``, mean kNN edge length.
     local_spacing : (N,) numpy.ndarray of float64
-        The spacing that sized balls and area terms: around each point
-        (:func:`methods.pointset.neighbourhoods.local_spacing`) when ``spacing="local"``,
-        ``l`` everywhere when ``spacing="global"``.
+        The spacing of ocp's area terms: around each point
+        (:func:`methods.pointset.neighbourhoods.local_spacing`, ten averages; points on
+        or next to a loop take their interior neighbours' value) when
+        ``spacing="local"``, ``l`` everywhere when ``spacing="global"``. Ball radii are
+        ``ball_eps_factor * max(local_spacing, l)``.
     ball_indices : (N, B) numpy.ndarray of int64
         Geodesic K-eps ball members (-1 padding), see :mod:`methods.pointset.dem`.
     tangent_coords : (N, B, 2) numpy.ndarray of float64
@@ -193,12 +195,12 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     min_loop_size : int
         Boundary cycles with fewer points are dropped as sampling gaps.
     spacing : {"local", "global"}
-        "local" (default): ball radii and ocp's area terms scale with the spacing around
-        each point, so adaptively sampled surfaces get full balls everywhere (graded
-        samplings at 2k-20k: ocp within 0.3 % of scp-igl's QC; with "global" ocp failed
-        on the graded cap and holes and had QC 1.26 on the graded plane); "global": the
-        paper's single ``eps = ball_eps_factor * l`` (slightly better on uniform random
-        samples: bump at 20k QC 1.006 against 1.016).
+        "local" (default): ocp's area terms follow the spacing around each point, and
+        ball radii grow with it where the sampling is sparser than average (never below
+        the paper's ``ball_eps_factor * l``: radii smaller than that made ocp fail on a
+        400-point random cap), so sparse regions of adaptively sampled surfaces get full
+        balls; "global": the paper's single ``eps = ball_eps_factor * l`` everywhere and
+        one area per point.
     neighbours : {"euclidean", "surface"}
         "euclidean" (default): the paper's plain K nearest; "surface": K neighbours kept
         along the surface, not across narrow gaps
@@ -284,7 +286,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         balls = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
                           ball_eps_factor=float(ball_eps_factor), dem=dem, max_ball=int(max_ball),
                           projection=variant["projection"], front_weight=variant["front_weight"],
-                          local_spacing=h_local)
+                          local_spacing=np.maximum(h_local, spacing))
     mask = balls.mask
 
     with timer("weights"):
@@ -311,7 +313,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
                              ball_eps_factor=_RETRY_BALL_SCALE * float(ball_eps_factor), dem=dem,
                              max_ball=int(_RETRY_BALL_SCALE**2 * max_ball) + 1,
                              projection=variant["projection"], front_weight=variant["front_weight"],
-                             local_spacing=h_local)
+                             local_spacing=np.maximum(h_local, spacing))
             wide_bnd = find_boundary(p, frame_normals, wide.indices, wide.coords, **bnd_args)
             del wide
             retried = True
@@ -354,9 +356,24 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
               "weights": weights, "max_ball": int(max_ball), "min_loop_size": int(min_loop_size),
               "dem_variant": dem_variant, "spacing": spacing_mode, "neighbours": neighbours}
     return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(graph.indices[inv], order),
-                    mean_spacing=float(spacing), local_spacing=h_local[inv], ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
+                    mean_spacing=float(spacing), local_spacing=_interior_spacing(h_local, graph.indices, bnd.mask)[inv], ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
                     boundary_mask=bnd.mask[inv], boundary_loops=loops, reconstruction_error=r_x[inv],
                     diagnostics=diagnostics, timings=dict(timer.timings), params=params)
+
+
+def _interior_spacing(h: np.ndarray, knn: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """The spacing field with boundary points' values taken from their interior neighbours.
+
+    A boundary point's kNN fill a half disc, so its own kNN distances (and, through the
+    averages, its neighbours') overstate the spacing; its area term would then be too
+    large. Points on a loop and their kNN neighbours take the mean over their kNN that
+    are neither (unchanged where a point has none).
+    """
+    near = boundary | boundary[knn].any(axis=1)
+    src = ~near[knn]
+    count = src.sum(axis=1)
+    fill = np.where(src, h[knn], 0.0).sum(axis=1) / np.maximum(count, 1)
+    return np.where(near & (count > 0), fill, h)
 
 
 def _from_sorted(indices: np.ndarray, order: np.ndarray) -> np.ndarray:
