@@ -29,12 +29,18 @@ _DPI = 90
 
 @dataclass
 class LayoutPanel:
-    """One method's map: its label, arrays and headline numbers for the panel title."""
+    """One method's map: its label, arrays and headline numbers for the panel title.
+
+    ``qc_mean_high`` is the highest QC mean of the methods the panel stands for, when it
+    draws several near-identical maps (:mod:`reports.map_groups`); the title then gives the
+    range.
+    """
 
     label: str
     arrays: CellArrays
     qc_mean: float = float("nan")
     foldovers: float = float("nan")
+    qc_mean_high: float = float("nan")
 
 
 def shared_qc_range(qc_arrays, upper_quantile: float = 0.99) -> tuple[float, float]:
@@ -67,10 +73,12 @@ def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: i
     title = panel.label
     facts = []
     if panel.qc_mean == panel.qc_mean:
-        facts.append(f"QC mean {panel.qc_mean:.3f}")
+        high = panel.qc_mean_high
+        spread = high == high and f"{high:.3f}" != f"{panel.qc_mean:.3f}"
+        facts.append(f"QC mean {panel.qc_mean:.3f}" + (f"–{high:.3f}" if spread else ""))
     n_flipped = int(arrays.flipped.sum())
     facts.append(f"{n_flipped} foldover{'s' if n_flipped != 1 else ''}")
-    heading = wrap_label(title, _PANEL_IN, _TITLE_PT, 2) + "\n" + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2)
+    heading = wrap_label(title, _PANEL_IN, _TITLE_PT, 3) + "\n" + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2)
     ax.set_title(heading, fontsize=_TITLE_PT)
     ax.set_aspect("equal")
     ax.set_xticks([])
