@@ -289,8 +289,9 @@ def render_html(results: Results, benchmark_json=()) -> str:
         "Values are medians over seeds; every metric is lower-is-better. Click a header to sort, a summary row to "
         "see that cell's pictures. The surface pages after the tables show, per surface: uv layouts coloured by "
         "per-triangle QC on one scale (foldovers red); a checkerboard mapped onto the surface through each uv "
-        "(square checks = angle-preserving, about 20 across); and a row with the detected boundary against the "
-        "truth (one panel per distinct detection), the k line search and the weight histograms."))
+        "(square checks = angle-preserving, about 20 across), near-identical maps drawn once in a panel that names "
+        "them all; and a row with the detected boundary against the truth (one panel per distinct detection), the k "
+        "line search and the weight histograms."))
     table = overview_table(summary)
     table.note = ACCEPTABLE_RULE
     overview.blocks.append(table)
