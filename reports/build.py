@@ -25,6 +25,7 @@ from .figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figu
                       uv_layout_figure, weights_figure)
 from .html import Note, Row, Section, render_report
 from .labels import add_labels
+from .map_groups import SAME_MAP_TOLERANCE, MapGroup, group_maps
 from .load import CellArrays, Results, load_cell_arrays, load_dataset_arrays, load_results
 from .pdf import write_pdf
 from .selection import PictureView, dataset_npz_candidates, picture_views
@@ -38,9 +39,12 @@ __all__ = ["build_report", "render_html", "check_out_dir", "EmptyResultsError", 
 FORMATS = ("html", "pdf")
 _SOURCE_PACKAGES = ("methods", "datasets_gen", "bench", "reports", "tests")
 _MAX_BOUNDARY_PANELS = 6
-#: Printed height per row of panels of the per-surface uv and checkerboard figures (CSS px):
-#: both figures and a row of small diagnostics fit one A4 landscape page.
-_SURFACE_ROW_PX = 104
+#: Printed height of the per-surface uv and checkerboard figures together (CSS px), and the
+#: most per row of panels: with the heading, a note and the row of small diagnostics they
+#: fill one A4 landscape page (about 695 px of text height) and do not spill over.
+_SURFACE_FIGURES_PX = 360
+_SURFACE_ROW_MAX_PX = 150
+_SMALL_ROW_PX = 112
 
 #: Sections other modules may add, as (module, function, input): a module that is not
 #: installed is skipped. ``input`` says what the function is called with: "results" ->
@@ -85,6 +89,7 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
     panels: list[LayoutPanel] = []
     not_drawn: list[str] = []
     cell_arrays: dict[str, CellArrays] = {}
+    statuses: dict[str, str] = {}
     for row in view.rows.itertuples():
         if row.status not in MEASURED_STATUSES:
             not_drawn.append(f"{row.variant} (failed: {row.error_type or 'error'})")
@@ -95,6 +100,7 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
             continue
         cell_arrays[row.variant] = arrays
         panels.append(LayoutPanel(row.variant, arrays, row.qc_mean, row.foldovers))
+        statuses[row.variant] = row.status
 
     try:
         surface = load_dataset_arrays(results.root, dataset_npz_candidates(view))
@@ -103,12 +109,25 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
         surface = None
 
     if panels:
-        layouts = uv_layout_figure(panels, view.title)
-        checks = checkerboard_figure([(p.label, p.arrays) for p in panels], view.title)
+        groups = group_maps([p.label for p in panels], [p.arrays.points for p in panels],
+                            [p.arrays.uv for p in panels],
+                            keys=[(int(p.arrays.flipped.sum()), statuses[p.label]) for p in panels])
+        drawn = [_group_panel(group, panels) for group in groups]
+        layouts = uv_layout_figure(drawn, view.title)
+        checks = checkerboard_figure([(p.label, p.arrays) for p in drawn], view.title)
+        # Both figures share the page with a row of small ones: rows shrink as they multiply.
+        row_px = min(_SURFACE_ROW_MAX_PX, _SURFACE_FIGURES_PX // max(1, layouts.rows + checks.rows))
         for picture in (layouts, checks):
-            picture.config, picture.print_row_px = view.config, _SURFACE_ROW_PX
+            picture.config, picture.print_row_px = view.config, row_px
+            _alias_panels(picture, groups)
         section.blocks.append(Section("uv layouts", [layouts]))
         section.blocks.append(Section("Checkerboard texture", [checks]))
+        shared = [g for g in groups if len(g.members) > 1]
+        if shared:
+            section.blocks.append(Note(
+                "Drawn once, near-identical maps (uv equal up to rotation, reflection and scale within "
+                f"{100 * SAME_MAP_TOLERANCE:g} % of the map's size, same foldovers and status): "
+                + "; ".join(" = ".join(g.members) for g in shared) + ".", "muted"))
     else:
         section.blocks.append(Note("No method stored uv arrays for this surface, so there are no layout "
                                    "pictures (cells above the artifact size limit store none).", "muted"))
@@ -142,8 +161,26 @@ def _view_section(results: Results, view: PictureView, warnings: list[str]) -> S
                  "Angle": "Angle distortion"}
         title = ", ".join(next((v for k, v in names.items() if p.title.startswith(k)), p.title.split(" — ")[0])
                           for p in small)
-        section.blocks.append(Section(title, [Row(small, row_height=118)]))
+        section.blocks.append(Section(title, [Row(small, row_height=_SMALL_ROW_PX)]))
     return section
+
+
+def _group_panel(group: MapGroup, panels: list[LayoutPanel]) -> LayoutPanel:
+    """The panel drawn for a group: its first map, titled with every member and their QC range."""
+    first = panels[group.indices[0]]
+    qc = [panels[i].qc_mean for i in group.indices if panels[i].qc_mean == panels[i].qc_mean]
+    if len(group.members) == 1 or not qc:
+        return first
+    return LayoutPanel(group.label(), first.arrays, min(qc), first.foldovers, max(qc))
+
+
+def _alias_panels(picture, groups: list[MapGroup]) -> None:
+    """Point every member of a group at the group's panel, for the detail view."""
+    for group in groups:
+        if len(group.members) > 1:
+            box = picture.panels.pop(group.label(), None)
+            if box is not None:
+                picture.panels.update({member: box for member in group.members})
 
 
 def _boundary_panels(view: PictureView, surface: dict | None, cell_arrays: dict) -> list[BoundaryPanel]:
@@ -252,18 +289,25 @@ def render_html(results: Results, benchmark_json=()) -> str:
         "Values are medians over seeds; every metric is lower-is-better. Click a header to sort, a summary row to "
         "see that cell's pictures. The surface pages after the tables show, per surface: uv layouts coloured by "
         "per-triangle QC on one scale (foldovers red); a checkerboard mapped onto the surface through each uv "
-        "(square checks = angle-preserving, about 20 across); and a row with the detected boundary against the "
-        "truth (one panel per distinct detection), the k line search and the weight histograms."))
+        "(square checks = angle-preserving, about 20 across), near-identical maps drawn once in a panel that names "
+        "them all; and a row with the detected boundary against the truth (one panel per distinct detection), the k "
+        "line search and the weight histograms."))
     table = overview_table(summary)
     table.note = ACCEPTABLE_RULE
     overview.blocks.append(table)
     summary_blocks = list(summary_tables(summary).values())
     if summary_blocks:
         summary_blocks[-1].note = ACCEPTABLE_RULE
-    overview.blocks.append(Section("Summary tables", summary_blocks, intro=(
+    # One row per cell: long for a printed page (a page per surface at 19 variants), so the
+    # PDF keeps the overview above and points to the HTML, which can sort and filter them.
+    overview.blocks.append(Section("Summary tables", summary_blocks, css_class="screen-only", intro=(
         "One table per surface configuration, one row per method variant. QC is the quasi-conformal distortion "
         "(1 = conformal), foldovers count flipped triangles, the exact-map error compares with the known map "
         "where the dataset has one (— where it has none).")))
+    overview.blocks.append(Note(
+        "The per-cell summary tables (QC mean, p95 and max, foldovers, area distortion, exact-map error, time and "
+        "status of every method on every surface) are in the HTML report (report.html), where they sort, filter "
+        "and open each cell's pictures.", "muted print-only"))
     sections.append(overview)
 
     failures = failures_table(rows)

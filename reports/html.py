@@ -105,6 +105,7 @@ td.claim.not-met { background: #fdeaea !important; color: #a11; font-weight: 600
 td.claim.partly-met { background: #fff4d6 !important; color: #8a5a00; font-weight: 600; }
 td.recommended { color: #14591c; font-weight: 600; }
 table.verdict, table.claims { width: 100%; }
+@media screen { .print-only { display: none; } }
 @media print {
   body { padding: 0; max-width: none; font-size: 9.5pt; }
   section.surface figcaption { display: none; }

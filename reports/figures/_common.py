@@ -36,6 +36,9 @@ __all__ = [
 MAX_FACES_PER_PANEL = 50_000
 #: Resolution of every PNG.
 DPI = 110
+#: JPEG quality of shaded pictures (checkerboards): artefacts stay below what print and a
+#: screen at 100 % show, at about two thirds of the bytes of quality 82.
+JPEG_QUALITY = 72
 
 
 @dataclass
@@ -161,10 +164,25 @@ def wrap_label(text: str, width_in: float, fontsize: float, max_lines: int = 3) 
 def _encode(fig: Figure, dpi: int, fmt: str) -> tuple[bytes, str]:
     buffer = io.BytesIO()
     if fmt == "jpeg":
-        fig.savefig(buffer, format="jpeg", dpi=dpi, facecolor="white", pil_kwargs={"quality": 82, "optimize": True})
+        fig.savefig(buffer, format="jpeg", dpi=dpi, facecolor="white",
+                    pil_kwargs={"quality": JPEG_QUALITY, "optimize": True})
     else:
         fig.savefig(buffer, format="png", dpi=dpi, facecolor="white")
     return buffer.getvalue(), fmt
+
+
+def _palette_png(png: bytes) -> bytes:
+    """The PNG with at most 256 colours (no dithering), which is what a plot of lines and flat fills uses.
+
+    Line plots, histograms and viridis-shaded layouts hold a few hundred distinct colours
+    (mostly antialiasing); one byte per pixel instead of three makes them 2 to 4 times smaller
+    with no visible change at print size.
+    """
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    quantized = image.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    buffer = io.BytesIO()
+    quantized.save(buffer, format="png", optimize=True)
+    return buffer.getvalue()
 
 
 def figure_to_picture(fig: Figure, title: str, caption: str = "", dpi: int = DPI, rows: int = 1,
@@ -183,12 +201,15 @@ def figure_to_picture(fig: Figure, title: str, caption: str = "", dpi: int = DPI
     fmt : {"auto", "png", "jpeg"}
         "auto" keeps the smaller of PNG and JPEG: line plots stay PNG, shaded surfaces
         become JPEG (often four times smaller, the difference invisible at print size).
+        A PNG is stored with a 256-colour palette when that is smaller.
 
     Returns
     -------
     Picture
     """
     data, kind = _encode(fig, dpi, "png" if fmt == "auto" else fmt)
+    if kind == "png":
+        data = min(data, _palette_png(data), key=len)
     if fmt == "auto":
         jpeg, _ = _encode(fig, dpi, "jpeg")
         if len(jpeg) < 0.85 * len(data):  # JPEG only when clearly smaller: it blurs thin lines

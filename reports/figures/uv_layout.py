@@ -19,22 +19,30 @@ __all__ = ["LayoutPanel", "shared_qc_range", "uv_layout_figure", "QC_CMAP", "FOL
 
 QC_CMAP = "viridis"
 FOLDOVER_COLOR = "#e0115f"
-#: Panels per row: 8 keeps the quick suite's 16 variants to two rows, one page with the checkerboards.
+#: Panels per row: 8 keeps the quick suite's distinct maps (12 to 14 of its 19 variants, near-identical
+#: ones sharing a panel) to two rows, one page with the checkerboards.
 _NCOLS = 8
 _PANEL_IN = 1.75
 _TITLE_PT = 7.5
+_LINE_IN = 1.25 * _TITLE_PT / 72
 #: Lower than the default: eight panels across are printed about 9 inches wide.
 _DPI = 90
 
 
 @dataclass
 class LayoutPanel:
-    """One method's map: its label, arrays and headline numbers for the panel title."""
+    """One method's map: its label, arrays and headline numbers for the panel title.
+
+    ``qc_mean_high`` is the highest QC mean of the methods the panel stands for, when it
+    draws several near-identical maps (:mod:`reports.map_groups`); the title then gives the
+    range.
+    """
 
     label: str
     arrays: CellArrays
     qc_mean: float = float("nan")
     foldovers: float = float("nan")
+    qc_mean_high: float = float("nan")
 
 
 def shared_qc_range(qc_arrays, upper_quantile: float = 0.99) -> tuple[float, float]:
@@ -61,16 +69,23 @@ def shared_qc_range(qc_arrays, upper_quantile: float = 0.99) -> tuple[float, flo
     return 1.0, float(max(1.05, np.quantile(values, upper_quantile)))
 
 
+def _heading(panel: LayoutPanel) -> str:
+    """The panel's title: its label, then QC mean (a range for a group of maps) and foldovers."""
+    facts = []
+    if panel.qc_mean == panel.qc_mean:
+        high = panel.qc_mean_high
+        spread = high == high and f"{high:.3f}" != f"{panel.qc_mean:.3f}"
+        facts.append(f"QC mean {panel.qc_mean:.3f}" + (f"–{high:.3f}" if spread else ""))
+    n_flipped = int(panel.arrays.flipped.sum())
+    facts.append(f"{n_flipped} foldover{'s' if n_flipped != 1 else ''}")
+    return (wrap_label(panel.label, _PANEL_IN, _TITLE_PT, 3) + "\n"
+            + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2))
+
+
 def _draw_panel(ax, panel: LayoutPanel, norm: Normalize, max_faces: int, seed: int) -> None:
     arrays = panel.arrays
     uv, faces = arrays.uv, arrays.faces
-    title = panel.label
-    facts = []
-    if panel.qc_mean == panel.qc_mean:
-        facts.append(f"QC mean {panel.qc_mean:.3f}")
-    n_flipped = int(arrays.flipped.sum())
-    facts.append(f"{n_flipped} foldover{'s' if n_flipped != 1 else ''}")
-    heading = wrap_label(title, _PANEL_IN, _TITLE_PT, 2) + "\n" + wrap_label(", ".join(facts), _PANEL_IN, _TITLE_PT, 2)
+    heading = _heading(panel)
     ax.set_title(heading, fontsize=_TITLE_PT)
     ax.set_aspect("equal")
     ax.set_xticks([])
@@ -131,7 +146,9 @@ def uv_layout_figure(panels: list[LayoutPanel], title: str, *, max_faces: int = 
     norm = Normalize(vmin=vmin, vmax=vmax, clip=True)
     ncols = min(_NCOLS, len(panels))
     nrows = math.ceil(len(panels) / ncols)
-    fig = new_figure(_PANEL_IN * ncols + 0.9, (_PANEL_IN + 0.55) * nrows)
+    # Room for three title lines; a group of maps (a longer label) adds a line or two.
+    lines = max(_heading(p).count("\n") + 1 for p in panels)
+    fig = new_figure(_PANEL_IN * ncols + 0.9, (_PANEL_IN + 0.55 + _LINE_IN * max(0, lines - 3)) * nrows)
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, panel in zip(axes, panels):
         _draw_panel(ax, panel, norm, max_faces, seed)
