@@ -469,6 +469,13 @@ class ConformalProblem:
         ConvergenceError
             The k search found no t = 1 crossing or did not converge.
         """
+        with single_threaded_blas():  # many small dense calls; see methods.spectral.threads
+            return self._solve(mode, k_search, k=k, pins=pins, pin_values=pin_values, backend=backend, r=r,
+                               growth=growth, bracket=bracket, xatol=xatol)
+
+    def _solve(self, mode: str, k_search: str, *, k: float, pins: Sequence[int] | None,
+               pin_values: Sequence[complex], backend: str, r: float, growth: float,
+               bracket: tuple[float, float] | None, xatol: float) -> ConformalSolution:
         if mode not in ("scp", "dncp"):
             raise UnknownNameError(f"unknown mode {mode!r}; choose 'scp' or 'dncp'.")
         if k_search not in K_SEARCH_MODES:

@@ -95,7 +95,8 @@ def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None
     q -= q.mean(axis=0)
     # Rank-revealing orthonormalisation: drop the columns the others already span
     # (a single loop's constant, a planar boundary's normal coordinate).
-    u, sv, _ = la.svd(q, full_matrices=False)
+    with single_threaded_blas():  # two busy BLAS threads made this 368 x 70 SVD take ~1 s
+        u, sv, _ = la.svd(q, full_matrices=False)
     return u[:, sv > 1e-10 * sv[0]]
 
 
