@@ -101,6 +101,10 @@ class ConformalProblem:
         subspace (``backend="subspace"``) under ``backend="auto"``.
     subspace_modes : int
         Fourier modes of that subspace (:func:`methods.spectral.subspace.boundary_basis`).
+    subspace_extra : (K, e) numpy.ndarray of float64, optional
+        Further functions on the concatenated boundary loops added to that subspace (a
+        coarse level's map, :mod:`.multilevel`); when given, the SCP k search under
+        ``backend="auto"`` uses the subspace whatever the boundary's size.
 
     Raises
     ------
@@ -113,7 +117,7 @@ class ConformalProblem:
     def __init__(self, laplacian: sp.spmatrix, loops: Sequence[np.ndarray], b_matrix="boundary",
                  points: np.ndarray | None = None, max_boundary_dense: int = 4000,
                  psd_from_k: float | None = None, subspace_from: int = 300,
-                 subspace_modes: int = DEFAULT_MODES) -> None:
+                 subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -147,6 +151,10 @@ class ConformalProblem:
         self.psd_from_k = psd_from_k
         self.subspace_from = int(subspace_from)
         self.subspace_modes = int(subspace_modes)
+        self.subspace_extra = None if subspace_extra is None else np.asarray(subspace_extra, dtype=np.float64)
+        if self.subspace_extra is not None and self.subspace_extra.shape[0] != self.boundary.size:
+            raise InvalidInputError(f"subspace_extra must have one row per boundary vertex ({self.boundary.size}), "
+                                    f"got shape {self.subspace_extra.shape}.")
         self._counts = {"eigen_solves": 0, "linear_solves": 0, "factorizations": 0, "triangular_solves": 0}
         self._retired_solves = 0
         self._perm: np.ndarray | None = None
@@ -211,7 +219,8 @@ class ConformalProblem:
             if not self.b_on_boundary:
                 raise InvalidInputError("the subspace back end needs B on the boundary (b_matrix='boundary').")
             return True
-        return backend == "auto" and self.b_on_boundary and self.boundary.size > self.subspace_from
+        return backend == "auto" and self.b_on_boundary and (self.boundary.size > self.subspace_from
+                                                            or self.subspace_extra is not None)
 
     def _pins(self, pins: Sequence[int], pin_values: Sequence[complex]) -> tuple[np.ndarray, np.ndarray]:
         p = np.asarray(pins, dtype=np.int64).ravel()
@@ -261,7 +270,7 @@ class ConformalProblem:
     def _scp_subspace_search(self, line_kwargs: dict) -> tuple[ConformalSolution, dict]:
         """k_opt by the line search on the boundary subspace, then the exact map there."""
         red = self._reduction()
-        sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes)
+        sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes, self.subspace_extra)
         result = line_search(sub.evaluate, **line_kwargs)
         self._counts["eigen_solves"] += result.n_evaluations + 1
         point, info = sub.refine(result.best.k)

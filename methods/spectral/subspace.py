@@ -54,8 +54,8 @@ def _arc_length(points: np.ndarray | None, loop: np.ndarray) -> np.ndarray:
     return s / seg.sum()
 
 
-def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None, n_modes: int = DEFAULT_MODES
-                   ) -> np.ndarray:
+def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None, n_modes: int = DEFAULT_MODES,
+                   extra: np.ndarray | None = None) -> np.ndarray:
     """Orthonormal zero-sum basis of smooth functions on the concatenated boundary loops.
 
     Parameters
@@ -68,6 +68,9 @@ def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None
     n_modes : int
         Fourier frequencies in total, shared among the loops in proportion to their
         number of vertices (at least 4 per loop, at most a third of its vertices).
+    extra : (K, e) numpy.ndarray of float64, optional
+        Further functions on the boundary, e.g. the real and imaginary parts of a coarse
+        level's map (:mod:`.multilevel`).
 
     Returns
     -------
@@ -91,6 +94,8 @@ def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None
         cols.append(block)
     if points is not None:
         cols.append(points[np.concatenate(loops)])
+    if extra is not None:
+        cols.append(np.asarray(extra, dtype=np.float64).reshape(total, -1))
     q = np.hstack(cols)
     q -= q.mean(axis=0)
     # Rank-revealing orthonormalisation: drop the columns the others already span
@@ -114,6 +119,8 @@ class BoundarySubspace:
     points : (V, 3) numpy.ndarray of float64, optional
     n_modes : int
         See :func:`boundary_basis`.
+    extra : (K, e) numpy.ndarray of float64, optional
+        Further basis functions, see :func:`boundary_basis`.
 
     Attributes
     ----------
@@ -123,8 +130,9 @@ class BoundarySubspace:
     """
 
     def __init__(self, reduction: BoundaryReduction, area: sp.spmatrix, loops: Sequence[np.ndarray],
-                 points: np.ndarray | None = None, n_modes: int = DEFAULT_MODES) -> None:
-        self.basis = boundary_basis(loops, points, n_modes)
+                 points: np.ndarray | None = None, n_modes: int = DEFAULT_MODES,
+                 extra: np.ndarray | None = None) -> None:
+        self.basis = boundary_basis(loops, points, n_modes, extra)
         self._reduction = reduction
         before = reduction.n_solves
         self._sq = reduction.apply_schur(self.basis)
