@@ -129,7 +129,7 @@ def _multilevel_solve(front, lap, k_search: str, timer: StageTimer):
         coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
                                         np.concatenate(front.boundary_loops), seed=settings.seed)
     with timer("solve"):
-        sol, info = multilevel_scp(lap, front.boundary_loops, front.points, coarse, k_search=k_search,
+        sol, info = multilevel_scp(lap, front.boundary_loops, front.points, coarse, normals=front.normals, k_search=k_search,
                                    settings=settings)
     counts = info.pop("fine_counts")
     return sol, counts, info

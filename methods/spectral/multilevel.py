@@ -36,7 +36,7 @@ from .threads import single_threaded_blas
 __all__ = ["interpolation_matrix", "MultilevelSettings", "multilevel_scp"]
 
 #: Coarse points each fine point is interpolated from.
-_INTERP_K = 3
+_INTERP_K = 6
 
 
 @dataclass(frozen=True)
@@ -59,14 +59,24 @@ class MultilevelSettings:
     seed: int = 0
 
 
-def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, k: int = _INTERP_K) -> sp.csr_matrix:
-    """Prolongation P from coarse to fine values: identity on coarse points, inverse-distance elsewhere.
+def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.ndarray | None = None,
+                         k: int = _INTERP_K) -> sp.csr_matrix:
+    """Prolongation P from coarse to fine values: identity on coarse points, local weights elsewhere.
+
+    With ``normals`` each fine point's weights on its ``k`` nearest coarse points are the
+    smallest in the distance-weighted norm ``sum_j w_j^2 d_j^2`` that sum to one and
+    reproduce the point's position in its tangent plane (linear functions are
+    interpolated exactly, so the Galerkin Laplacian keeps the energy of smooth maps);
+    without them, or where that local system is singular, inverse squared distance
+    weights.
 
     Parameters
     ----------
-    points : (N, d) numpy.ndarray of float64
+    points : (N, 3) numpy.ndarray of float64
     coarse : (M,) numpy.ndarray of int64
         Sorted, distinct indices of the coarse points.
+    normals : (N, 3) numpy.ndarray of float64, optional
+        Unit normals of the fine points.
     k : int
         Coarse points per fine point.
 
@@ -84,8 +94,11 @@ def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, k: int = _INTER
     if m < k:
         raise InvalidInputError(f"the coarse level needs at least {k} points, got {m}.")
     dist, near = cKDTree(points[coarse]).query(points, k=k, workers=-1)
-    w = 1.0 / np.maximum(dist, 1e-12 * max(float(dist.max()), 1e-300)) ** 2
+    d2 = np.maximum(dist, 1e-12 * max(float(dist.max()), 1e-300)) ** 2
+    w = 1.0 / d2
     w /= w.sum(axis=1, keepdims=True)
+    if normals is not None:
+        w = _linear_exact_weights(points, normals, points[coarse][near], d2, fallback=w)
     p = sp.csr_matrix((w.ravel(), near.ravel(), np.arange(0, n * k + 1, k)), shape=(n, m))
     # Coarse points are their own values exactly.
     on = sp.csr_matrix((np.ones(m), (coarse, np.arange(m))), shape=(n, m))
@@ -94,8 +107,34 @@ def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, k: int = _INTER
     return (sp.diags((~is_coarse).astype(np.float64)) @ p + on).tocsr()
 
 
+def _linear_exact_weights(points: np.ndarray, normals: np.ndarray, nbr_pts: np.ndarray, d2: np.ndarray,
+                          fallback: np.ndarray) -> np.ndarray:
+    """Weights ``w = D^-1 A^T (A D^-1 A^T)^-1 e_1`` with A = [1; tangent offsets] (see interpolation_matrix)."""
+    nrm = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    off = nbr_pts - points[:, None, :]
+    off -= np.einsum("nkd,nd->nk", off, nrm)[:, :, None] * nrm[:, None, :]  # into the tangent plane
+    # Any orthonormal frame of the tangent plane will do: the weights do not depend on it.
+    helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(nrm, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(nrm, e1)
+    a = np.stack([np.ones(d2.shape), np.einsum("nkd,nd->nk", off, e1), np.einsum("nkd,nd->nk", off, e2)], axis=1)
+    scale = np.sqrt(d2.mean(axis=1))[:, None]
+    a[:, 1:] /= scale[:, :, None]  # unit-free rows: a well-conditioned 3 x 3 system
+    dinv = scale**2 / d2
+    gram = np.einsum("nik,nk,njk->nij", a, dinv, a)
+    ok = np.abs(np.linalg.det(gram)) > 1e-8
+    out = fallback.copy()
+    rhs = np.zeros((int(ok.sum()), 3, 1))
+    rhs[:, 0, 0] = 1.0
+    lam = np.linalg.solve(gram[ok], rhs)[:, :, 0]
+    out[ok] = dinv[ok] * np.einsum("nik,ni->nk", a[ok], lam)
+    return out
+
+
 def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: np.ndarray, coarse: np.ndarray,
-                   *, k_search: str = "line", settings: MultilevelSettings = MultilevelSettings()
+                   *, normals: np.ndarray | None = None, k_search: str = "line",
+                   settings: MultilevelSettings = MultilevelSettings()
                    ) -> tuple[ConformalSolution, dict]:
     """SCP with the k search of Eq. 16 on two levels (see the module docstring).
 
@@ -108,6 +147,8 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     points : (N, 3) numpy.ndarray of float64
     coarse : (M,) numpy.ndarray of int64
         Coarse point indices; must contain every loop point.
+    normals : (N, 3) numpy.ndarray of float64, optional
+        Fine normals, for linear-exact prolongation weights (:func:`interpolation_matrix`).
     k_search : {"line", "direct"}
         The coarse level's k search; the fine level always searches on its subspace.
     settings : MultilevelSettings
@@ -136,7 +177,7 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         raise InvalidInputError("the coarse level must keep every boundary-loop point.")
     lap = sp.csr_matrix(laplacian, dtype=np.float64)
     with single_threaded_blas():
-        prolong = interpolation_matrix(points, coarse)
+        prolong = interpolation_matrix(points, coarse, normals)
         lap_c = (prolong.T @ lap @ prolong).tocsr()
         # Galerkin products keep zero row sums only to rounding; remove the residue exactly.
         lap_c = (lap_c - sp.diags(np.asarray(lap_c.sum(axis=1)).ravel())).tocsr()
