@@ -72,14 +72,27 @@ def test_subsample_rejects_non_finite_points():
 def test_interpolation_is_identity_on_coarse_points_and_reproduces_constants():
     pts = _grid(10)
     coarse = poisson_disk_subsample(pts, 2.0, seed=0)
-    p = interpolation_matrix(pts, coarse)
+    p = interpolation_matrix(pts, coarse)  # no normals: inverse-distance weights
     assert p.shape == (pts.shape[0], coarse.size)
     np.testing.assert_allclose(np.asarray(p.sum(axis=1)).ravel(), 1.0)
     np.testing.assert_array_equal(p[coarse].toarray(), np.eye(coarse.size))
     assert p.min() >= 0
-    # Each fine point takes its value from nearby coarse points only.
-    rows, cols = p.nonzero()
-    assert np.linalg.norm(pts[rows] - pts[coarse[cols]], axis=1).max() < 4.0
+    # Each fine point takes its value from its six nearest coarse points only.
+    assert np.diff(p.indptr).max() <= 6
+
+
+def test_interpolation_with_normals_reproduces_linear_functions():
+    # A tilted plane: linear functions of position must be interpolated exactly.
+    pts = _grid(12) @ np.array([[1.0, 0.0, 0.3], [0.0, 1.0, -0.2], [0.0, 0.0, 1.0]])
+    normal = np.cross([1.0, 0.0, 0.3], [0.0, 1.0, -0.2])
+    normals = np.tile(normal / np.linalg.norm(normal), (pts.shape[0], 1))
+    coarse = poisson_disk_subsample(pts, 2.0, seed=0)
+    p = interpolation_matrix(pts, coarse, normals)
+    np.testing.assert_allclose(np.asarray(p.sum(axis=1)).ravel(), 1.0, atol=1e-12)
+    np.testing.assert_allclose(p @ pts[coarse], pts, atol=1e-9)
+    # Inverse-distance weights would not be exact: the test can tell the two apart.
+    idw = interpolation_matrix(pts, coarse)
+    assert np.abs(idw @ pts[coarse] - pts).max() > 1e-3
 
 
 def test_multilevel_refuses_a_coarse_level_without_the_boundary():
