@@ -183,12 +183,18 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         lap_c = (lap_c - sp.diags(np.asarray(lap_c.sum(axis=1)).ravel())).tocsr()
         coarse_problem = ConformalProblem(lap_c, [pos[lp] for lp in loops], b_matrix="boundary",
                                           points=points[coarse])
-        coarse_sol = coarse_problem.solve("scp", k_search)
-        z_b = coarse_sol.z[pos[boundary]]
+        if k_search == "direct":
+            coarse_sol = coarse_problem.solve("scp", "direct")
+            z_b, coarse_k, coarse_info = coarse_sol.z[pos[boundary]], coarse_sol.k, {"regular": True}
+        else:
+            # The coarse map only gives the fine subspace a direction: it need not be regular.
+            point, coarse_info = coarse_problem.scp_subspace_estimate()
+            z_b, coarse_k = point.state[0], point.k
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points, subspace_modes=settings.fine_modes,
                                 subspace_extra=np.column_stack([z_b.real, z_b.imag]))
         sol = fine.solve("scp", "line")
-    info = {"coarse_points": int(coarse.size), "coarse_k_opt": float(coarse_sol.k),
+    info = {"coarse_points": int(coarse.size), "coarse_k_opt": float(coarse_k),
+            "coarse_regular": bool(coarse_info["regular"]),
             "coarse_triangular_solves": int(coarse_problem.counts["triangular_solves"]),
             "fine_counts": fine.counts}
     return sol, info

@@ -288,6 +288,43 @@ class ConformalProblem:
                 "subspace_k_opt": float(result.best.k), "subspace_energy": float(result.best.energy), **info}
         return sol, diag
 
+    def scp_subspace_estimate(self, **line_kwargs) -> tuple[KPoint, dict]:
+        """k_opt and the boundary map of the subspace k search, without the sparse fallback.
+
+        The subspace search and Davidson refinement of ``backend="subspace"``, but the
+        refined boundary map is returned even when it is not regular (a coarse level's
+        estimate, :mod:`.multilevel`, only needs it as a direction).
+
+        Parameters
+        ----------
+        **line_kwargs
+            Passed to :func:`methods.spectral.ksearch.line_search`.
+
+        Returns
+        -------
+        point : KPoint
+            ``state`` = (boundary values on the concatenated loops, Ritz value).
+        info : dict
+            ``subspace_size``, ``refine_steps``, ``boundary_residual``, ``regular``.
+
+        Raises
+        ------
+        InvalidInputError
+            B is not the boundary indicator.
+        ConvergenceError
+            The k search found no t = 1 crossing.
+        """
+        if not self.b_on_boundary:
+            raise InvalidInputError("the subspace estimate needs B on the boundary (b_matrix='boundary').")
+        with single_threaded_blas():
+            red = self._reduction()
+            sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes, self.subspace_extra)
+            result = line_search(sub.evaluate, **line_kwargs)
+            self._counts["eigen_solves"] += result.n_evaluations + 1
+            point, info = sub.refine(result.best.k)
+            self._release_reductions()
+        return point, {"subspace_size": sub.size, "regular": bool(point.regular), **info}
+
     def _scp_sparse_regular(self, k: float, max_steps: int = 6) -> KPoint:
         """Exact SCP at k, nudged upwards if it still spins just below the exact transition.
 
