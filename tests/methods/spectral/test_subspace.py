@@ -103,3 +103,23 @@ def test_subspace_needs_the_boundary_b(saddle):
     problem = ConformalProblem(saddle.lap, saddle.loops, b_matrix=sp.identity(saddle.points.shape[0]))
     with pytest.raises(InvalidInputError, match="boundary"):
         problem.solve("scp", "line", backend="subspace")
+
+
+def test_subspace_estimate_equals_the_subspace_search_and_extra_columns_enter_the_basis(bump_ocp):
+    sol = bump_ocp.solve("scp", "line", backend="subspace")
+    point, info = bump_ocp.scp_subspace_estimate()
+    assert point.k == pytest.approx(sol.k, rel=1e-12)
+    assert info["regular"] and info["subspace_size"] == sol.diagnostics["subspace_size"]
+    # Its boundary values are the solution's (up to the eigenvector's phase).
+    zb = sol.z[bump_ocp.boundary]
+    est = point.state[0]
+    phase = np.vdot(est, zb) / np.vdot(est, est)
+    assert np.linalg.norm(phase * est - zb) <= 1e-6 * np.linalg.norm(zb)
+    # The exact boundary map as an extra column: the subspace then holds it exactly.
+    extra = np.column_stack([zb.real, zb.imag])
+    loops = bump_ocp.loops
+    q = boundary_basis(loops, bump_ocp.points, n_modes=4, extra=extra)
+    centred = extra - extra.mean(axis=0)
+    assert np.linalg.norm(centred - q @ (q.T @ centred)) <= 1e-10 * np.linalg.norm(centred)
+    with pytest.raises(InvalidInputError, match="one row per boundary vertex"):
+        ConformalProblem(bump_ocp.laplacian, loops, points=bump_ocp.points, subspace_extra=extra[:-1])
