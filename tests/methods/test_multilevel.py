@@ -109,6 +109,12 @@ def test_unknown_solver_is_refused_with_the_choices():
         get_method("ocp")(surf.points_only(), solver="amg")
 
 
+def test_multilevel_refuses_the_direct_k_search():
+    surf = make_surface("bump", 600, sampling="jittered", seed=0)
+    with pytest.raises(InvalidInputError, match="k_search='line'"):
+        get_method("ocp")(surf.points_only(), solver="multilevel", k_search="direct")
+
+
 # ------------------------------------------------------------ accuracy, 20k
 @pytest.fixture(scope="module")
 def bump_20k():
