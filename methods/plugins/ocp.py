@@ -125,7 +125,11 @@ class Ocp(Method):
 
 
 def _multilevel_solve(front, lap, timer: StageTimer):
-    """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics)."""
+    """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics).
+
+    Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
+    ``solve`` (the fine level, as on the direct path).
+    """
     from ..pointset.subsample import poisson_disk_subsample
     from ..spectral.multilevel import MultilevelSettings, multilevel_scp
 
@@ -133,9 +137,8 @@ def _multilevel_solve(front, lap, timer: StageTimer):
     with timer("subsample"):
         coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
                                         np.concatenate(front.boundary_loops), seed=settings.seed)
-    with timer("solve"):
-        sol, info = multilevel_scp(lap, front.boundary_loops, front.points, coarse, normals=front.normals,
-                                   settings=settings)
+    sol, info = multilevel_scp(lap, front.boundary_loops, front.points, coarse, normals=front.normals,
+                               settings=settings, stage=lambda name: timer("solve" if name == "fine" else name))
     counts = info.pop("fine_counts")
     return sol, counts, info
 

@@ -26,7 +26,8 @@ preconditioner is what would make the path near-linear; it is not done.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 
 import numpy as np
@@ -138,7 +139,8 @@ def _linear_exact_weights(points: np.ndarray, normals: np.ndarray, nbr_pts: np.n
 
 
 def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: np.ndarray, coarse: np.ndarray,
-                   *, normals: np.ndarray | None = None, settings: MultilevelSettings = MultilevelSettings()
+                   *, normals: np.ndarray | None = None, settings: MultilevelSettings = MultilevelSettings(),
+                   stage: Callable[[str], AbstractContextManager] | None = None
                    ) -> tuple[ConformalSolution, dict]:
     """SCP with the k line search of Eq. 16 on two levels (see the module docstring).
 
@@ -154,6 +156,10 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     normals : (N, 3) numpy.ndarray of float64, optional
         Fine normals, for linear-exact prolongation weights (:func:`interpolation_matrix`).
     settings : MultilevelSettings
+    stage : callable, optional
+        ``stage(name)`` gives a context manager around each level (``"coarse"``: the
+        prolongation, the Galerkin product and the coarse search; ``"fine"``: the fine
+        search, refinement and extension), e.g. a :class:`methods.base.StageTimer`.
 
     Returns
     -------
@@ -181,7 +187,8 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     if np.any(pos[boundary] < 0):
         raise InvalidInputError("the coarse level must keep every boundary-loop point.")
     lap = sp.csr_matrix(laplacian, dtype=np.float64)
-    with single_threaded_blas():
+    stage = stage or (lambda name: nullcontext())
+    with single_threaded_blas(), stage("coarse"):
         prolong = interpolation_matrix(points, coarse, normals)
         lap_c = (prolong.T @ lap @ prolong).tocsr()
         # Galerkin products keep zero row sums only to rounding; remove the residue exactly.
@@ -192,6 +199,8 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         # (at 100k points the exact coarse map near the coarse k_opt still spun).
         point, coarse_info = coarse_problem.scp_subspace_estimate()
         z_b, coarse_k = point.state[0], point.k
+        del prolong, lap_c  # the fine factorisation needs the memory more
+    with single_threaded_blas(), stage("fine"):
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points, subspace_modes=settings.fine_modes,
                                 subspace_extra=np.column_stack([z_b.real, z_b.imag]))
         sol = fine.solve("scp", "line")

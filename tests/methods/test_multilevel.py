@@ -145,5 +145,7 @@ def test_multilevel_passes_the_self_check_and_really_is_two_level(bump_20k):
     assert multi.diagnostics["solver"] == "multilevel"
     assert direct.diagnostics["solver"] == "direct"
     assert 0 < multi.diagnostics["coarse_points"] < surf.n_points / 4
+    assert {"subsample", "coarse", "solve"} <= set(multi.timings)
+    assert "coarse" not in direct.timings
     # The fine subspace is the coarse map plus a few modes: far fewer fine solves.
     assert multi.diagnostics["subspace_size"] < direct.diagnostics["subspace_size"] / 2
