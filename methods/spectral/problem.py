@@ -269,11 +269,7 @@ class ConformalProblem:
 
     def _scp_subspace_search(self, line_kwargs: dict) -> tuple[ConformalSolution, dict]:
         """k_opt by the line search on the boundary subspace, then the exact map there."""
-        red = self._reduction()
-        sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes, self.subspace_extra)
-        result = line_search(sub.evaluate, **line_kwargs)
-        self._counts["eigen_solves"] += result.n_evaluations + 1
-        point, info = sub.refine(result.best.k)
+        red, sub, result, point, info = self._subspace_search(line_kwargs)
         z = red.extend(point.state[0]) if point.regular else None
         # The interior factorisation is done with; free it before any fallback factorises.
         self._release_reductions()
@@ -317,13 +313,18 @@ class ConformalProblem:
         if not self.b_on_boundary:
             raise InvalidInputError("the subspace estimate needs B on the boundary (b_matrix='boundary').")
         with single_threaded_blas():
-            red = self._reduction()
-            sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes, self.subspace_extra)
-            result = line_search(sub.evaluate, **line_kwargs)
-            self._counts["eigen_solves"] += result.n_evaluations + 1
-            point, info = sub.refine(result.best.k)
+            _, sub, _, point, info = self._subspace_search(line_kwargs)
             self._release_reductions()
         return point, {"subspace_size": sub.size, "regular": bool(point.regular), **info}
+
+    def _subspace_search(self, line_kwargs: dict):
+        """(reduction, subspace, search result, refined point at k_opt, refine info); the factorisation is kept."""
+        red = self._reduction()
+        sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes, self.subspace_extra)
+        result = line_search(sub.evaluate, **line_kwargs)
+        self._counts["eigen_solves"] += result.n_evaluations + 1
+        point, info = sub.refine(result.best.k)
+        return red, sub, result, point, info
 
     def _scp_sparse_regular(self, k: float, max_steps: int = 6) -> KPoint:
         """Exact SCP at k, nudged upwards if it still spins just below the exact transition.
