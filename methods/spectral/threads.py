@@ -9,7 +9,7 @@ basis of :mod:`.subspace` at 10k points) took 0.6-1.2 s with two busy threads an
 with one. The solvers therefore run their dense and sparse kernels single-threaded.
 
 Entering ``threadpool_limits`` scans the loaded libraries (1-7 ms a time), so the context
-is re-entrant: only the outermost entry sets the limit and nested entries cost nothing,
+is re-entrant: only the outermost entry of each thread sets the limit and nested entries cost nothing,
 which lets a whole solve be wrapped once around its many small dense calls.
 """
 
@@ -22,26 +22,25 @@ from threadpoolctl import threadpool_limits
 
 __all__ = ["single_threaded_blas"]
 
-_LOCK = threading.Lock()
-_DEPTH = 0
+#: Open contexts per thread: OpenBLAS's thread count set from one thread is not reliably
+#: restored from another (measured: a restore from a second thread left the limit at 1),
+#: so each thread sets and restores its own limit, as a plain ``threadpool_limits`` does.
+_STATE = threading.local()
 
 
 @contextmanager
 def single_threaded_blas():
     """Context manager limiting BLAS (OpenBLAS/MKL) to one thread; cheap when nested.
 
-    The limit is process-wide (as BLAS's own setting is); it is restored when the
-    outermost context exits.
+    The outermost context of each thread sets the limit and restores the previous one
+    on exit; nested contexts in the same thread do nothing.
     """
-    global _DEPTH
-    with _LOCK:
-        outer = _DEPTH == 0
-        _DEPTH += 1
-    limiter = threadpool_limits(1, user_api="blas") if outer else None
+    depth = getattr(_STATE, "depth", 0)
+    limiter = threadpool_limits(1, user_api="blas") if depth == 0 else None
+    _STATE.depth = depth + 1
     try:
         yield
     finally:
+        _STATE.depth = depth
         if limiter is not None:
             limiter.restore_original_limits()
-        with _LOCK:
-            _DEPTH -= 1

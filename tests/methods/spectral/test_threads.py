@@ -20,7 +20,7 @@ def test_limit_inside_restored_after_nested_exit():
         # Leaving the inner context must not lift the outer limit.
         assert all(n == 1 for n in _blas_threads())
     assert _blas_threads() == before
-    assert threads._DEPTH == 0
+    assert getattr(threads._STATE, "depth", 0) == 0
 
 
 def test_restored_after_an_exception():
@@ -31,7 +31,7 @@ def test_restored_after_an_exception():
     except ValueError:
         pass
     assert _blas_threads() == before
-    assert threads._DEPTH == 0
+    assert getattr(threads._STATE, "depth", 0) == 0
 
 
 def test_usable_as_decorator():
@@ -41,3 +41,26 @@ def test_usable_as_decorator():
 
     assert all(n == 1 for n in inside())
     assert all(n == 1 for n in inside())  # a second call re-enters the context
+
+
+def test_each_thread_keeps_its_own_depth():
+    import threading
+
+    before = _blas_threads()
+    seen: list[list[int]] = []
+
+    def worker():
+        # The main thread is inside a context; this thread's first context is still its outermost.
+        assert getattr(threads._STATE, "depth", 0) == 0
+        with single_threaded_blas():
+            seen.append(_blas_threads())
+        seen.append([getattr(threads._STATE, "depth", 0)])
+
+    with single_threaded_blas():
+        t = threading.Thread(target=worker)
+        t.start()
+        t.join(10)
+        assert threads._STATE.depth == 1
+    assert seen[0] and all(n == 1 for n in seen[0])
+    assert seen[1] == [0]
+    assert _blas_threads() == before
