@@ -87,9 +87,10 @@ class Ocp(Method):
     solves on a Poisson-disk subsample (radius 2 l, boundary loops kept) and uses that
     map to shrink the fine k search to a ~20-function boundary subspace
     (:mod:`methods.spectral.multilevel`; line search only). Measured against "direct"
-    at 20k-300k points: the same k_opt to 1e-5 and map to 1e-4 of the diameter, the
-    solve stage 0.8x, end to end within noise: the fine interior is still factorised
-    once, so the path is not yet near-linear and is not the default.
+    at 20k-300k points: the same k_opt to 3e-5 and map to 8.3e-4 of the diameter
+    (1e-4 or better except on a random sampling), end to end within noise at 100k and
+    0.84x at 300k: the fine interior is still factorised once, so the path is not
+    near-linear and is not the default.
     """
 
     name = "ocp"

@@ -19,13 +19,15 @@ Measured against the direct path (both with the repeated subspace search of
 cylinder, slit, plane (jittered), bump (random, grid), cap (graded) and holes
 (blue-noise), k_opt equal to 3e-5 or better, QC mean to 2e-5 relative, uv after
 similarity alignment to 8.3e-4 of the diameter (random bump; 1e-4 or better elsewhere),
-0 foldovers, the same self-check verdict; at 100k on bump, holes and cap (jittered) k_opt
-to 3e-6, uv to 2e-5 of the diameter. Time: the solve stages take about 0.6x-0.8x of the
-direct solve at 100k-300k points (300k bump: 14.5 + 1.3 s against 27.9 s; end to end
-30 s against 41 s), with the same peak memory; at 10k-20k the two are within noise. The
-fine interior block is still factorised once (sparse direct, O(n^1.5)), the front end
-is unchanged, and at 1M points (bump, one run) ``ocp`` took 167 s (front end 43 s,
-Laplacian 12 s, subsample 5.5 s, coarse 13.7 s, fine 88.6 s) and 5.4 GB peak.
+0 foldovers, the same self-check verdict; at 100k (bump, holes, cap, jittered) and 300k
+(bump) k_opt to 4e-6 or better, uv to 2e-5 of the diameter. Time (2 shared cores, load
+3-4): at 100k the two paths are within noise end to end (bump 8.3 s against 8.5 s,
+holes 9.3 against 7.4, cap 14.6 against 13.7) at the same peak memory (1.0 GB); at 300k
+(bump) 46.7 s against 55.6 s end to end, the solve side 32.0 s (subsample 1.4, coarse
+4.0, fine 26.7) against 34.7 s, peak 1.93 GB against 1.75 GB. The fine interior block
+is still factorised once (sparse direct, O(n^1.5)) and the front end is unchanged: at
+1M points (bump, one run, before the repeated search) ``ocp`` took 167 s (front end
+43 s, Laplacian 12 s, subsample 5.5 s, coarse 13.7 s, fine 88.6 s) and 5.4 GB peak.
 Replacing that factorisation by an iterative solve with an algebraic multigrid
 preconditioner is what would make the path near-linear; it is not done.
 """
