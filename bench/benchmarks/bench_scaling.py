@@ -6,6 +6,10 @@ also covers with peak memory). Each benchmark stores the stage timings, the size
 ratio to ``scp-igl`` on the ground-truth mesh of the same points, timed in the same process,
 and the peak resident memory of the process while each stage ran (``stage_peak_rss_mb``).
 The issue's target: ``ocp`` at 100k points no slower than ``scp-igl`` (ratio <= 1).
+``ocp-multilevel`` is ``ocp`` with ``solver="multilevel"`` (issue #14), ``fbcp-pc`` the
+free-boundary peer; ``ocp-multilevel``'s ``extra_info``
+adds the coarse level's size and the fine subspace's, and ``stage_ratio_vs_scp_igl`` gives
+each stage's seconds over the whole ``scp-igl`` time, for every method.
 """
 
 from __future__ import annotations
@@ -20,21 +24,29 @@ from bench.benchmarks.timing import best_of, run_or_skip
 from methods.registry import get_method
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_BENCH_SIZES", "10000,100000").split(",") if s.strip()]
-METHODS = ["scp-igl", "scp", "sdp", "ocp"]
+#: Benchmark name -> (method, parameters).
+VARIANTS = {"scp-igl": ("scp-igl", {}), "scp": ("scp", {}), "sdp": ("sdp", {}), "ocp": ("ocp", {}),
+            "ocp-multilevel": ("ocp", {"solver": "multilevel"}), "fbcp-pc": ("fbcp-pc", {})}
+METHODS = list(VARIANTS)
 CASES = [(n, m) for n in SIZES for m in METHODS]
 
 
 @pytest.mark.parametrize("n_points,method_name", CASES, ids=[f"{n}-{m}" for n, m in CASES])
 def test_scaling_bump(benchmark, n_points, method_name):
     surface = surface_for("bump", n_points, "jittered", 0.0, 0)
-    method = get_method(method_name)
+    name, params = VARIANTS[method_name]
+    method = get_method(name)
     given = surface.method_input(method.needs_faces)  # no ground truth reaches the method
     benchmark.group = f"scaling-{n_points}"
     base_time = best_of(lambda: get_method("scp-igl")(surface), repeat=1)
     peak = PeakMemory()
     with peak.measure():
-        result = benchmark.pedantic(lambda: run_or_skip(lambda: method(given)), rounds=1, iterations=1)
+        result = benchmark.pedantic(lambda: run_or_skip(lambda: method(given, **params)), rounds=1, iterations=1)
+    diag = result.diagnostics
     benchmark.extra_info.update(n_points=surface.n_points, stage_timings=result.timings,
+                                stage_ratio_vs_scp_igl={k: round(v / base_time, 4) for k, v in result.timings.items()},
+                                solver=diag.get("solver"), coarse_points=diag.get("coarse_points"),
+                                subspace_size=diag.get("subspace_size"),
                                 stage_peak_rss_mb={k: round(v, 1) for k, v in peak.stage_peak_mb.items()},
                                 peak_rss_mb=round(peak.peak_mb, 1),
                                 time_ratio_vs_scp_igl=benchmark.stats.stats.min / base_time,

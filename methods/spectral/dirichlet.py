@@ -18,6 +18,7 @@ from datasets_gen.errors import ConvergenceError, SolverError
 
 from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
+from .threads import single_threaded_blas
 
 __all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize"]
 
@@ -45,6 +46,7 @@ def _real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return vals[:2].real, pair
 
 
+@single_threaded_blas()  # ARPACK's small dense steps; see methods.spectral.threads
 def smallest_nontrivial_pair(a_mat: sp.spmatrix, b_mat: sp.spmatrix, *, perm: np.ndarray | None = None,
                              nev: int = 2, ncv: int | None = None, tol: float = 1e-8,
                              seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from datasets_gen.errors import ConvergenceError, InvalidInputError
 
@@ -215,6 +214,9 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
             hi = mid
         else:
             lo = mid
+    # scipy.optimize costs ~0.09 s to import; only k searches need it, not every command.
+    from scipy.optimize import minimize_scalar
+
     res = minimize_scalar(lambda kk: penalized_energy(ev(kk), r), bounds=(lo, hi), method="bounded",
                           options={"xatol": xatol * hi, "maxiter": maxiter})
     if not res.success:
@@ -266,6 +268,8 @@ def _polish_root(ev: Callable[[float], KPoint], regular: list[KPoint], best: KPo
         p = ev(kk)
         # A spinning map inside the interval ends the polish at the side it lies on.
         return p.energy if p.regular else (1.0 if p.k > best.k else -1.0) * abs(best.energy)
+
+    from scipy.optimize import brentq  # lazily, as in line_search
 
     try:
         k_root = brentq(q, lo, hi, xtol=1e-15 * hi, rtol=4 * np.finfo(float).eps, maxiter=60)

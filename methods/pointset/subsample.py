@@ -1,0 +1,82 @@
+"""A well-spread subsample of a point set that keeps given points (boundary loops) dense.
+
+The coarse level of the multilevel solve (:mod:`methods.spectral.multilevel`) needs
+points no closer than a radius to each other in the interior, while every boundary-loop
+point stays, so that the coarse problem has exactly the fine problem's loops. The sample
+is a maximal independent set of the "closer than ``radius``" graph (a Poisson-disk
+sample): the kept points are forced in, then rounds of Luby's rule (a point joins when
+its random priority beats every undecided neighbour's) settle the rest with whole-array
+operations, about log n rounds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from datasets_gen.errors import InvalidInputError
+
+__all__ = ["poisson_disk_subsample"]
+
+#: Neighbours examined per point; with a radius of a few spacings the disk holds fewer.
+_MAX_NEIGHBOURS = 24
+
+
+def poisson_disk_subsample(points: np.ndarray, radius: float, keep: np.ndarray | None = None, *,
+                           seed: int = 0) -> np.ndarray:
+    """Indices of a Poisson-disk subsample that contains every index in ``keep``.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    radius : float
+        No two sampled points that are not both in ``keep`` are closer than this (among
+        each point's 24 nearest neighbours), and every point is within ``radius`` of a
+        sampled one (same proviso): the sample is maximal. Same length unit as ``points``.
+    keep : (K,) array_like of int, optional
+        Points always sampled (boundary loops); they are allowed to be closer than ``radius``.
+    seed : int
+        Seed of the random priorities (the sample is deterministic for a given seed).
+
+    Returns
+    -------
+    (M,) numpy.ndarray of int64
+        Sorted point indices.
+
+    Raises
+    ------
+    InvalidInputError
+        ``points`` is not (N, 3) finite, ``radius`` is not positive, or ``keep`` holds an
+        index out of range.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+        raise InvalidInputError(f"points must be a finite (N, 3) array, got shape {pts.shape}.")
+    if not radius > 0:
+        raise InvalidInputError(f"the subsample radius must be positive, got {radius}.")
+    n = pts.shape[0]
+    kept = np.zeros(0, dtype=np.int64) if keep is None else np.asarray(keep, dtype=np.int64).ravel()
+    if kept.size and (kept.min() < 0 or kept.max() >= n):
+        raise InvalidInputError(f"keep must hold point indices in [0, {n - 1}].")
+    k = min(_MAX_NEIGHBOURS, n - 1)
+    if k < 1:
+        return np.arange(n, dtype=np.int64)
+    dist, nbr = cKDTree(pts).query(pts, k=k + 1, distance_upper_bound=radius, workers=-1)
+    nbr = nbr[:, 1:]
+    close = np.isfinite(dist[:, 1:])  # misses are returned as index n, distance inf
+    nbr = np.where(close, nbr, n)
+    # State: 1 sampled, -1 excluded (a sampled point is too close), 0 undecided; index n is a sentinel.
+    state = np.zeros(n + 1, dtype=np.int8)
+    state[kept] = 1
+    priority = np.append(np.random.default_rng(seed).random(n), -1.0)
+    while True:
+        undecided = np.flatnonzero(state[:n] == 0)
+        near_sampled = (state[nbr[undecided]] == 1).any(axis=1)
+        state[undecided[near_sampled]] = -1
+        undecided = undecided[~near_sampled]
+        if undecided.size == 0:
+            break
+        rows = nbr[undecided]
+        rival = np.where(state[rows] == 0, priority[rows], -1.0).max(axis=1)
+        state[undecided[priority[undecided] > rival]] = 1
+    return np.flatnonzero(state[:n] == 1)

@@ -1,0 +1,219 @@
+"""Two-level SCP k search: a Poisson-disk subsample chooses the subspace, every point decides.
+
+The conformal problem's area matrix M and B live on the boundary loops only, so a coarse
+level that keeps every loop point (:func:`methods.pointset.subsample.poisson_disk_subsample`)
+has the fine problem's loops exactly, and its map gives values on the fine boundary
+without interpolation. The coarse Laplacian is the Galerkin product ``L_c = P^T L P``;
+P interpolates each fine point from its six nearest coarse points with weights that sum
+to one and reproduce linear functions in the point's tangent plane
+(:func:`interpolation_matrix`), so ``L_c`` keeps zero row sums and the energy of smooth
+maps. On the coarse level (about one point in nine) the subspace k search of
+:mod:`.subspace` gives a map; its boundary values, real and imaginary parts, join a
+small Fourier basis (8 frequencies instead of 32), and the fine k search runs on that
+subspace (about 20 interior solves instead of about 70). The fine Ritz vector at k_opt
+is then refined to the fine eigenvector by Davidson steps and extended harmonically,
+exactly as on the direct path, so the coarse map chooses the subspace, never the answer.
+
+Measured against the direct path (both with the repeated subspace search of
+:mod:`.subspace`): at 20k points on saddle, holes-bumped, protrusions, gnome-strip,
+cylinder, slit, plane (jittered), bump (random, grid), cap (graded) and holes
+(blue-noise), k_opt equal to 3e-5 or better, QC mean to 2e-5 relative, uv after
+similarity alignment to 8.3e-4 of the diameter (random bump; 1e-4 or better elsewhere),
+0 foldovers, the same self-check verdict; at 100k (bump, holes, cap, jittered) and 300k
+(bump) k_opt to 4e-6 or better, uv to 2e-5 of the diameter. Time (2 shared cores, load
+3-4): at 100k the two paths are within noise end to end (bump 8.3 s against 8.5 s,
+holes 9.3 against 7.4, cap 14.6 against 13.7) at the same peak memory (1.0 GB); at 300k
+(bump) 46.7 s against 55.6 s end to end, the solve side 32.0 s (subsample 1.4, coarse
+4.0, fine 26.7) against 34.7 s, peak 1.93 GB against 1.75 GB. The fine interior block
+is still factorised once (sparse direct, O(n^1.5)) and the front end is unchanged: at
+1M points (bump, one run, before the repeated search) ``ocp`` took 167 s (front end
+43 s, Laplacian 12 s, subsample 5.5 s, coarse 13.7 s, fine 88.6 s) and 5.4 GB peak.
+Replacing that factorisation by an iterative solve with an algebraic multigrid
+preconditioner is what would make the path near-linear; it is not done.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from datasets_gen.errors import InvalidInputError
+
+from .problem import ConformalProblem, ConformalSolution
+from .threads import single_threaded_blas
+
+__all__ = ["interpolation_matrix", "MultilevelSettings", "multilevel_scp"]
+
+#: Coarse points each fine point is interpolated from.
+_INTERP_K = 6
+
+
+@dataclass(frozen=True)
+class MultilevelSettings:
+    """Choices of the two-level solve.
+
+    Attributes
+    ----------
+    radius_factor : float
+        Poisson-disk radius of the coarse sample in units of the mean spacing l
+        (2.0 keeps about one point in nine, boundary loops included, at 20k-100k points).
+    fine_modes : int
+        Fourier frequencies of the fine subspace besides the coarse map.
+    seed : int
+        Seed of the subsample's priorities.
+    """
+
+    radius_factor: float = 2.0
+    fine_modes: int = 8
+    seed: int = 0
+
+
+def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.ndarray | None = None,
+                         k: int = _INTERP_K) -> sp.csr_matrix:
+    """Prolongation P from coarse to fine values: identity on coarse points, local weights elsewhere.
+
+    With ``normals`` each fine point's weights on its ``k`` nearest coarse points are the
+    smallest in the distance-weighted norm ``sum_j w_j^2 d_j^2`` that sum to one and
+    reproduce the point's position in its tangent plane (linear functions are
+    interpolated exactly, so the Galerkin Laplacian keeps the energy of smooth maps);
+    without them, or where that local system is singular, inverse squared distance
+    weights.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    coarse : (M,) numpy.ndarray of int64
+        Sorted, distinct indices of the coarse points.
+    normals : (N, 3) numpy.ndarray of float64, optional
+        Unit normals of the fine points.
+    k : int
+        Coarse points per fine point.
+
+    Returns
+    -------
+    (N, M) scipy.sparse.csr_matrix of float64
+        Rows sum to one.
+
+    Raises
+    ------
+    InvalidInputError
+        Fewer coarse points than ``k``.
+    """
+    n, m = points.shape[0], coarse.size
+    if m < k:
+        raise InvalidInputError(f"the coarse level needs at least {k} points, got {m}.")
+    dist, near = cKDTree(points[coarse]).query(points, k=k, workers=-1)
+    d2 = np.maximum(dist, 1e-12 * max(float(dist.max()), 1e-300)) ** 2
+    w = 1.0 / d2
+    w /= w.sum(axis=1, keepdims=True)
+    if normals is not None:
+        w = _linear_exact_weights(points, normals, points[coarse][near], d2, fallback=w)
+    p = sp.csr_matrix((w.ravel(), near.ravel(), np.arange(0, n * k + 1, k)), shape=(n, m))
+    # Coarse points are their own values exactly.
+    on = sp.csr_matrix((np.ones(m), (coarse, np.arange(m))), shape=(n, m))
+    is_coarse = np.zeros(n, dtype=bool)
+    is_coarse[coarse] = True
+    return (sp.diags((~is_coarse).astype(np.float64)) @ p + on).tocsr()
+
+
+def _linear_exact_weights(points: np.ndarray, normals: np.ndarray, nbr_pts: np.ndarray, d2: np.ndarray,
+                          fallback: np.ndarray) -> np.ndarray:
+    """Weights ``w = D^-1 A^T (A D^-1 A^T)^-1 e_1`` with A = [1; tangent offsets] (see interpolation_matrix)."""
+    nrm = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    off = nbr_pts - points[:, None, :]
+    off -= np.einsum("nkd,nd->nk", off, nrm)[:, :, None] * nrm[:, None, :]  # into the tangent plane
+    # Any orthonormal frame of the tangent plane will do: the weights do not depend on it.
+    helper = np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(nrm, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(nrm, e1)
+    a = np.stack([np.ones(d2.shape), np.einsum("nkd,nd->nk", off, e1), np.einsum("nkd,nd->nk", off, e2)], axis=1)
+    scale = np.sqrt(d2.mean(axis=1))[:, None]
+    a[:, 1:] /= scale[:, :, None]  # unit-free rows: a well-conditioned 3 x 3 system
+    dinv = scale**2 / d2
+    gram = np.einsum("nik,nk,njk->nij", a, dinv, a)
+    ok = np.abs(np.linalg.det(gram)) > 1e-8
+    out = fallback.copy()
+    rhs = np.zeros((int(ok.sum()), 3, 1))
+    rhs[:, 0, 0] = 1.0
+    lam = np.linalg.solve(gram[ok], rhs)[:, :, 0]
+    out[ok] = dinv[ok] * np.einsum("nik,ni->nk", a[ok], lam)
+    return out
+
+
+def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: np.ndarray, coarse: np.ndarray,
+                   *, normals: np.ndarray | None = None, settings: MultilevelSettings = MultilevelSettings(),
+                   stage: Callable[[str], AbstractContextManager] | None = None
+                   ) -> tuple[ConformalSolution, dict]:
+    """SCP with the k line search of Eq. 16 on two levels (see the module docstring).
+
+    Parameters
+    ----------
+    laplacian : (N, N) scipy.sparse matrix of float64
+        Rows sum to zero.
+    loops : sequence of (L_i,) numpy.ndarray of int64
+        Oriented boundary loops of the fine problem.
+    points : (N, 3) numpy.ndarray of float64
+    coarse : (M,) numpy.ndarray of int64
+        Coarse point indices; must contain every loop point.
+    normals : (N, 3) numpy.ndarray of float64, optional
+        Fine normals, for linear-exact prolongation weights (:func:`interpolation_matrix`).
+    settings : MultilevelSettings
+    stage : callable, optional
+        ``stage(name)`` gives a context manager around each level (``"coarse"``: the
+        prolongation, the Galerkin product and the coarse search; ``"fine"``: the fine
+        search, refinement and extension), e.g. a :class:`methods.base.StageTimer`.
+
+    Returns
+    -------
+    solution : ConformalSolution
+        The fine map at the fine k_opt (its ``diagnostics`` as from
+        :meth:`ConformalProblem.solve`).
+    info : dict
+        ``coarse_points``, ``coarse_k_opt``, ``coarse_regular`` (whether the coarse map was
+        a regular flattening; it need not be), ``coarse_triangular_solves`` and
+        ``fine_counts`` (the fine problem's :attr:`ConformalProblem.counts`).
+
+    Raises
+    ------
+    InvalidInputError
+        A loop point is missing from ``coarse``.
+    SolverError, ConvergenceError
+        As :meth:`ConformalProblem.solve` (the fine level) and
+        :meth:`ConformalProblem.scp_subspace_estimate` (the coarse level).
+    """
+    coarse = np.unique(np.asarray(coarse, dtype=np.int64))
+    n = laplacian.shape[0]
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[coarse] = np.arange(coarse.size)
+    boundary = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in loops])
+    if np.any(pos[boundary] < 0):
+        raise InvalidInputError("the coarse level must keep every boundary-loop point.")
+    lap = sp.csr_matrix(laplacian, dtype=np.float64)
+    stage = stage or (lambda name: nullcontext())
+    with single_threaded_blas(), stage("coarse"):
+        prolong = interpolation_matrix(points, coarse, normals)
+        lap_c = (prolong.T @ lap @ prolong).tocsr()
+        # Galerkin products keep zero row sums only to rounding; remove the residue exactly.
+        lap_c = (lap_c - sp.diags(np.asarray(lap_c.sum(axis=1)).ravel())).tocsr()
+        coarse_problem = ConformalProblem(lap_c, [pos[lp] for lp in loops], b_matrix="boundary",
+                                          points=points[coarse])
+        # The coarse map only gives the fine subspace a direction: it need not be regular
+        # (at 100k points the exact coarse map near the coarse k_opt still spun).
+        point, coarse_info = coarse_problem.scp_subspace_estimate()
+        z_b, coarse_k = point.state[0], point.k
+        del prolong, lap_c  # the fine factorisation needs the memory more
+    with single_threaded_blas(), stage("fine"):
+        fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points, subspace_modes=settings.fine_modes,
+                                subspace_extra=np.column_stack([z_b.real, z_b.imag]))
+        sol = fine.solve("scp", "line")
+    info = {"coarse_points": int(coarse.size), "coarse_k_opt": float(coarse_k),
+            "coarse_regular": bool(coarse_info["regular"]),
+            "coarse_triangular_solves": int(coarse_problem.counts["triangular_solves"]),
+            "fine_counts": fine.counts}
+    return sol, info
