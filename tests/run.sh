@@ -19,5 +19,5 @@ fi
 
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null
-.venv/bin/python -m pip install -q -e ".[test]"
+.venv/bin/python -m pip install -q ".[test]"  # not editable: an editable install of a flat layout always prints a setuptools notice
 exec .venv/bin/python -m pytest "$@"
