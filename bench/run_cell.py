@@ -20,7 +20,8 @@ from methods import get_method
 
 from .cells import Cell
 from .memory import PeakMemory
-from .metrics import SELFMESH_KEYS, evaluate, per_face_qc, self_scored, uv_delaunay_faces
+from .metrics import (SELFMESH_KEYS, evaluate, flipped_mask, per_face_qc, self_scored, triangle_signed_areas,
+                      uv_delaunay_faces)
 from .storage import ResultStore
 
 __all__ = ["compute_cell", "failed_row", "run_cell", "store_cell", "surface_for", "METRIC_COLUMNS", "ARTIFACT_MAX_POINTS"]
@@ -89,16 +90,13 @@ def _evaluation_mesh(surface: Surface, result) -> tuple[np.ndarray, str]:
 
 def _artifact(surface: Surface, result, faces, eval_kind: str) -> dict:
     qc = per_face_qc(surface.points, faces, result.uv)
-    e1 = result.uv[faces[:, 1]] - result.uv[faces[:, 0]]
-    e2 = result.uv[faces[:, 2]] - result.uv[faces[:, 0]]
-    signed = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    majority = 1.0 if np.count_nonzero(signed > 0) >= np.count_nonzero(signed < 0) else -1.0
     arrays = {
         "points": surface.points.astype(np.float32),
         "faces": faces.astype(np.int32),
         "uv": result.uv,
         "qc": qc,
-        "flipped": signed * majority < 0,
+        # the faces the row counts as foldovers, so the picture and the number agree
+        "flipped": flipped_mask(triangle_signed_areas(result.uv, faces)),
     }
     if eval_kind == "ground-truth":
         arrays.update(_loops_arrays("gt", surface.boundary_loops))

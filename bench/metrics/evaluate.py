@@ -5,8 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from datasets_gen.errors import InvalidInputError
-from methods.geometry2d import turning_number
-from methods.mesh.topology import boundary_loops as mesh_boundary_loops
 
 from ._inputs import check_mesh, check_uv
 from .alignment import exact_map_error
@@ -14,7 +12,8 @@ from .angles import angle_differences_deg, angle_error_per_face, angle_histogram
 from .distortion import area_distortion, normalized_area_distortion, weighted_quantile
 from .eval_mesh import uv_delaunay_faces
 from .jacobian import beltrami_abs, face_jacobian_sv, quasi_conformal, sigma_ratio_excess
-from .orientation import collapsed_mask, flipped_share, majority_orientation
+from .loops import mesh_boundary_loops, turning_number
+from .orientation import collapsed_mask, count_foldovers, flipped_share, majority_orientation
 
 __all__ = ["evaluate", "METRIC_KEYS"]
 
@@ -53,7 +52,7 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
         Known exact map; gives ``exact_error``.
     boundary_loops : list of (L_i,) array_like of int, optional
         Point indices of each boundary loop, outer first. Default: the loops of the
-        evaluation mesh (longest first). For a point set pass the surface's own loops:
+        evaluation mesh (longest first, :func:`bench.metrics.loops.mesh_boundary_loops`). For a point set pass the surface's own loops:
         the uv Delaunay mesh has extra small holes wherever the sampling is sparse or the
         map tears (uniform random samples of a disk give about one per 200 points), and
         loops through its non-manifold vertices can have turning number 0.
@@ -108,7 +107,7 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
     orient = majority_orientation(signed)
     n_faces = int(tri.shape[0])
     live = ~collapsed
-    foldovers = int(np.count_nonzero(np.sign(signed[live]) != orient))
+    foldovers = count_foldovers(signed)
 
     if live.any():
         qc = quasi_conformal(s1[live], s2[live])
