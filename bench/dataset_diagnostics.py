@@ -18,6 +18,7 @@ from methods.pointset.frontend import build_frontend
 
 from .cells import Cell
 from .run_cell import _method_input, surface_for
+from .schema import encode_loops
 from .storage import ResultStore
 
 __all__ = ["surface_diagnostics", "store_missing_diagnostics", "MAX_POINTS"]
@@ -38,13 +39,6 @@ def _row_normalised_cotangent(surface: Surface) -> sp.csr_matrix:
     sums = np.asarray(W.sum(axis=1)).ravel()
     sums[sums == 0] = 1.0
     return (sp.diags(1.0 / sums) @ W).tocsr()
-
-
-def _loops(prefix: str, loops) -> dict:
-    if not loops:
-        return {}
-    return {f"{prefix}_loops_flat": np.concatenate(loops).astype(np.int32),
-            f"{prefix}_loops_offsets": np.cumsum([0] + [len(lp) for lp in loops]).astype(np.int32)}
 
 
 def surface_diagnostics(surface: Surface) -> dict:
@@ -70,8 +64,8 @@ def surface_diagnostics(surface: Surface) -> dict:
     arrays["w_tan_interior"], arrays["w_tan_boundary"] = _split_rows(front.W, ~truth)
     if surface.faces is not None:
         arrays["w_cot_interior"], arrays["w_cot_boundary"] = _split_rows(_row_normalised_cotangent(surface), ~truth)
-    arrays.update(_loops("det", front.boundary_loops))
-    arrays.update(_loops("gt", surface.boundary_loops))
+    arrays.update(encode_loops("det", front.boundary_loops))
+    arrays.update(encode_loops("gt", surface.boundary_loops))
     return arrays
 
 

@@ -6,6 +6,8 @@ import numpy as np
 
 from datasets_gen.errors import InvalidInputError
 
+from ..schema import METRIC_KEYS
+
 from ._inputs import check_mesh, check_uv
 from .alignment import exact_map_error
 from .angles import angle_differences_deg, angle_error_per_face, angle_histogram
@@ -16,14 +18,6 @@ from .loops import mesh_boundary_loops, turning_number
 from .orientation import collapsed_mask, count_foldovers, flipped_share, majority_orientation
 
 __all__ = ["evaluate", "METRIC_KEYS"]
-
-#: The keys of the dict :func:`evaluate` returns, in order.
-METRIC_KEYS = (
-    "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
-    "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
-    "mu_mean", "mu_sd", "mu_p95", "area_distortion_normalized", "sigma_ratio_max", "angle_error_mean",
-    "flipped_share", "angle_hist",
-)
 
 
 def _check_loops(loops, n_points: int) -> list[np.ndarray]:
