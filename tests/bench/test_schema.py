@@ -85,3 +85,15 @@ def test_a_stored_cell_reads_back_with_every_column(tmp_path, method):
     keys = dataset_key_candidates(back["dataset"], back["size"], back["sampling"], back["noise"], back["seed"])
     surface = load_dataset_arrays(tmp_path, keys)
     assert surface is not None and len(surface["gt_loops"]) == 4
+
+
+def test_surface_diagnostics_cotangent_rows_are_normalised():
+    from bench.dataset_diagnostics import surface_diagnostics
+
+    surface = make_surface("holes", 500, seed=2)
+    arrays = surface_diagnostics(surface)
+    n_boundary = int(surface.boundary_mask.sum())
+    # every row of the row-normalised cotangent weights sums to 1
+    assert arrays["w_cot_boundary"].sum() == pytest.approx(n_boundary)
+    assert arrays["w_cot_interior"].sum() == pytest.approx(surface.n_points - n_boundary)
+    assert [len(lp) for lp in decode_loops(arrays, "gt")] == [len(lp) for lp in surface.boundary_loops]
