@@ -95,19 +95,7 @@ def flipped_mask(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) 
 
 
 def count_foldovers(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> int:
-    """Number of flipped triangles, :func:`flipped_mask` summed.
-
-    Parameters
-    ----------
-    signed_area_uv : (M,) array_like of float64
-        From :func:`triangle_signed_areas`.
-    rel_tol : float
-        See :func:`collapsed_mask`.
-
-    Returns
-    -------
-    int
-    """
+    """Number of flipped triangles: :func:`flipped_mask` (same parameters) summed, an int."""
     return int(np.count_nonzero(flipped_mask(signed_area_uv, rel_tol)))
 
 
