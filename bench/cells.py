@@ -7,10 +7,9 @@ a Dask worker and give the same row.
 
 from __future__ import annotations
 
-import hashlib
-import json
-import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
+
+from .schema import CELL_KEY_FIELDS, cell_id, dataset_key, encode_json
 
 __all__ = ["Cell", "REAL_PREFIX"]
 
@@ -58,27 +57,20 @@ class Cell:
 
     @property
     def params_json(self) -> str:
-        return json.dumps(self.params_dict, sort_keys=True)
+        return encode_json(self.params_dict)
 
     @property
     def dataset_key(self) -> str:
-        """Identifies the surface (everything but the method)."""
-        return _slug(f"{self.dataset}-{self.size}-{self.sampling}-n{self.noise:g}-s{self.seed}")
+        """Identifies the surface (everything but the method): :func:`bench.schema.dataset_key`."""
+        return dataset_key(self.dataset, self.size, self.sampling, self.noise, self.seed)
 
     @property
     def cell_id(self) -> str:
-        """Stable, file-name-safe identifier: readable prefix plus a hash of the full address."""
-        address = json.dumps([self.dataset, self.size, self.sampling, self.noise, self.seed,
-                              self.method, self.params_dict], sort_keys=True)
-        digest = hashlib.sha1(address.encode()).hexdigest()[:10]
-        return _slug(f"{self.dataset}-{self.size}-{self.sampling}-s{self.seed}-{self.method}") + f"-{digest}"
+        """Stable, file-name-safe identifier: :func:`bench.schema.cell_id`."""
+        return cell_id(self.dataset, self.size, self.sampling, self.noise, self.seed, self.method, self.params_dict)
 
     def address(self) -> dict:
-        """The row columns that identify the cell."""
-        d = asdict(self)
+        """The row columns that identify the cell (:data:`bench.schema.CELL_KEY_FIELDS`)."""
+        d = {name: getattr(self, name) for name in CELL_KEY_FIELDS}
         d["params"] = self.params_json
         return d
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)

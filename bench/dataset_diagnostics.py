@@ -8,16 +8,17 @@ two are on the same scale.
 
 from __future__ import annotations
 
-import igl
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import ParambenchError
+from datasets_gen.errors import InvalidInputError, ParambenchError
 from datasets_gen.surface import Surface
+from methods.mesh.weights import mesh_weights
 from methods.pointset.frontend import build_frontend
 
 from .cells import Cell
 from .run_cell import _method_input, surface_for
+from .schema import encode_loops
 from .storage import ResultStore
 
 __all__ = ["surface_diagnostics", "store_missing_diagnostics", "MAX_POINTS"]
@@ -32,21 +33,6 @@ def _split_rows(W: sp.csr_matrix, interior: np.ndarray) -> tuple[np.ndarray, np.
     return W.data[row_is_interior], W.data[~row_is_interior]
 
 
-def _row_normalised_cotangent(surface: Surface) -> sp.csr_matrix:
-    L = igl.cotmatrix(surface.points, surface.faces).tocsr()
-    W = L - sp.diags(L.diagonal())
-    sums = np.asarray(W.sum(axis=1)).ravel()
-    sums[sums == 0] = 1.0
-    return (sp.diags(1.0 / sums) @ W).tocsr()
-
-
-def _loops(prefix: str, loops) -> dict:
-    if not loops:
-        return {}
-    return {f"{prefix}_loops_flat": np.concatenate(loops).astype(np.int32),
-            f"{prefix}_loops_offsets": np.cumsum([0] + [len(lp) for lp in loops]).astype(np.int32)}
-
-
 def surface_diagnostics(surface: Surface) -> dict:
     """Arrays for the report's weight histograms and boundary pictures.
 
@@ -56,7 +42,8 @@ def surface_diagnostics(surface: Surface) -> dict:
         ``points``; ``w_tan_interior``/``w_tan_boundary`` (W^tan entries of interior and
         boundary rows); ``w_cot_*`` likewise for row-normalised cotangent weights when the
         surface has faces; ``det_boundary_mask`` and ``det_loops_*`` (angle criterion);
-        ``gt_loops_*`` when the ground truth is known.
+        ``gt_loops_*`` when the ground truth is known. ``w_cot_*`` are left out when a
+        cotangent row sums to <= 0 (it cannot be normalised).
 
     Raises
     ------
@@ -69,9 +56,14 @@ def surface_diagnostics(surface: Surface) -> dict:
     arrays = {"points": surface.points.astype(np.float32), "det_boundary_mask": front.boundary_mask}
     arrays["w_tan_interior"], arrays["w_tan_boundary"] = _split_rows(front.W, ~truth)
     if surface.faces is not None:
-        arrays["w_cot_interior"], arrays["w_cot_boundary"] = _split_rows(_row_normalised_cotangent(surface), ~truth)
-    arrays.update(_loops("det", front.boundary_loops))
-    arrays.update(_loops("gt", surface.boundary_loops))
+        try:
+            cot = mesh_weights(surface.points, surface.faces, "cotangent", normalized=True)
+        except InvalidInputError:
+            cot = None  # a row summing to <= 0: no cotangent histogram, the W^tan one stays
+        if cot is not None:
+            arrays["w_cot_interior"], arrays["w_cot_boundary"] = _split_rows(cot, ~truth)
+    arrays.update(encode_loops("det", front.boundary_loops))
+    arrays.update(encode_loops("gt", surface.boundary_loops))
     return arrays
 
 

@@ -6,7 +6,6 @@ runs in-process, in a process pool or on a Dask worker.
 
 from __future__ import annotations
 
-import json
 import traceback
 from dataclasses import replace
 from functools import lru_cache
@@ -20,15 +19,11 @@ from methods import get_method
 
 from .cells import Cell
 from .memory import PeakMemory
-from .metrics import SELFMESH_KEYS, evaluate, per_face_qc, self_scored, uv_delaunay_faces
+from .metrics import evaluate, flipped_mask, per_face_qc, self_scored, triangle_signed_areas, uv_delaunay_faces
+from .schema import METRIC_COLUMNS, STATUS_FAILED, STATUS_OK, STATUS_SUSPECT, encode_json, encode_loops
 from .storage import ResultStore
 
 __all__ = ["compute_cell", "failed_row", "run_cell", "store_cell", "surface_for", "METRIC_COLUMNS", "ARTIFACT_MAX_POINTS"]
-
-METRIC_COLUMNS = ("qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
-                  "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
-                  "mu_mean", "mu_sd", "mu_p95", "area_distortion_normalized", "sigma_ratio_max",
-                  "angle_error_mean", "flipped_share", "angle_hist") + tuple(f"selfmesh_{k}" for k in SELFMESH_KEYS)
 
 #: Cells on larger surfaces store no arrays: pictures of a million triangles are not drawn.
 ARTIFACT_MAX_POINTS = 200_000
@@ -55,17 +50,9 @@ def _method_input(surface: Surface, needs_faces: bool, wants_loops: bool = False
     return replace(given, boundary_loops=surface.boundary_loops) if wants_loops else given
 
 
-def _loops_arrays(prefix: str, loops) -> dict:
-    if not loops:
-        return {}
-    flat = np.concatenate([np.asarray(lp, dtype=np.int32) for lp in loops])
-    offsets = np.cumsum([0] + [len(lp) for lp in loops]).astype(np.int32)
-    return {f"{prefix}_loops_flat": flat, f"{prefix}_loops_offsets": offsets}
-
-
 def _empty_row(cell: Cell) -> dict:
     row = cell.address()
-    row.update(cell_id=cell.cell_id, n_points=None, n_faces=None, status="failed", error_type="", error="",
+    row.update(cell_id=cell.cell_id, n_points=None, n_faces=None, status=STATUS_FAILED, error_type="", error="",
                eval_mesh="", time_total=None, timings="{}", diagnostics="{}", k_opt=None,
                peak_memory_mb=None, stage_memory_mb="{}", artifact="")
     row.update({c: None for c in METRIC_COLUMNS})
@@ -75,7 +62,7 @@ def _empty_row(cell: Cell) -> dict:
 def failed_row(cell: Cell, error_type: str, message: str) -> dict:
     """The row of a cell that failed outside the method (e.g. its process died)."""
     row = _empty_row(cell)
-    row.update(status="failed", error_type=error_type, error=message)
+    row.update(status=STATUS_FAILED, error_type=error_type, error=message)
     return row
 
 
@@ -89,21 +76,18 @@ def _evaluation_mesh(surface: Surface, result) -> tuple[np.ndarray, str]:
 
 def _artifact(surface: Surface, result, faces, eval_kind: str) -> dict:
     qc = per_face_qc(surface.points, faces, result.uv)
-    e1 = result.uv[faces[:, 1]] - result.uv[faces[:, 0]]
-    e2 = result.uv[faces[:, 2]] - result.uv[faces[:, 0]]
-    signed = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    majority = 1.0 if np.count_nonzero(signed > 0) >= np.count_nonzero(signed < 0) else -1.0
     arrays = {
         "points": surface.points.astype(np.float32),
         "faces": faces.astype(np.int32),
         "uv": result.uv,
         "qc": qc,
-        "flipped": signed * majority < 0,
+        # the faces the row counts as foldovers, so the picture and the number agree
+        "flipped": flipped_mask(triangle_signed_areas(result.uv, faces)),
     }
     if eval_kind == "ground-truth":
-        arrays.update(_loops_arrays("gt", surface.boundary_loops))
+        arrays.update(encode_loops("gt", surface.boundary_loops))
     diag = result.diagnostics
-    arrays.update(_loops_arrays("det", diag.get("boundary_loops")))
+    arrays.update(encode_loops("det", diag.get("boundary_loops")))
     landscape = diag.get("landscape")
     if landscape:
         for key in ("k", "E", "t"):
@@ -116,13 +100,13 @@ def _jsonable_diagnostics(diag: dict) -> str:
     slim = {k: v for k, v in diag.items() if k not in ("boundary_loops", "landscape")}
     if "boundary_loops" in diag:
         slim["n_detected_loops"] = len(diag["boundary_loops"])
-    return json.dumps(slim, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v), sort_keys=True)
+    return encode_json(slim)
 
 
 def _status(result) -> str:
     """``"suspect"`` for a map that failed its self-check (metrics still computed), else ``"ok"``."""
     check = result.diagnostics.get("selfcheck")
-    return "suspect" if check is not None and not check.get("passed", False) else "ok"
+    return STATUS_SUSPECT if check is not None and not check.get("passed", False) else STATUS_OK
 
 
 def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
@@ -173,24 +157,23 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
             except ParambenchError:
                 pass
         row.update({c: metrics.get(c) for c in METRIC_COLUMNS})
-        row["turning_numbers"] = json.dumps(metrics.get("turning_numbers", []))
-        # Counts over bench.metrics.ANGLE_HIST_EDGES_DEG, as JSON like the turning numbers.
-        row["angle_hist"] = json.dumps(metrics.get("angle_hist"))
+        row["turning_numbers"] = encode_json(metrics.get("turning_numbers", []))
+        # Counts over bench.schema.ANGLE_HIST_EDGES_DEG, as JSON like the turning numbers.
+        row["angle_hist"] = encode_json(metrics.get("angle_hist"))
         row.update(status=_status(result), eval_mesh=eval_kind, time_total=result.timings.get("total"),
-                   timings=json.dumps(result.timings, sort_keys=True),
+                   timings=encode_json(result.timings),
                    diagnostics=_jsonable_diagnostics(result.diagnostics),
                    k_opt=result.diagnostics.get("k_opt"), peak_memory_mb=peak.delta_mb,
-                   stage_memory_mb=json.dumps({k: round(v, 1) for k, v in peak.stage_peak_mb.items()},
-                                              sort_keys=True))
-        if row["status"] == "suspect":
+                   stage_memory_mb=encode_json({k: round(v, 1) for k, v in peak.stage_peak_mb.items()}))
+        if row["status"] == STATUS_SUSPECT:
             row.update(error_type="SelfCheck", error=result.diagnostics["selfcheck"].get("reason", ""))
         if surface.n_points <= ARTIFACT_MAX_POINTS:
             arrays = _artifact(surface, result, faces, eval_kind)
     except ParambenchError as exc:
-        row.update(status="failed", error_type=type(exc).__name__, error=str(exc))
+        row.update(status=STATUS_FAILED, error_type=type(exc).__name__, error=str(exc))
     except Exception as exc:  # a bug or a library failure: keep the sweep alive, keep the evidence
         where = traceback.extract_tb(exc.__traceback__)[-1]
-        row.update(status="failed", error_type=type(exc).__name__,
+        row.update(status=STATUS_FAILED, error_type=type(exc).__name__,
                    error=f"{exc} (at {where.filename.rsplit('/', 1)[-1]}:{where.lineno})")
     return row, arrays
 

@@ -23,10 +23,12 @@ import pandas as pd
 
 from datasets_gen.errors import InputFileError
 
+from .schema import STATUS_FAILED
+
 __all__ = ["ResultStore", "StoredCells", "check_output_dir", "FAILED", "UNREADABLE_SUFFIX"]
 
 #: The one status that does not count as finished: a rerun retries such cells by default.
-FAILED = "failed"
+FAILED = STATUS_FAILED
 #: Suffix given to a cell file that could not be read back (see ``ResultStore.quarantine``).
 UNREADABLE_SUFFIX = ".unreadable"
 

@@ -24,7 +24,8 @@ from .dataset_diagnostics import store_missing_diagnostics
 from .folder_lock import hold_folder
 from .run_cell import compute_cell, store_cell
 from .runmeta import run_metadata
-from .storage import FAILED, ResultStore, StoredCells, check_output_dir
+from .schema import STATUS_FAILED, STATUS_OK
+from .storage import ResultStore, StoredCells, check_output_dir
 from .suites import Suite, check_workers, expand_cells
 
 __all__ = ["run_sweep", "summary_table", "SweepPlan", "plan_sweep"]
@@ -99,7 +100,7 @@ def plan_sweep(cells: list[Cell], stored: StoredCells, *, retry_failed: bool = T
             kind = "unreadable"
         elif status is None:
             kind = "new"
-        elif status != FAILED:
+        elif status != STATUS_FAILED:
             kind = "done"
         else:
             kind = "retried" if retry_failed else "kept"
@@ -274,7 +275,7 @@ def summary_table(table: pd.DataFrame) -> str:
     if table.empty:
         return "no results"
     table = table.assign(variant=variant_labels(table))
-    ok = table[table["status"] == "ok"]
+    ok = table[table["status"] == STATUS_OK]
     lines = []
     if not ok.empty:
         pivot = ok.pivot_table(index="variant", columns="dataset", values="qc_mean", aggfunc="mean")
@@ -285,8 +286,8 @@ def summary_table(table: pd.DataFrame) -> str:
         lines.append("")
         lines.append(pd.DataFrame({"foldovers (sum)": folds, "median time (s)": times.round(3)})
                      .rename_axis("variant").to_string())
-    failed = table[table["status"] == FAILED]
-    others = table[~table["status"].isin(["ok", FAILED])]
+    failed = table[table["status"] == STATUS_FAILED]
+    others = table[~table["status"].isin([STATUS_OK, STATUS_FAILED])]
     lines.append("")
     counts = [f"{len(ok)} ok"]
     counts += [f"{n} {status}" for status, n in others["status"].value_counts().sort_index().items()]

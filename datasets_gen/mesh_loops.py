@@ -1,11 +1,18 @@
-"""Boundary loops of a given (e.g. loaded) triangle mesh, oriented with its faces."""
+"""Boundary loops of a triangle mesh, oriented with its faces: the one definition.
+
+Both the readers (:mod:`datasets_gen.io`) and the mesh methods
+(:mod:`methods.mesh.topology`) take their loops from here, so a loaded mesh and a
+method agree on which loop is which and which way it runs. The evaluation
+(:mod:`bench.metrics.loops`) keeps its own extraction on purpose: the judge does not
+share code with the judged, and a test compares the two.
+"""
 
 from __future__ import annotations
 
 import igl
 import numpy as np
 
-__all__ = ["mesh_boundary", "orient_loop_with_faces"]
+__all__ = ["boundary_loops", "mesh_boundary", "orient_loop_with_faces"]
 
 
 def orient_loop_with_faces(loop: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -29,8 +36,31 @@ def orient_loop_with_faces(loop: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return loop if forward.any() else loop[::-1].copy()
 
 
+def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
+    """All boundary loops of an edge-manifold mesh, longest first, following the faces.
+
+    A counter-clockwise face order gives a counter-clockwise outer loop and clockwise
+    holes in a faithful flattening. Call on an edge-manifold mesh (see
+    :func:`mesh_boundary`, or :func:`methods.mesh.topology.require_manifold`): on other
+    meshes the loops are not defined.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    list of (L_i,) numpy.ndarray of int64
+        Empty for a closed mesh.
+    """
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    # A one-vertex "loop" only comes from a face repeated in reverse; it bounds nothing.
+    loops = [np.asarray(lp, dtype=np.int64) for lp in igl.boundary_loop_all(faces) if len(lp) > 1]
+    return sorted((orient_loop_with_faces(lp, faces) for lp in loops), key=len, reverse=True)
+
+
 def mesh_boundary(faces: np.ndarray, n_points: int) -> tuple[list[np.ndarray] | None, np.ndarray | None]:
-    """Boundary loops (longest first, following the faces) and boundary mask of a mesh.
+    """Boundary loops (see :func:`boundary_loops`) and boundary mask of a mesh.
 
     Parameters
     ----------
@@ -43,10 +73,11 @@ def mesh_boundary(faces: np.ndarray, n_points: int) -> tuple[list[np.ndarray] | 
         Empty for a closed mesh; None when the mesh is not edge-manifold (loops undefined).
     mask : (n_points,) numpy.ndarray of bool, or None
     """
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    # igl returns a tuple whose first item is the verdict; the tuple itself is always true.
     if not igl.is_edge_manifold(faces)[0]:
         return None, None
-    loops = [np.asarray(lp, dtype=np.int64) for lp in igl.boundary_loop_all(faces) if len(lp) > 1]
-    loops = sorted((orient_loop_with_faces(lp, faces) for lp in loops), key=len, reverse=True)
+    loops = boundary_loops(faces)
     mask = np.zeros(n_points, dtype=bool)
     if loops:
         mask[np.concatenate(loops)] = True

@@ -1,10 +1,19 @@
-"""Planar polygon geometry shared by solvers (turning-number penalty) and metrics."""
+"""Planar geometry of the methods: polygon area and turning number, uv triangle orientation.
+
+The methods' one definition of these (the turning-number penalty, the hybrid weights'
+folds, the point-set self-check). The evaluation keeps its own
+(:mod:`bench.metrics.loops`, :mod:`bench.metrics.orientation`) so that it does not share
+code with what it judges; a test compares the two.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["signed_area_2d", "turning_number"]
+__all__ = ["signed_area_2d", "turning_number", "triangle_signed_areas", "flipped_triangles", "COLLAPSE_REL_TOL"]
+
+#: A triangle whose |uv area| is at most this share of the mean |uv area| has no orientation.
+COLLAPSE_REL_TOL = 1e-12
 
 
 def signed_area_2d(polygon: np.ndarray) -> float:
@@ -44,3 +53,41 @@ def turning_number(polygon: np.ndarray) -> float:
     cross = edges[:, 0] * nxt[:, 1] - edges[:, 1] * nxt[:, 0]
     dot = np.einsum("ij,ij->i", edges, nxt)
     return float(np.arctan2(cross, dot).sum() / (2.0 * np.pi))
+
+
+def triangle_signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Signed area of every uv triangle, positive where its corners run counter-clockwise.
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    (M,) numpy.ndarray of float64
+        In the units of uv squared.
+    """
+    a = uv[faces[:, 0]]
+    d1, d2 = uv[faces[:, 1]] - a, uv[faces[:, 2]] - a
+    return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+
+def flipped_triangles(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Triangles whose uv orientation opposes the majority (a global mirror is no flip).
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    (M,) numpy.ndarray of bool
+        Collapsed triangles (|area| at most ``COLLAPSE_REL_TOL`` of the mean) are not
+        flipped and do not vote for the majority; a tie counts as counter-clockwise.
+    """
+    signed = triangle_signed_areas(uv, faces)
+    live = np.abs(signed) > COLLAPSE_REL_TOL * np.abs(signed).mean()
+    majority = 1.0 if np.count_nonzero(signed[live] > 0) >= np.count_nonzero(signed[live] < 0) else -1.0
+    return live & (signed * majority < 0)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from bench.schema import ANGLE_HIST_EDGES_DEG
 from datasets_gen.errors import InputFileError
 
 from .benchmarks import load_benchmarks
@@ -57,7 +58,7 @@ OPTIONAL_SECTIONS = (
 )
 #: A per-surface picture other modules may add to the row of small figures: (module,
 #: function); called as ``function(histograms, edges, title)`` with each drawn variant's
-#: stored ``angle_hist`` and the bin edges of ``bench.metrics.ANGLE_HIST_EDGES_DEG``.
+#: stored ``angle_hist`` and the bin edges of ``bench.schema.ANGLE_HIST_EDGES_DEG``.
 ANGLE_HISTOGRAM = ("reports.figures.angle_histogram", "angle_histogram_figure")
 
 
@@ -381,15 +382,11 @@ def _angle_histogram(view: PictureView, drawn: list[str], warnings: list[str]):
     if "angle_hist" not in view.rows.columns:
         return None  # results stored before the column existed
     function = _optional_function(*ANGLE_HISTOGRAM, warnings)
-    try:
-        from bench.metrics import ANGLE_HIST_EDGES_DEG as edges
-    except ImportError:
-        return None
     if function is None:
         return None
     rows = view.rows[view.rows["variant"].isin(drawn)]
     try:
-        return function(list(zip(rows["variant"], rows["angle_hist"])), edges, view.title)
+        return function(list(zip(rows["variant"], rows["angle_hist"])), ANGLE_HIST_EDGES_DEG, view.title)
     except ValueError as exc:  # histograms stored over other edges
         warnings.append(f"no angle histogram for {view.title}: {exc}")
         return None

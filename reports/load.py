@@ -11,13 +11,16 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+# The results format is the sweep's: read with the same definitions it writes with.
+from bench.schema import JSON_COLUMNS, NUMERIC_COLUMNS, ROW_COLUMNS, STATUS_FAILED, TEXT_COLUMNS
+from bench.schema import decode_json as parse_json_field
+from bench.schema import dataset_key, decode_loops, encode_json, loops_from_flat
 from datasets_gen.errors import InputFileError
 
 from .errors import EmptyResultsError
@@ -36,26 +39,6 @@ __all__ = [
     "load_dataset_arrays",
     "dataset_key_candidates",
 ]
-
-#: Every column of a result row, in the order of the storage contract.
-ROW_COLUMNS = (
-    "cell_id", "dataset", "size", "sampling", "noise", "seed", "method", "params", "n_points", "n_faces",
-    "status", "error_type", "error", "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction",
-    "collapsed", "area_distortion", "turning_numbers", "exact_error", "n_eval_faces", "eval_mesh",
-    "time_total", "timings", "diagnostics", "k_opt", "peak_memory_mb", "stage_memory_mb", "artifact",
-)
-
-#: Columns coerced to float (NaN for null, for failed cells and for unparseable values).
-NUMERIC_COLUMNS = (
-    "size", "noise", "seed", "n_points", "n_faces", "qc_mean", "qc_p95", "qc_max", "foldovers",
-    "foldover_fraction", "collapsed", "area_distortion", "exact_error", "n_eval_faces", "time_total",
-    "k_opt", "peak_memory_mb",
-)
-
-_TEXT_COLUMNS = ("cell_id", "dataset", "sampling", "method", "status", "error_type", "error", "eval_mesh",
-                 "artifact")
-_JSON_COLUMNS = {"params": "{}", "timings": "{}", "diagnostics": "{}", "turning_numbers": "[]",
-                 "stage_memory_mb": "{}"}
 
 
 @dataclass
@@ -115,25 +98,6 @@ class CellArrays:
     problems: list = field(default_factory=list)
 
 
-def parse_json_field(value, default=None):
-    """Decode a JSON-string column value; dicts and lists pass through.
-
-    Parameters
-    ----------
-    value : str, dict, list, None or float NaN
-    default : object
-        Returned for null, empty or undecodable values.
-    """
-    if isinstance(value, (dict, list)):
-        return value
-    if value is None or (isinstance(value, float) and math.isnan(value)) or value == "":
-        return default
-    try:
-        return json.loads(value)
-    except (TypeError, ValueError):
-        return default
-
-
 def _read_json(path: Path) -> dict:
     try:
         data = json.loads(path.read_text())
@@ -149,7 +113,7 @@ def _canonical_json(value, default: str) -> str:
     parsed = parse_json_field(value, None)
     if parsed is None:
         return default if not isinstance(value, str) or not value else value
-    return json.dumps(parsed, sort_keys=True)
+    return encode_json(parsed)
 
 
 def normalise_rows(rows: pd.DataFrame) -> pd.DataFrame:
@@ -175,11 +139,11 @@ def normalise_rows(rows: pd.DataFrame) -> pd.DataFrame:
             df[col] = None
     for col in NUMERIC_COLUMNS:
         df[col] = pd.to_numeric(df[col], errors="coerce").astype("float64")
-    for col in _TEXT_COLUMNS:
+    for col in TEXT_COLUMNS:
         df[col] = df[col].map(lambda v: "" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
-    for col, default in _JSON_COLUMNS.items():
+    for col, default in JSON_COLUMNS.items():
         df[col] = df[col].map(lambda v, d=default: _canonical_json(v, d))
-    df["status"] = df["status"].str.strip().str.lower().replace("", "failed")
+    df["status"] = df["status"].str.strip().str.lower().replace("", STATUS_FAILED)
     return df.sort_values("cell_id", kind="stable").reset_index(drop=True)
 
 
@@ -266,43 +230,6 @@ def load_results(results_dir: str | os.PathLike) -> Results:
     return Results(root=root, run=run, rows=normalise_rows(raw), warnings=warnings)
 
 
-def loops_from_flat(flat: np.ndarray, offsets: np.ndarray, n_points: int | None = None) -> list[np.ndarray]:
-    """Split concatenated loops back into a list.
-
-    Parameters
-    ----------
-    flat : (S,) integer numpy.ndarray
-        Vertex indices of all loops, one after the other.
-    offsets : (L+1,) integer numpy.ndarray
-        ``flat[offsets[i]:offsets[i+1]]`` is loop ``i``; starts at 0, ends at ``S``.
-    n_points : int, optional
-        When given, indices must be below it.
-
-    Returns
-    -------
-    list of (L_i,) numpy.ndarray of int64
-
-    Raises
-    ------
-    InputFileError
-        Offsets not increasing from 0 to ``len(flat)``, or indices out of range.
-    """
-    flat = np.asarray(flat, dtype=np.int64).ravel()
-    offsets = np.asarray(offsets, dtype=np.int64).ravel()
-    if (len(offsets) < 1 or offsets[0] != 0 or offsets[-1] != len(flat) or np.any(np.diff(offsets) < 0)):
-        raise InputFileError("loop offsets must rise from 0 to the length of the flat loop array.")
-    if n_points is not None and len(flat) and (flat.min() < 0 or flat.max() >= n_points):
-        raise InputFileError(f"loop vertex indices must lie in [0, {n_points}).")
-    return [flat[a:b] for a, b in zip(offsets[:-1], offsets[1:]) if b > a]
-
-
-def _optional_loops(data, prefix: str, n_points: int) -> list | None:
-    flat, offsets = f"{prefix}_loops_flat", f"{prefix}_loops_offsets"
-    if flat not in data or offsets not in data:
-        return None
-    return loops_from_flat(data[flat], data[offsets], n_points)
-
-
 def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:
     """Read a cell's npz.
 
@@ -336,8 +263,8 @@ def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:
             qc = np.asarray(data["qc"], dtype=np.float64).ravel()
             flipped = np.asarray(data["flipped"], dtype=bool).ravel()
             n = len(points)
-            gt = _optional_loops(data, "gt", n)
-            det = _optional_loops(data, "det", n)
+            gt = decode_loops(data, "gt", n)
+            det = decode_loops(data, "det", n)
             landscape = None
             if all(f"landscape_{k}" in data for k in "kEt"):
                 landscape = {k: np.asarray(data[f"landscape_{k}"], dtype=np.float64) for k in "kEt"}
@@ -371,27 +298,13 @@ def _landscape(raw: dict) -> tuple[dict | None, str]:
     return {"k": k, "E": energy, "t": t}, ""
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
-
-
 def dataset_key_candidates(dataset: str, size, sampling: str, noise, seed) -> list[str]:
-    """File stems under ``datasets/`` that may hold a surface's diagnostics.
+    """File stems under ``datasets/`` that hold a surface's diagnostics.
 
-    The contract key is ``f"{dataset}-{size}-{sampling}-s{seed}"``; a file-name-safe form
-    of it (``/`` and other unsafe characters replaced by ``_``) and one that also names the
-    noise level (``-n{noise:g}``) are accepted too.
+    One: the key the sweep writes, :func:`bench.schema.dataset_key` (sizes and seeds read
+    back as floats are accepted). A list, so callers can look through several surfaces.
     """
-    size_text = str(int(size)) if size == size else "0"
-    seed_text = str(int(seed)) if seed == seed else "0"
-    noise = 0.0 if noise != noise else float(noise)
-    plain = f"{dataset}-{size_text}-{sampling}-s{seed_text}"
-    noisy = f"{dataset}-{size_text}-{sampling}-n{noise:g}-s{seed_text}"
-    out = []
-    for key in (noisy, _slug(noisy), plain, _slug(plain)):
-        if key not in out:
-            out.append(key)
-    return out
+    return [dataset_key(dataset, size, sampling, noise, seed)]
 
 
 def load_dataset_arrays(root: Path, candidates: list[str]) -> dict | None:
@@ -426,8 +339,8 @@ def load_dataset_arrays(root: Path, candidates: list[str]) -> dict | None:
             raise InputFileError(f"datasets/{key}.npz: unreadable ({exc}).") from exc
         n = len(out["points"]) if "points" in out else None
         try:
-            out["gt_loops"] = _optional_loops(out, "gt", n)
-            out["det_loops"] = _optional_loops(out, "det", n)
+            out["gt_loops"] = decode_loops(out, "gt", n)
+            out["det_loops"] = decode_loops(out, "det", n)
         except InputFileError as exc:
             raise InputFileError(f"datasets/{key}.npz: {exc}") from exc
         return out

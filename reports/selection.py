@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench.schema import dataset_key
+
 from .labels import config_label
-from .load import dataset_key_candidates
 
 __all__ = ["PictureView", "picture_views", "dataset_npz_candidates"]
 
@@ -92,8 +93,7 @@ def dataset_npz_candidates(view: PictureView) -> list[str]:
     """File stems under ``datasets/`` to try for a view's surface diagnostics, best first.
 
     The view's own size and seed first, then the same size with other seeds, then other
-    sizes (largest first), each in the key spellings of
-    :func:`reports.load.dataset_key_candidates`.
+    sizes (largest first), each keyed by :func:`bench.schema.dataset_key`.
     """
     pairs = [(view.size, view.seed)]
     family = view.family_rows
@@ -103,7 +103,7 @@ def dataset_npz_candidates(view: PictureView) -> list[str]:
     pairs += sorted(map(tuple, others.to_numpy()), key=lambda p: (-p[0], p[1]))
     out: list[str] = []
     for size, seed in pairs:
-        for key in dataset_key_candidates(view.dataset, size, view.sampling, view.noise, seed):
-            if key not in out:
-                out.append(key)
+        key = dataset_key(view.dataset, size, view.sampling, view.noise, seed)
+        if key not in out:
+            out.append(key)
     return out

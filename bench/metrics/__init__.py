@@ -6,12 +6,12 @@ set a Delaunay triangulation of the uv layout) and area-weighted with the 3D are
 Public API: :func:`evaluate` (all metrics as a flat dict: QC, foldovers, area distortion,
 the Beltrami coefficient, angle error and its histogram, flipped share), :func:`self_scored`
 (a point-set map scored on its own uv triangulation, without ground truth),
-:func:`per_face_qc` (for pictures), and the building blocks below. :func:`turning_number` (re-exported from
-:mod:`methods.geometry2d`) is +1 for a counter-clockwise simple polygon, -1 for a
-clockwise one.
-"""
+:func:`per_face_qc` (for pictures), and the building blocks below. :func:`turning_number` is +1
+for a counter-clockwise simple polygon, -1 for a clockwise one.
 
-from methods.geometry2d import signed_area_2d, turning_number
+Nothing here imports the methods' numerics: loops, turning numbers and foldovers are the
+evaluation's own (:mod:`bench.metrics.loops`, :mod:`bench.metrics.orientation`).
+"""
 
 from .alignment import exact_map_error, similarity_align
 from .angles import ANGLE_HIST_EDGES_DEG, angle_differences_deg, angle_histogram, triangle_corner_angles
@@ -19,7 +19,9 @@ from .distortion import area_distortion, normalized_area_distortion, weighted_qu
 from .eval_mesh import uv_delaunay_faces
 from .evaluate import METRIC_KEYS, evaluate
 from .jacobian import beltrami_abs, jacobian_singular_values, per_face_qc, quasi_conformal, sigma_ratio_excess
-from .orientation import count_collapsed, count_foldovers, flipped_share, majority_orientation
+from .loops import mesh_boundary_loops, signed_area_2d, turning_number
+from .orientation import (count_collapsed, count_foldovers, flipped_mask, flipped_share, majority_orientation,
+                          triangle_signed_areas)
 from .selfmesh import SELFMESH_KEYS, points_in_loops, self_scored, uv_loop_faces
 
 __all__ = [
@@ -29,6 +31,9 @@ __all__ = [
     "jacobian_singular_values",
     "quasi_conformal",
     "count_foldovers",
+    "flipped_mask",
+    "triangle_signed_areas",
+    "mesh_boundary_loops",
     "count_collapsed",
     "majority_orientation",
     "area_distortion",

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+# The bins are part of the stored column's meaning, so the results schema owns them.
+from ..schema import ANGLE_HIST_EDGES_DEG
+
 __all__ = ["ANGLE_HIST_EDGES_DEG", "triangle_corner_angles", "angle_differences_deg", "angle_error_per_face",
            "angle_histogram"]
-
-#: Fixed bin edges (degrees) of the stored angle-distortion histogram: 1-degree bins over
-#: [-30, 30]. Fixed so that histograms of different cells can be summed and compared;
-#: differences beyond +-30 degrees are counted in the end bins.
-ANGLE_HIST_EDGES_DEG = np.linspace(-30.0, 30.0, 61)
 
 
 def triangle_corner_angles(coords: np.ndarray, faces: np.ndarray) -> np.ndarray:

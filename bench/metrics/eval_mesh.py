@@ -9,7 +9,7 @@ from datasets_gen.errors import InvalidInputError, TooFewPointsError
 from datasets_gen.surface import DEGENERATE_AREA_TOL, validate_points
 
 from ._inputs import check_uv
-from .orientation import collapsed_mask
+from .orientation import collapsed_mask, triangle_signed_areas
 
 __all__ = ["uv_delaunay_faces", "keep_valid_ccw", "KNN_EDGE_K"]
 
@@ -112,9 +112,7 @@ def keep_valid_ccw(pts: np.ndarray, uv: np.ndarray, tri: np.ndarray, keep: np.nd
     if keep.any():
         p = pts[tri]
         area2_3d = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-        q = uv[tri]
-        d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
-        signed_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+        signed_uv = triangle_signed_areas(uv, tri)
         scale = max(float(np.mean(edge_len[keep, 0])) ** 2, np.finfo(float).tiny)
         keep &= area2_3d > DEGENERATE_AREA_TOL * scale
         keep &= ~collapsed_mask(signed_uv)

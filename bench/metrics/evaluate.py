@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from datasets_gen.errors import InvalidInputError
-from methods.geometry2d import turning_number
-from methods.mesh.topology import boundary_loops as mesh_boundary_loops
+
+from ..schema import METRIC_KEYS
 
 from ._inputs import check_mesh, check_uv
 from .alignment import exact_map_error
@@ -14,17 +14,10 @@ from .angles import angle_differences_deg, angle_error_per_face, angle_histogram
 from .distortion import area_distortion, normalized_area_distortion, weighted_quantile
 from .eval_mesh import uv_delaunay_faces
 from .jacobian import beltrami_abs, face_jacobian_sv, quasi_conformal, sigma_ratio_excess
-from .orientation import collapsed_mask, flipped_share, majority_orientation
+from .loops import mesh_boundary_loops, turning_number
+from .orientation import collapsed_mask, count_foldovers, flipped_share, majority_orientation
 
 __all__ = ["evaluate", "METRIC_KEYS"]
-
-#: The keys of the dict :func:`evaluate` returns, in order.
-METRIC_KEYS = (
-    "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
-    "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
-    "mu_mean", "mu_sd", "mu_p95", "area_distortion_normalized", "sigma_ratio_max", "angle_error_mean",
-    "flipped_share", "angle_hist",
-)
 
 
 def _check_loops(loops, n_points: int) -> list[np.ndarray]:
@@ -53,7 +46,7 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
         Known exact map; gives ``exact_error``.
     boundary_loops : list of (L_i,) array_like of int, optional
         Point indices of each boundary loop, outer first. Default: the loops of the
-        evaluation mesh (longest first). For a point set pass the surface's own loops:
+        evaluation mesh (longest first, :func:`bench.metrics.loops.mesh_boundary_loops`). For a point set pass the surface's own loops:
         the uv Delaunay mesh has extra small holes wherever the sampling is sparse or the
         map tears (uniform random samples of a disk give about one per 200 points), and
         loops through its non-manifold vertices can have turning number 0.
@@ -108,7 +101,7 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
     orient = majority_orientation(signed)
     n_faces = int(tri.shape[0])
     live = ~collapsed
-    foldovers = int(np.count_nonzero(np.sign(signed[live]) != orient))
+    foldovers = count_foldovers(signed)
 
     if live.any():
         qc = quasi_conformal(s1[live], s2[live])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._inputs import check_mesh
+from .orientation import triangle_signed_areas
 
 __all__ = ["jacobian_singular_values", "quasi_conformal", "beltrami_abs", "sigma_ratio_excess", "per_face_qc",
            "face_jacobian_sv"]
@@ -38,8 +39,7 @@ def face_jacobian_sv(
     fzbar = np.hypot(0.5 * (p - s), 0.5 * (r + q))
     s1 = fz + fzbar
     s2 = np.abs(fz - fzbar)
-    signed_area_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    return s1, s2, signed_area_uv, 0.5 * two_area
+    return s1, s2, triangle_signed_areas(uv, faces), 0.5 * two_area
 
 
 def jacobian_singular_values(points, faces, uv) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -1,16 +1,39 @@
-"""Triangle orientation in uv: majority orientation, flipped and collapsed triangles."""
+"""Triangle orientation in uv: signed areas, majority orientation, flipped and collapsed triangles.
+
+The evaluation's one definition of a foldover: every count, share and picture of flipped
+triangles in :mod:`bench` comes from here. The methods keep their own
+(:mod:`methods.geometry2d`), so a bug in theirs cannot hide itself in the scores.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["COLLAPSE_REL_TOL", "collapsed_mask", "majority_orientation", "count_foldovers", "count_collapsed",
-           "flipped_share"]
+__all__ = ["COLLAPSE_REL_TOL", "triangle_signed_areas", "collapsed_mask", "majority_orientation", "flipped_mask",
+           "count_foldovers", "count_collapsed", "flipped_share"]
 
 #: A uv triangle whose |area| is below this fraction of the mean |uv area| counts as collapsed.
 #: Relative, so the test does not depend on the (arbitrary) scale of uv; 1e-12 in area is
 #: 1e-6 in length, far below any real mesh's size variation and far above rounding noise.
 COLLAPSE_REL_TOL = 1e-12
+
+
+def triangle_signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Signed area of every uv triangle, positive where its corners run counter-clockwise.
+
+    Parameters
+    ----------
+    uv : (N, 2) array_like of float64
+    faces : (M, 3) array_like of int
+
+    Returns
+    -------
+    (M,) numpy.ndarray of float64
+        In the units of uv squared.
+    """
+    q = np.asarray(uv, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
+    d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
 
 
 def collapsed_mask(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> np.ndarray:
@@ -50,27 +73,30 @@ def majority_orientation(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_R
     return 1 if 2 * pos >= int(live.sum()) else -1
 
 
-def count_foldovers(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> int:
-    """Triangles whose uv orientation opposes the majority (by count).
+def flipped_mask(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> np.ndarray:
+    """Triangles whose uv orientation opposes the majority (see :func:`majority_orientation`).
 
-    A global reflection of uv therefore gives 0. Collapsed triangles (see
-    :func:`count_collapsed`) are neither in the majority nor counted here.
+    A global reflection of uv therefore flips nothing. Collapsed triangles (see
+    :func:`collapsed_mask`) are never flipped.
 
     Parameters
     ----------
     signed_area_uv : (M,) array_like of float64
-        From :func:`jacobian_singular_values`.
+        From :func:`triangle_signed_areas`.
     rel_tol : float
         See :func:`collapsed_mask`.
 
     Returns
     -------
-    int
+    (M,) numpy.ndarray of bool
     """
     a = np.asarray(signed_area_uv, dtype=np.float64)
-    live = ~collapsed_mask(a, rel_tol)
-    pos = int(np.count_nonzero(a[live] > 0))
-    return min(pos, int(live.sum()) - pos)
+    return ~collapsed_mask(a, rel_tol) & (np.sign(a) != majority_orientation(a, rel_tol))
+
+
+def count_foldovers(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> int:
+    """Number of flipped triangles: :func:`flipped_mask` (same parameters) summed, an int."""
+    return int(np.count_nonzero(flipped_mask(signed_area_uv, rel_tol)))
 
 
 def count_collapsed(signed_area_uv: np.ndarray, rel_tol: float = COLLAPSE_REL_TOL) -> int:

@@ -15,15 +15,12 @@ from scipy.spatial import Delaunay, QhullError
 from datasets_gen.errors import InvalidInputError
 from datasets_gen.surface import validate_points
 
+from ..schema import SELFMESH_KEYS
 from ._inputs import check_uv
 from .eval_mesh import keep_valid_ccw
 from .evaluate import evaluate
 
 __all__ = ["SELFMESH_KEYS", "points_in_loops", "uv_loop_faces", "self_scored"]
-
-#: Metrics of :func:`bench.metrics.evaluate` reported on the self mesh, stored as ``selfmesh_<key>``.
-SELFMESH_KEYS = ("qc_mean", "qc_p95", "mu_mean", "mu_p95", "angle_error_mean", "area_distortion_normalized",
-                 "n_eval_faces")
 
 #: Point-edge pairs tested at once by :func:`points_in_loops` (bounds its memory).
 _PAIRS_PER_CHUNK = 20_000_000

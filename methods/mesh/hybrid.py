@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from datasets_gen.surface import Surface
 
 from ..base import StageTimer
+from ..geometry2d import flipped_triangles
 from ..spectral import ConformalProblem
 from ..spectral.problem import ConformalSolution
 from .conformal_setup import build_mesh_problem
@@ -34,9 +35,6 @@ __all__ = ["HYBRID_RINGS", "HYBRID_MAX_ROUNDS", "flipped_faces", "grow_rings", "
 HYBRID_RINGS = 1
 #: Re-solves at most.
 HYBRID_MAX_ROUNDS = 8
-
-#: A triangle whose |uv area| is below this share of the mean |uv area| has no orientation.
-_COLLAPSE_REL_TOL = 1e-12
 
 
 def flipped_faces(z: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -51,13 +49,10 @@ def flipped_faces(z: np.ndarray, faces: np.ndarray) -> np.ndarray:
     Returns
     -------
     (M,) numpy.ndarray of bool
-        Collapsed triangles (zero uv area) are not flipped.
+        Collapsed triangles (zero uv area) are not flipped
+        (:func:`methods.geometry2d.flipped_triangles` of ``(u, v)``).
     """
-    a, b, c = z[faces[:, 0]], z[faces[:, 1]], z[faces[:, 2]]
-    signed = np.imag(np.conj(b - a) * (c - a))
-    live = np.abs(signed) > _COLLAPSE_REL_TOL * np.abs(signed).mean()
-    majority = 1.0 if np.count_nonzero(signed[live] > 0) >= np.count_nonzero(signed[live] < 0) else -1.0
-    return live & (signed * majority < 0)
+    return flipped_triangles(np.column_stack([z.real, z.imag]), faces)
 
 
 def grow_rings(mask: np.ndarray, faces: np.ndarray, rings: int) -> np.ndarray:

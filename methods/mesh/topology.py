@@ -1,4 +1,4 @@
-"""Topology of triangle meshes: manifold and disk checks, ordered boundary loops."""
+"""Topology of triangle meshes: manifold and disk checks (boundary loops: :mod:`datasets_gen.mesh_loops`)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from datasets_gen.errors import DisconnectedError, NotADiskError
+# The one definition of a mesh's loops lives below the methods, where the readers use it too.
+from datasets_gen.mesh_loops import boundary_loops
 
 __all__ = [
     "boundary_loops",
@@ -21,25 +23,6 @@ __all__ = [
 
 #: How many offending indices an error message lists.
 _EXAMPLES = 3
-
-
-def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
-    """All boundary loops of a manifold mesh, longest first.
-
-    Loops follow the faces' orientation (a counter-clockwise face order gives a
-    counter-clockwise outer loop and clockwise holes in a faithful flattening).
-
-    Parameters
-    ----------
-    faces : (M, 3) numpy.ndarray of int64
-
-    Returns
-    -------
-    list of (L_i,) numpy.ndarray of int64
-    """
-    loops = igl.boundary_loop_all(np.ascontiguousarray(faces, dtype=np.int64))
-    loops = [np.asarray(loop, dtype=np.int64) for loop in loops if len(loop) > 0]
-    return sorted(loops, key=len, reverse=True)
 
 
 def duplicate_faces(faces: np.ndarray) -> np.ndarray:

@@ -42,7 +42,7 @@ from scipy.spatial import cKDTree
 
 from datasets_gen.errors import ParambenchError
 
-from ..geometry2d import turning_number
+from ..geometry2d import triangle_signed_areas, turning_number
 from .uv_triangulation import triangulate_uv
 
 __all__ = ["check_pointset_map", "loop_coverage", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
@@ -146,9 +146,7 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool) -> 
         n_dropped = int(bridging.sum())
         keep = ~bridging
         faces, e1, e2, longest, bridging = faces[keep], e1[keep], e2[keep], longest[keep], bridging[keep]
-    q = uv[faces]
-    d1, d2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
-    area = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])  # faces are uv-CCW
+    area = np.abs(triangle_signed_areas(uv, faces))  # faces are uv-CCW
     zero = area <= ZERO_AREA_REL * (np.median(area) if area.size else 0.0)
     normal3d = np.cross(e1, e2)
     sliver = 0.5 * np.linalg.norm(normal3d, axis=1) < SLIVER_QUALITY * longest**2

@@ -23,6 +23,8 @@ from scipy.spatial import Delaunay, QhullError
 
 from datasets_gen.errors import InvalidInputError
 
+from ..geometry2d import triangle_signed_areas
+
 __all__ = ["UvTriangulation", "triangulate_uv"]
 
 
@@ -79,9 +81,7 @@ def _inside(query: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.nd
 
 
 def _ccw(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    d1 = uv[faces[:, 1]] - uv[faces[:, 0]]
-    d2 = uv[faces[:, 2]] - uv[faces[:, 0]]
-    cw = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0] < 0
+    cw = triangle_signed_areas(uv, faces) < 0
     faces = faces.copy()
     faces[cw] = faces[cw][:, [0, 2, 1]]
     return faces

@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench.schema import dataset_key, encode_loops
+
 #: Time exponents the synthetic timings follow, per method.
 TIME_EXPONENTS = {"lscm": 1.1, "scp": 1.3, "ocp": 1.5}
 FAIL_ERROR = ("ConvergenceError",
@@ -99,9 +101,7 @@ def method_uv(method: str, points: np.ndarray, n: int, seed: int) -> np.ndarray:
 
 
 def loops_arrays(prefix: str, loops) -> dict:
-    flat = np.concatenate([np.asarray(lp, dtype=np.int32) for lp in loops])
-    offsets = np.cumsum([0] + [len(lp) for lp in loops]).astype(np.int32)
-    return {f"{prefix}_loops_flat": flat, f"{prefix}_loops_offsets": offsets}
+    return encode_loops(prefix, loops)
 
 
 def landscape(k_opt: float):
@@ -154,7 +154,7 @@ def write_results(root: Path, spec: Spec | None = None) -> list[dict]:
                 det_mask[(n // 2) * n + 1] = True  # one false alarm
                 det_loop = loop[det_mask[loop]]
                 np.savez_compressed(
-                    datasets_dir / f"{dataset}-{size}-poisson-s{seed}.npz",
+                    datasets_dir / f"{dataset_key(dataset, size, 'poisson', 0.0, seed)}.npz",
                     w_tan_interior=rng.normal(0.17, 0.05, 3000), w_tan_boundary=rng.normal(0.25, 0.2, 400),
                     w_cot_interior=rng.normal(0.5, 0.25, 3000), w_cot_boundary=rng.normal(0.3, 0.3, 400),
                     points=points.astype(np.float32), det_boundary_mask=det_mask,

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench.cells import Cell
 from datasets_gen.errors import InputFileError, ParambenchError
 from reports.errors import EmptyResultsError
 from reports.load import (NUMERIC_COLUMNS, ROW_COLUMNS, dataset_key_candidates, load_cell_arrays,
@@ -146,14 +147,15 @@ def test_inconsistent_cell_arrays_raise(tmp_path):
 
 
 def test_dataset_arrays_found_by_contract_key(results_dir):
+    # sizes and seeds come back from the table as floats; the key is the one the sweep writes
     keys = dataset_key_candidates("bump", 144.0, "poisson", 0.0, 1.0)
-    assert "bump-144-poisson-s1" in keys
-    assert "bump-144-poisson-n0-s1" in keys
+    assert keys == ["bump-144-poisson-n0-s1"] == [Cell("bump", 144, "poisson", 0.0, 1, "ocp").dataset_key]
     data = load_dataset_arrays(results_dir, keys)
     assert {"w_tan_interior", "w_cot_boundary", "det_boundary_mask"} <= set(data)
     assert len(data["gt_loops"]) == 1
     assert load_dataset_arrays(results_dir, ["nothing-here"]) is None
-    assert dataset_key_candidates("real/bunny", 0, "", 0.0, 0)[1] == "real_bunny-0--n0-s0"
+    assert dataset_key_candidates("real/bunny", 0, "", 0.0, 0) == ["real_bunny-0--n0-s0"]
+    assert dataset_key_candidates("bump", 144, "poisson", 0.05, 2) == ["bump-144-poisson-n0.05-s2"]
 
 
 def _tiny_npz(path, **extra):

@@ -11,7 +11,7 @@ import pytest
 from datasets_gen.errors import NotADiskError, TopologyError
 from datasets_gen.mesh_loops import mesh_boundary
 from datasets_gen.surface import Surface
-from methods import get_method
+from methods import get_method, method_names
 from methods.mesh.topology import (
     duplicate_faces,
     non_manifold_edges,
@@ -19,7 +19,12 @@ from methods.mesh.topology import (
     require_connected_disk_like,
 )
 
-MESH_METHODS = ["scp", "dncp-opt", "scp-igl", "lscm-igl"]
+#: Every registered method that takes faces, so a new mesh method is checked without editing this list.
+MESH_METHODS = [name for name in method_names() if get_method(name).needs_faces]
+
+
+def test_the_known_mesh_methods_are_all_checked():
+    assert {"scp", "dncp-opt", "scp-igl", "lscm-igl", "bff-mouette"} <= set(MESH_METHODS)
 
 
 def _grid(n: int = 6, offset=(0.0, 0.0, 0.0)):
@@ -117,3 +122,21 @@ def test_loaded_mesh_loops_undefined_on_non_manifold_edges():
     assert mesh_boundary(faces, len(pts)) == (None, None)
     loops, mask = mesh_boundary(_grid()[1], 36)
     assert len(loops) == 1 and mask.sum() == 20
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_reader_and_methods_take_loops_from_one_definition(reverse):
+    # a grid with a square hole: the loops a reader stores are the loops a mesh method checks
+    pts, faces = _grid(7)
+    cell = 2 * (3 * 6 + 3)  # the two triangles of the middle cell
+    faces = np.delete(faces, [cell, cell + 1], axis=0)
+    if reverse:
+        faces = faces[:, ::-1].copy()
+    read, mask = mesh_boundary(faces, len(pts))
+    checked = require_connected_disk_like(pts, faces)
+    assert [lp.tolist() for lp in read] == [lp.tolist() for lp in checked]
+    assert [len(lp) for lp in read] == [24, 4] and mask.sum() == 28
+    # each loop runs along its faces' directed edges, whichever way the faces turn
+    directed = {(int(a), int(b)) for f in faces for a, b in zip(f, np.roll(f, -1))}
+    for loop in read:
+        assert all((int(a), int(b)) in directed for a, b in zip(loop, np.roll(loop, -1)))
