@@ -29,6 +29,7 @@ FRONTEND_DEFAULTS: dict[str, Any] = {
     "boundary_decimate": 1,
     "spacing": "local",
     "neighbours": "euclidean",
+    "boundary_method": "angle",
 }
 
 

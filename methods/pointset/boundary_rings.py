@@ -1,0 +1,360 @@
+"""Boundary loops from per-point tangent-plane Delaunay one-rings (``boundary_method="rings"``).
+
+The angle criterion (:mod:`methods.pointset.boundary`) looks at whole geodesic balls of
+2.5 spacings, so a ball that reaches across a slit 2 spacings wide sees no angular gap.
+This detector looks at triangles instead:
+
+1. Each point's one-ring in the Delaunay triangulation of its nearest neighbours on its
+   tangent plane (:func:`methods.pointset.local_delaunay.local_delaunay_rings`).
+   Neighbours far off the tangent plane (the other sheet of a fold) are left out first.
+2. A ring triangle is *empty* (not surface) when its circumradius exceeds
+   ``alpha_high`` local spacings (an alpha-shape test: a hole), or exceeds ``alpha_low``
+   local spacings and lies in an edge-connected cluster of such triangles whose area is
+   at least ``min_area`` squared spacings. A slit 2 spacings wide gives triangles of
+   circumradius ~0.9 spacings, which interiors of random samplings reach too (1 % of their
+   triangles exceed 1.5); but there they are scattered voids of a few squared spacings,
+   while a slit is a long connected corridor of such triangles.
+3. An edge (i, j) is a boundary edge when, in the rings of *both* i and j, it borders
+   exactly one kept triangle (one ring alone is not trusted: a ring whose candidates do
+   not surround the point has thin triangles the neighbour's ring does not share). The
+   kept triangle lies on the edge's left when the edge is directed along the boundary,
+   so the loops are oriented with the surface on the left: outer loop counter-clockwise,
+   holes clockwise seen from the normals' side, as :class:`datasets_gen.surface.Surface`
+   expects.
+4. Loops are the cycles of the directed boundary edges; where a point has several
+   outgoing edges (two holes touching at a point) the walk takes the first one clockwise
+   from where it came, so the loops stay simple. Loops enclosing less than ``min_area``
+   squared spacings (a void of the sampling, or a spur of two coinciding edges) and loops of
+   fewer than ``min_loop_size`` points are dropped.
+
+Circumradii are measured on the 3D triangles and spacings are each point's mean kNN
+distance averaged once over its neighbours (the field the angle detector's loop-spacing
+rule uses), so graded samplings are judged against their own local density.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pathlib import Path
+
+import numba
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from datasets_gen.errors import InvalidInputError
+
+from .boundary import _MAX_LOOP_SPACING, _MAX_VOID_RING, BoundaryLoops, _loop_spacing, cycles
+from ..numba_cache import configure_numba_cache
+from .local_delaunay import local_delaunay_rings
+from .normals import tangent_frames
+
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
+__all__ = ["RingsOptions", "find_boundary_rings", "ring_candidates", "ring_triangle_kept", "ring_successors"]
+
+
+@dataclass(frozen=True)
+class RingsOptions:
+    """Thresholds of the rings detector (lengths in local spacings, areas in squared spacings).
+
+    Attributes
+    ----------
+    k : int
+        Candidate neighbours of each one-ring.
+    alpha_high : float
+        Circumradius above which a triangle is empty on its own.
+    alpha_low : float
+        Circumradius above which a triangle is empty when its cluster is large.
+    min_area : float
+        Area of a cluster of ``alpha_low`` triangles that makes it a hole, and the
+        smallest area a kept loop encloses.
+    max_slope : float
+        Neighbours whose offset makes a larger angle than ``arcsin(max_slope)`` with the
+        tangent plane are not ring candidates (the facing sheet of a fold).
+    """
+
+    k: int = 16
+    alpha_high: float = 2.0
+    alpha_low: float = 0.75
+    min_area: float = 6.0
+    min_cluster_area: float = 20.0
+    max_slope: float = 0.6
+    regularity_quantile: float = 0.9
+    regularity_factor: float = 1.2
+    high_factor: float = 2.0
+
+
+def _circumradius_area(points: np.ndarray, tri: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Circumradius and area of triangles ``(T, 3)`` projected on their corners' mean tangent plane.
+
+    Projected, normal noise does not inflate them; degenerate ones get radius inf.
+    """
+    nbar = normals[tri].sum(axis=1)
+    nbar /= np.maximum(np.linalg.norm(nbar, axis=1, keepdims=True), 1e-300)
+
+    def flat(x):
+        return x - np.einsum("td,td->t", x, nbar)[:, None] * nbar
+
+    a, b, c = flat(points[tri[:, 0]]), flat(points[tri[:, 1]]), flat(points[tri[:, 2]])
+    la = np.linalg.norm(b - c, axis=1)
+    lb = np.linalg.norm(a - c, axis=1)
+    lc = np.linalg.norm(a - b, axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = np.where(area > 0, la * lb * lc / (4.0 * area), np.inf)
+    return radius, area
+
+
+def ring_candidates(points: np.ndarray, normals: np.ndarray, k: int, max_slope: float) -> np.ndarray:
+    """The k nearest neighbours of each point, -1 where they lie steeply off its tangent plane.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64
+        Unit normals (signs do not matter).
+    k : int
+    max_slope : float
+        Largest |sine| of the angle between an offset and the tangent plane.
+
+    Returns
+    -------
+    (N, min(k, N - 1)) numpy.ndarray of int64
+    """
+    k = min(int(k), points.shape[0] - 1)
+    dist, idx = cKDTree(points).query(points, k=k + 1, workers=-1)
+    idx, dist = idx[:, 1:].astype(np.int64), dist[:, 1:]
+    off = np.abs(np.einsum("nkd,nd->nk", points[idx] - points[:, None, :], normals))
+    return np.where(off <= max_slope * dist, idx, -1)
+
+
+def ring_triangle_kept(points: np.ndarray, normals: np.ndarray, rings: np.ndarray, spacing: np.ndarray,
+                       options: RingsOptions) -> tuple[np.ndarray, dict]:
+    """Which one-ring triangles are surface (not empty by the alpha test).
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64
+        Oriented unit normals.
+    rings : (N, C, 2) numpy.ndarray of int64
+        One-ring triangles ``(i, a, b)``, -1 padding
+        (:func:`methods.pointset.local_delaunay.local_delaunay_rings`).
+    spacing : (N,) numpy.ndarray of float64
+        Local spacing per point.
+    options : RingsOptions
+
+    Returns
+    -------
+    kept : (N, C) numpy.ndarray of bool
+        True at ring triangles kept as surface; False at empty ones and at padding.
+    facts : dict
+        ``alpha_low`` and ``alpha_high`` used (local spacings), ``n_empty`` triangles.
+    """
+    n = points.shape[0]
+    has = rings[..., 0] >= 0
+    centre = np.broadcast_to(np.arange(n)[:, None], has.shape)
+    key = np.sort(np.stack([centre[has], rings[..., 0][has], rings[..., 1][has]], axis=1), axis=1)
+    tri, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    radius, area = _circumradius_area(points, tri, normals)
+    # The smallest corner spacing: a boundary point's own spacing is overstated (its
+    # neighbours fill half a disc), which would hide holes.
+    h = spacing[tri].min(axis=1)
+    rel = radius / h
+    # Irregular samplings (uniform random) have larger interior circumradii: the low
+    # threshold follows the sampling's own distribution.
+    q = float(np.quantile(rel, options.regularity_quantile)) if rel.size else 0.0
+    alpha_low = max(options.alpha_low, options.regularity_factor * q)
+    alpha_high = max(options.alpha_high, options.high_factor * alpha_low)
+    empty = rel > alpha_high
+    low = np.flatnonzero(rel > alpha_low)
+    if low.size:
+        # Clusters of large-ish triangles sharing an edge: a slit is a long corridor of
+        # them, a void of the sampling a few triangles. A cluster reaching the open side
+        # of the fans (a point on the hull of its neighbours) is the band along a
+        # sparsely sampled boundary, not a slit: it is left to the high threshold.
+        on_hull = np.bincount(inv, weights=_at_open_side(rings)[has], minlength=len(tri)) > 0
+        e = np.sort(np.concatenate([tri[low][:, [0, 1]], tri[low][:, [1, 2]], tri[low][:, [0, 2]]]), axis=1)
+        _, edge_id = np.unique(e, axis=0, return_inverse=True)
+        edge_id = edge_id.reshape(-1)
+        owner = np.tile(np.arange(low.size), 3)
+        inc = sp.csr_matrix((np.ones(owner.size), (owner, edge_id)), shape=(low.size, edge_id.max() + 1))
+        _, label = connected_components(inc @ inc.T, directed=False)
+        cluster_area = np.bincount(label, weights=area[low] / h[low] ** 2)
+        # A cluster holding a triangle above the high threshold surrounds a hole that
+        # is found anyway; its large-ish triangles are the sparser band along the hole.
+        seen = np.bincount(label, weights=on_hull[low] | empty[low]) > 0
+        empty[low] |= (cluster_area[label] >= options.min_cluster_area) & ~seen[label]
+    kept = np.zeros(has.shape, dtype=bool)
+    kept[has] = ~empty[inv]
+    return kept, {"alpha_low": alpha_low, "alpha_high": alpha_high, "n_empty": int(empty.sum())}
+
+
+def _joined_to_previous(rings: np.ndarray) -> np.ndarray:
+    """(N, C) bool: ring triangle t shares its first spoke with triangle t - 1 (cyclically)."""
+    n, c = rings.shape[:2]
+    size = (rings[..., 0] >= 0).sum(axis=1)
+    prev = (np.arange(c)[None, :] - 1) % np.maximum(size, 1)[:, None]
+    return rings[np.arange(n)[:, None], prev, 1] == rings[..., 0]
+
+
+def _at_open_side(rings: np.ndarray) -> np.ndarray:
+    """(N, C) bool: ring triangles next to the open side of their fan (a point on the hull of its neighbours)."""
+    has = rings[..., 0] >= 0
+    joined = _joined_to_previous(rings)
+    size = has.sum(axis=1)
+    nxt = (np.arange(rings.shape[1])[None, :] + 1) % np.maximum(size, 1)[:, None]
+    joined_next = np.take_along_axis(joined, nxt, axis=1)
+    return has & ~(joined & joined_next)
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _largest_gap_kernel(kept, spoke_a, spoke_b, theta_a, theta_b, succ, n_gaps):
+    """Per point: the spoke that ends its widest gap (counter-clockwise) and its number of gaps."""
+    n, c = kept.shape
+    two_pi = 2.0 * np.pi
+    for i in range(n):
+        m = 0
+        while m < c and spoke_a[i, m] >= 0:
+            m += 1
+        best = -1.0
+        for t in range(m):
+            if not kept[i, t]:
+                continue
+            p = (t - 1) % m
+            if kept[i, p] and spoke_b[i, p] == spoke_a[i, t]:
+                continue  # inside a kept sector
+            # Walk back to the previous kept triangle; the gap runs from its last spoke.
+            q = p
+            steps = 0
+            while not kept[i, q] and steps < m:
+                q = (q - 1) % m
+                steps += 1
+            gap = (theta_a[i, t] - theta_b[i, q]) % two_pi
+            if gap == 0.0:
+                gap = two_pi  # one kept sector whose ends meet through an open side
+            n_gaps[i] += 1
+            if gap > best:
+                best = gap
+                succ[i] = spoke_a[i, t]
+
+
+def ring_successors(points: np.ndarray, normals: np.ndarray, rings: np.ndarray,
+                    kept: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Next boundary point of each point, from its own one-ring.
+
+    A point's kept triangles form counter-clockwise sectors of its fan; where a sector
+    starts after a gap (empty triangles, or the open side of a point on the hull of its
+    neighbours), the spoke it starts with leads along the boundary with the surface on
+    the left. A point with several gaps takes the widest (a hole next to a small void
+    of the sampling must not send the walk into the void).
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64
+        The oriented normals the rings were built on.
+    rings : (N, C, 2) numpy.ndarray of int64
+        Counter-clockwise one-ring triangles, consecutive ones sharing a spoke.
+    kept : (N, C) numpy.ndarray of bool
+
+    Returns
+    -------
+    succ : (N,) numpy.ndarray of int64
+        Successor point, -1 for interior points (no gap) and points with no kept triangle.
+    n_gaps : (N,) numpy.ndarray of int64
+        Gaps per point.
+    """
+    n = points.shape[0]
+    e1, e2 = tangent_frames(normals)
+
+    def angle(idx):
+        d = points[np.maximum(idx, 0)] - points[:, None, :]
+        return np.arctan2(np.einsum("ncd,nd->nc", d, e2), np.einsum("ncd,nd->nc", d, e1))
+
+    succ = np.full(n, -1, dtype=np.int64)
+    n_gaps = np.zeros(n, dtype=np.int64)
+    spoke_a = np.ascontiguousarray(rings[..., 0])
+    spoke_b = np.ascontiguousarray(rings[..., 1])
+    _largest_gap_kernel(np.ascontiguousarray(kept), spoke_a, spoke_b, angle(spoke_a), angle(spoke_b), succ, n_gaps)
+    return succ, n_gaps
+
+
+def _enclosed_area(points: np.ndarray, loop: np.ndarray) -> float:
+    """Area of the vector-area of a closed 3D polygon (0 for a loop that retraces itself)."""
+    p = points[loop] - points[loop].mean(axis=0)
+    return 0.5 * float(np.linalg.norm(np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)))
+
+
+def _perimeter(points: np.ndarray, loop: np.ndarray) -> float:
+    p = points[loop]
+    return float(np.linalg.norm(p - np.roll(p, -1, axis=0), axis=1).sum())
+
+
+def find_boundary_rings(points: np.ndarray, normals: np.ndarray, spacing: np.ndarray, *, decimate: int = 1,
+                        min_loop_size: int = 8, options: RingsOptions | None = None) -> BoundaryLoops:
+    """Boundary loops of a point set from its tangent-plane Delaunay one-rings.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+        Duplicate-free positions.
+    normals : (N, 3) numpy.ndarray of float64
+        Consistently oriented unit normals; the loops are oriented about them.
+    spacing : (N,) numpy.ndarray of float64
+        Local spacing around each point (e.g.
+        :func:`methods.pointset.neighbourhoods.local_spacing` with one pass).
+    decimate : int
+        Keep every ``decimate``-th point of each loop.
+    min_loop_size : int
+        Loops with fewer points are dropped.
+    options : RingsOptions, optional
+        Thresholds (defaults measured on the generated and real surfaces).
+
+    Returns
+    -------
+    BoundaryLoops
+        ``candidates`` marks the endpoints of every boundary edge, ``max_gap`` is zero
+        (no angle is measured); empty ``loops`` when none is found (the caller raises).
+
+    Raises
+    ------
+    InvalidInputError
+        ``decimate`` is not a positive integer.
+    """
+    if int(decimate) != decimate or decimate < 1:
+        raise InvalidInputError(f"boundary_decimate must be a positive integer, got {decimate}.")
+    opt = options or RingsOptions()
+    n = points.shape[0]
+    cand = ring_candidates(points, normals, opt.k, opt.max_slope)
+    rings = local_delaunay_rings(points, normals, cand)
+    kept, facts = ring_triangle_kept(points, normals, rings, spacing, opt)
+    succ, n_gaps = ring_successors(points, normals, rings, kept)
+    candidates = succ >= 0
+    all_cycles = cycles(succ, np.flatnonzero(candidates))
+    h = spacing
+    good = [c for c in all_cycles if c.size >= max(3, int(min_loop_size))
+            and _enclosed_area(points, c) >= opt.min_area * float(np.median(h[c])) ** 2
+            # The angle detector's rule for rings around voids of the sampling.
+            and (c.size >= _MAX_VOID_RING or _loop_spacing(points, c, h) <= _MAX_LOOP_SPACING)]
+    good.sort(key=lambda c: _perimeter(points, c), reverse=True)
+    loops = [c[::int(decimate)] for c in good]
+    mask = np.zeros(n, dtype=bool)
+    for loop in loops:
+        mask[loop] = True
+    in_loops = int(sum(c.size for c in good))
+    diagnostics = {
+        "method": "rings",
+        "n_candidates": int(candidates.sum()),
+        "n_in_loops": in_loops,
+        "n_dropped_points": int(candidates.sum()) - in_loops,
+        "n_dropped_loops": len(all_cycles) - len(good),
+        "loop_sizes": [int(c.size) for c in good],
+        "n_multi_gap": int((n_gaps > 1).sum()),
+        **facts,
+    }
+    return BoundaryLoops(loops=loops, mask=mask, candidates=candidates, max_gap=np.zeros(n), diagnostics=diagnostics)
