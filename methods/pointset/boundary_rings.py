@@ -10,9 +10,9 @@ This detector looks at triangles instead:
 2. Alpha test. A ring triangle is *empty* (not surface) when its circumradius, on the
    mean tangent plane of its corners (normal noise does not inflate it), exceeds
    ``alpha_high`` local spacings, or exceeds ``alpha_low`` and lies in an edge-connected
-   cluster of such triangles covering at least ``min_cluster_area`` squared spacings, that
-   neither reaches the open side of a fan (the sparser band along a boundary) nor holds
-   an ``alpha_high`` triangle (the band along a hole found anyway). Both thresholds follow
+   cluster of such triangles covering at least ``min_cluster_area`` squared spacings that
+   has under a tenth of its triangles at the open side of fans (the sparser band along a boundary) and holds
+   no ``alpha_high`` region of ``min_area`` (the band along a hole found anyway). Both thresholds follow
    the sampling's own circumradius distribution (1.2 x its 90th percentile, at least
    0.75; ``alpha_high`` 1.5 x that, at least 2): measured, jittered samplings have
    interior circumradii up to 0.83 spacings and a slit 2 spacings wide 0.81-0.9, so a
@@ -56,20 +56,21 @@ from scipy.spatial import cKDTree
 from datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
-from .boundary import _MAX_PRUNE_ROUNDS, _MAX_VOID_RING, BoundaryLoops, _loop_spacing, bridge_successors, cycles
+from .boundary import _MAX_PRUNE_ROUNDS, BoundaryLoops, _loop_spacing, bridge_successors, cycles
 from .local_delaunay import local_delaunay_rings
 from .normals import tangent_frames
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
-#: Loops of fewer than 32 points spaced along themselves more than this many local
-#: spacings apart, enclosing a small area, are rings around voids of the sampling.
-#: Measured: void loops of random samplings at 20k points 1.22-1.46, a fake loop on
-#: camelhead 1.24; true loops 0.66-0.82.
+#: Loops spaced along themselves more than this many local spacings apart, enclosing a
+#: small area, are rings around voids of the sampling. Measured: void loops of random
+#: samplings at 20k points 1.22-1.46, fake loops on camelhead 1.24 and 1.44 (34 points,
+#: so no size limit as in the angle detector); true loops 0.65-0.82.
 _MAX_RING_LOOP_SPACING = 1.0
 
 #: Void rings enclose less than this many squared spacings (measured up to 19 on random
-#: samplings at 20k points); a small hole of a graded sampling, spaced 1.22, encloses 91.
+#: samplings at 20k points, 38.5 on camelhead); a small hole of a graded sampling, spaced
+#: 1.22, encloses 91.
 _MAX_VOID_AREA = 40.0
 
 #: Largest detour (on the tangent plane) for putting a passed-over point back on a loop.
@@ -109,7 +110,7 @@ class RingsOptions:
     alpha_high: float = 2.0
     alpha_low: float = 0.75
     min_area: float = 8.0
-    min_cluster_area: float = 20.0
+    min_cluster_area: float = 30.0
     max_slope: float = 0.8
     regularity_quantile: float = 0.9
     regularity_factor: float = 1.2
@@ -203,9 +204,7 @@ def ring_triangle_kept(points: np.ndarray, normals: np.ndarray, rings: np.ndarra
     low = np.flatnonzero(rel > alpha_low)
     if low.size:
         # Clusters of large-ish triangles sharing an edge: a slit is a long corridor of
-        # them, a void of the sampling a few triangles. A cluster reaching the open side
-        # of the fans (a point on the hull of its neighbours) is the band along a
-        # sparsely sampled boundary, not a slit: it is left to the high threshold.
+        # them, a void of the sampling a few triangles.
         on_hull = np.bincount(inv, weights=_at_open_side(rings)[has], minlength=len(tri)) > 0
         e = np.sort(np.concatenate([tri[low][:, [0, 1]], tri[low][:, [1, 2]], tri[low][:, [0, 2]]]), axis=1)
         _, edge_id = np.unique(e, axis=0, return_inverse=True)
@@ -214,9 +213,13 @@ def ring_triangle_kept(points: np.ndarray, normals: np.ndarray, rings: np.ndarra
         inc = sp.csr_matrix((np.ones(owner.size), (owner, edge_id)), shape=(low.size, edge_id.max() + 1))
         _, label = connected_components(inc @ inc.T, directed=False)
         cluster_area = np.bincount(label, weights=area[low] / h[low] ** 2)
-        # A cluster holding a triangle above the high threshold surrounds a hole that
-        # is found anyway; its large-ish triangles are the sparser band along the hole.
-        seen = np.bincount(label, weights=on_hull[low] | empty[low]) > 0
+        # A cluster with a tenth of its triangles at the open side of fans is the sparser
+        # band along a boundary (a slit 2 spacings wide had 2 of 78, where the 16 nearest
+        # neighbours of a lip point stop short of the other lip),
+        # one holding a hole above the high threshold (not only slivers of one-rings
+        # whose candidates stop short) the band along that hole: neither is a slit.
+        high_area = np.bincount(label, weights=np.where(empty[low], area[low] / h[low] ** 2, 0.0))
+        seen = (np.bincount(label, weights=on_hull[low]) > 0.1 * np.bincount(label)) | (high_area >= options.min_area)
         empty[low] |= (cluster_area[label] >= options.min_cluster_area) & ~seen[label]
     kept = np.zeros(has.shape, dtype=bool)
     kept[has] = ~empty[inv]
@@ -448,8 +451,8 @@ def _fill_steps(points, normals, loop, near, max_detour, rounds=2):
 
 
 def _is_void_ring(points: np.ndarray, loop: np.ndarray, h: np.ndarray) -> bool:
-    """A short loop spaced wider than the sampling around a small area: a void of the sampling."""
-    return (loop.size < _MAX_VOID_RING and _loop_spacing(points, loop, h) > _MAX_RING_LOOP_SPACING
+    """A loop spaced wider than the sampling around a small area: a void of the sampling."""
+    return (_loop_spacing(points, loop, h) > _MAX_RING_LOOP_SPACING
             and _enclosed_area(points, loop) < _MAX_VOID_AREA * float(np.median(h[loop])) ** 2)
 
 
