@@ -439,7 +439,12 @@ def _fill_steps(points, normals, loop, near, max_detour, rounds=2):
         rows = np.arange(loop.size)
         ok = score[rows, best] <= max_detour
         pick = u[rows, best]
-        ok &= np.unique(pick, return_counts=True)[1][np.searchsorted(np.unique(pick), pick)] == 1
+        # A point best for two steps goes to the one it lengthens least.
+        cand_rows = np.flatnonzero(ok)
+        order = cand_rows[np.argsort(score[cand_rows, best[cand_rows]], kind="stable")]
+        _, first = np.unique(pick[order], return_index=True)
+        ok[:] = False
+        ok[order[first]] = True
         if not ok.any():
             break
         out = np.empty(loop.size + int(ok.sum()), dtype=np.int64)
@@ -509,11 +514,14 @@ def find_boundary_rings(points: np.ndarray, normals: np.ndarray, spacing: np.nda
     candidates = succ >= 0
     h = spacing
     all_cycles = _walk(points, normals, succ, candidates, bisector, 2.5 * float(np.median(h)), int(min_loop_size))
-    good = [_fill_steps(points, normals, _with_skipped(points, c, succ, candidates), cand, _MAX_DETOUR)
-            for c in all_cycles]
-    good = [c for c in good if c.size >= max(3, int(min_loop_size))
+    # Voids are judged on the loops as walked: filling would space their rings closer.
+    good = [c for c in all_cycles if c.size >= max(3, int(min_loop_size))
             and _enclosed_area(points, c) >= opt.min_area * float(np.median(h[c])) ** 2
             and not _is_void_ring(points, c, h)]
+    # Every near point may be put back, also those off the tangent plane (noise).
+    _, near = cKDTree(points).query(points, k=min(opt.k, n - 1) + 1, workers=-1)
+    good = [_fill_steps(points, normals, _with_skipped(points, c, succ, candidates), near[:, 1:], _MAX_DETOUR)
+            for c in good]
     good.sort(key=lambda c: _perimeter(points, c), reverse=True)
     loops = [c[::int(decimate)] for c in good]
     mask = np.zeros(n, dtype=bool)
