@@ -514,7 +514,8 @@ def find_boundary_rings(points: np.ndarray, normals: np.ndarray, spacing: np.nda
     candidates = succ >= 0
     h = spacing
     all_cycles = _walk(points, normals, succ, candidates, bisector, 2.5 * float(np.median(h)), int(min_loop_size))
-    # Voids are judged on the loops as walked: filling would space their rings closer.
+    # Voids are judged on the loops as walked (filling spaces their rings closer) and again
+    # once filled (a walk may cut across a void and space it closer).
     good = [c for c in all_cycles if c.size >= max(3, int(min_loop_size))
             and _enclosed_area(points, c) >= opt.min_area * float(np.median(h[c])) ** 2
             and not _is_void_ring(points, c, h)]
@@ -522,6 +523,7 @@ def find_boundary_rings(points: np.ndarray, normals: np.ndarray, spacing: np.nda
     _, near = cKDTree(points).query(points, k=min(opt.k, n - 1) + 1, workers=-1)
     good = [_fill_steps(points, normals, _with_skipped(points, c, succ, candidates), near[:, 1:], _MAX_DETOUR)
             for c in good]
+    good = [c for c in good if not _is_void_ring(points, c, h)]
     good.sort(key=lambda c: _perimeter(points, c), reverse=True)
     loops = [c[::int(decimate)] for c in good]
     mask = np.zeros(n, dtype=bool)
