@@ -216,8 +216,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         "angle" (default): the paper's angle criterion on the geodesic balls, candidates
         chained into loops (:mod:`methods.pointset.boundary`); "rings": loops of the
         boundary edges of the points' tangent-plane Delaunay one-rings with an alpha-shape
-        test (:mod:`methods.pointset.boundary_rings`), which also finds slits narrower
-        than the balls.
+        test (:mod:`methods.pointset.boundary_rings`): finds slits of regular samplings
+        narrower than the balls; otherwise measured on par with "angle".
     dem_variant : {"robust", "paper"}
         "paper": T_q p by length-preserving projection, upwind weights
         ``(|p-q|^2 + eps)^-1``, normals smoothed by weighted averaging, all as in the
