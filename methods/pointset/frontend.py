@@ -12,11 +12,12 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
+from datasets_gen.errors import InvalidInputError, NoBoundaryError
 from datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
 
 from ..base import StageTimer
 from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary, no_boundary_error
+from .boundary_rings import find_boundary_rings
 from .dem import DEFAULT_MAX_BALL, DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
@@ -50,6 +51,9 @@ SMOOTH_SPACING_PASSES = 10
 
 #: ``spacing`` settings of :func:`build_frontend`.
 SPACING_MODES = ("local", "global")
+
+#: ``boundary_method`` settings of :func:`build_frontend`.
+BOUNDARY_METHODS = ("angle", "rings")
 
 #: ``neighbours`` settings of :func:`build_frontend`.
 NEIGHBOUR_MODES = ("surface", "euclidean")
@@ -155,7 +159,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
                    reg_eps: float = DEFAULT_REG_EPS, boundary_angle_deg: float = 120.0,
                    boundary_decimate: int = 1, weights: str = "tangent", max_ball: int = DEFAULT_MAX_BALL,
                    min_loop_size: int = DEFAULT_MIN_LOOP_SIZE, dem_variant: str = "robust",
-                   spacing: str = "local", neighbours: str = "euclidean") -> FrontEnd:
+                   spacing: str = "local", neighbours: str = "euclidean",
+                   boundary_method: str = "angle") -> FrontEnd:
     """Run the point-set front end of Schmidt & Singh on a point set.
 
     Stages: Euclidean kNN graph and mean spacing ``l`` (``knn``); PCA normals oriented
@@ -207,6 +212,12 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         (:func:`methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
         does not separate the touching sheets of the camelhead scan and with noise of 0.5
         spacings it loses the outer loop of "holes" at 2k points, so it is not the default.
+    boundary_method : {"angle", "rings"}
+        "angle" (default): the paper's angle criterion on the geodesic balls, candidates
+        chained into loops (:mod:`methods.pointset.boundary`); "rings": loops of the
+        boundary edges of the points' tangent-plane Delaunay one-rings with an alpha-shape
+        test (:mod:`methods.pointset.boundary_rings`): finds slits of regular samplings
+        narrower than the balls; otherwise measured on par with "angle".
     dem_variant : {"robust", "paper"}
         "paper": T_q p by length-preserving projection, upwind weights
         ``(|p-q|^2 + eps)^-1``, normals smoothed by weighted averaging, all as in the
@@ -243,6 +254,9 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     if spacing not in SPACING_MODES:
         raise InvalidInputError(f"spacing must be one of {', '.join(SPACING_MODES)}, got {spacing!r}.")
     spacing_mode = spacing
+    if boundary_method not in BOUNDARY_METHODS:
+        raise InvalidInputError(f"boundary_method must be one of {', '.join(BOUNDARY_METHODS)}, "
+                                f"got {boundary_method!r}.")
     if neighbours not in NEIGHBOUR_MODES:
         raise InvalidInputError(f"neighbours must be one of {', '.join(NEIGHBOUR_MODES)}, got {neighbours!r}.")
     variant = DEM_VARIANTS[dem_variant]
@@ -304,9 +318,13 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     with timer("boundary"):
         bnd_args = dict(angle_deg=float(boundary_angle_deg), decimate=int(boundary_decimate),
                         min_loop_size=int(min_loop_size), require_loop=False, local_spacing=h_around)
-        bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
         retried = False
-        if not bnd.loops and bnd.candidates.sum() >= 4 * min_loop_size:
+        if boundary_method == "rings":
+            bnd = find_boundary_rings(p, frame_normals, h_around, decimate=int(boundary_decimate),
+                                      min_loop_size=int(min_loop_size))
+        else:
+            bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
+        if boundary_method == "angle" and not bnd.loops and bnd.candidates.sum() >= 4 * min_loop_size:
             # Many boundary candidates but no closed loop: a ragged, sparsely sampled
             # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
             wide = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
@@ -319,6 +337,11 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
             retried = True
             if wide_bnd.loops:
                 bnd = wide_bnd
+        if not bnd.loops and boundary_method == "rings":
+            raise NoBoundaryError(
+                f"boundary_method='rings' found no boundary loop ({int(bnd.candidates.sum())} points border an "
+                "empty triangle): a closed surface (cut it open before flattening), or a noisy sampling; "
+                "try boundary_method='angle'.")
         if not bnd.loops:
             raise no_boundary_error(int(bnd.candidates.sum()), float(boundary_angle_deg), int(min_loop_size))
         del adjacency
@@ -354,7 +377,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
               "smooth_normals": bool(smooth_normals), "reg_eps": float(reg_eps),
               "boundary_angle_deg": float(boundary_angle_deg), "boundary_decimate": int(boundary_decimate),
               "weights": weights, "max_ball": int(max_ball), "min_loop_size": int(min_loop_size),
-              "dem_variant": dem_variant, "spacing": spacing_mode, "neighbours": neighbours}
+              "dem_variant": dem_variant, "spacing": spacing_mode, "neighbours": neighbours,
+              "boundary_method": boundary_method}
     return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(graph.indices[inv], order),
                     mean_spacing=float(spacing), local_spacing=_interior_spacing(h_local, graph.indices, bnd.mask)[inv], ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
                     boundary_mask=bnd.mask[inv], boundary_loops=loops, reconstruction_error=r_x[inv],

@@ -29,6 +29,7 @@ FRONTEND_DEFAULTS: dict[str, Any] = {
     "boundary_decimate": 1,
     "spacing": "local",
     "neighbours": "euclidean",
+    "boundary_method": "angle",
 }
 
 
@@ -192,6 +193,7 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
         "mean_spacing": front.mean_spacing,
         "n_boundary_points": int(front.boundary_mask.sum()),
         "n_detected_loops": len(front.boundary_loops),
+        "boundary_method": front.params.get("boundary_method", "angle"),
         "negative_weight_fraction": diag["negative_weights"]["negative_fraction"],
         "reconstruction_error": diag["reconstruction_error"],
         "boundary_loops": [loop.tolist() for loop in front.boundary_loops],
