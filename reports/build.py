@@ -385,6 +385,11 @@ def _angle_histogram(view: PictureView, drawn: list[str], warnings: list[str]):
     if function is None:
         return None
     rows = view.rows[view.rows["variant"].isin(drawn)]
+    # The schema gives every row the column; rows stored without a histogram leave it empty.
+    rows = rows[rows["angle_hist"].map(lambda h: h is not None and not (isinstance(h, float) and h != h)
+                                       and len(h) > 0)]
+    if rows.empty:
+        return None
     try:
         return function(list(zip(rows["variant"], rows["angle_hist"])), ANGLE_HIST_EDGES_DEG, view.title)
     except ValueError as exc:  # histograms stored over other edges

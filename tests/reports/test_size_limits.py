@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from bench.suites import SUITES, expand_cells
+from bench.schema import dataset_key
 from reports.build import build_report
 
 pytestmark = pytest.mark.slow  # one report with WeasyPrint, about half a minute
@@ -57,7 +58,7 @@ def write_quick_shaped_run(root, tools):
         rng = np.random.default_rng(d)
         mask = np.zeros(len(points), dtype=bool)
         mask[loop] = True
-        np.savez_compressed(datasets_dir / f"{name}-{GRID * GRID}-poisson-s0.npz",
+        np.savez_compressed(datasets_dir / f"{dataset_key(name, GRID * GRID, 'poisson', 0.0, 0)}.npz",
                             w_tan_interior=rng.normal(0.17, 0.05, 500), w_tan_boundary=rng.normal(0.25, 0.2, 100),
                             points=points.astype(np.float32), det_boundary_mask=mask,
                             **tools["loops_arrays"]("gt", [loop]), **tools["loops_arrays"]("det", [loop]))
