@@ -15,6 +15,9 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   ``BRIDGE_FACTOR`` = 4 times the local spacing of its points (the triangle bridges a
   gap or a hole the map closed). Without detected loops (peers without a front end)
   the bridging triangles are taken as lying outside the domain and dropped instead.
+* **boundary crossing**: the loops' images in uv must not cross each other or
+  themselves (a crossing is a fold at the boundary; the constrained triangulation then
+  needs extra vertices, and the triangle counts above come from the fallback).
 * **turning**: each loop's turning number in uv is +1 for the outer loop and -1 for
   holes, or all reversed under a global mirror, within ``TURNING_TOL`` = 0.25.
 * **coverage**: the angle-criterion boundary candidates, when known, lie within
@@ -175,6 +178,8 @@ def _turning(uv: np.ndarray, loops: list, mirrored: bool) -> dict:
 
 def _reason(facts: dict) -> str:
     parts = []
+    if facts.get("boundary_crosses", False):
+        parts.append("the boundary loops' images cross in uv (the map folds at the boundary)")
     if facts.get("n_flipped", 0) > MAX_FLIPPED:
         parts.append(f"{facts['n_flipped']} flipped triangle(s) of {facts['n_triangles']}")
     if facts.get("degenerate_fraction", 0.0) > MAX_DEGENERATE_FRACTION:
@@ -240,7 +245,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
             facts.update(triangulation="none", n_triangles=0, reason_override=str(exc).rstrip("."))
         else:
             face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops)
-            facts.update(triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped, **face_facts)
+            facts.update(triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
+                         boundary_crosses=tri.boundary_crosses, **face_facts)
     if loops and np.all(np.isfinite(uv)):
         # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
         mirrored = facts.get("mirrored", turning_number(uv[loops[0]]) < 0)
@@ -251,6 +257,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         failed.append("triangulation")
     if facts.get("n_flipped", 0) > MAX_FLIPPED:
         failed.append("flipped")
+    if facts.get("boundary_crosses", False):
+        failed.append("boundary-crossing")
     if facts.get("degenerate_fraction", 0.0) > MAX_DEGENERATE_FRACTION:
         failed.append("degenerate")
     if not facts.get("turning_ok", True):
@@ -270,6 +278,7 @@ _FIXES = {
     "turning": [("k_search", "line"), ("k", "x10"), ("ball_eps_factor", "raise"), ("k_nn", "raise")],
     "coverage": [("boundary_angle_deg", "lower"), ("ball_eps_factor", "raise")],
     "flipped": [("k_nn", "raise"), ("ball_eps_factor", "raise"), ("n_neighbors", "raise")],
+    "boundary-crossing": [("k_nn", "raise"), ("ball_eps_factor", "raise"), ("n_neighbors", "raise")],
     "degenerate": [("ball_eps_factor", "raise"), ("k_nn", "raise"), ("n_neighbors", "raise")],
     "triangulation": [("k_nn", "raise"), ("n_neighbors", "raise")],
 }

@@ -41,11 +41,15 @@ class UvTriangulation:
         given) or ``"delaunay-fallback"`` (constraints failed, classified by centroid).
     n_removed : int
         Triangles dropped as outside the outer loop or inside a hole.
+    boundary_crosses : bool
+        The loops' images cross each other or themselves (Triangle had to insert
+        vertices where constraint segments meet): the boundary is folded in uv.
     """
 
     faces: np.ndarray
     kind: str
     n_removed: int
+    boundary_crosses: bool = False
 
 
 def _loop_segments(loops: list[np.ndarray]) -> np.ndarray:
@@ -105,19 +109,23 @@ def _regions(faces: np.ndarray, segments: np.ndarray, n: int) -> np.ndarray:
     return connected_components(adj, directed=False)[1]
 
 
-def _cdt(uv: np.ndarray, segments: np.ndarray) -> np.ndarray | None:
-    """Constrained Delaunay faces, or None when Triangle had to change the input vertices."""
+def _cdt(uv: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray | None, bool]:
+    """Constrained Delaunay faces (None when Triangle failed or had to change the input
+    vertices), and whether it added vertices (crossing segments: the uv boundary
+    self-intersects)."""
     import triangle
 
     try:
         out = triangle.triangulate({"vertices": uv, "segments": segments}, "pcQ")
     except Exception:  # Triangle's C code reports bad input only by failing
-        return None
+        return None, False
     verts = out.get("vertices")
     tris = out.get("triangles")
-    if verts is None or tris is None or verts.shape[0] != uv.shape[0] or not np.array_equal(verts, uv):
-        return None  # Steiner points at crossing segments: the uv boundary self-intersects
-    return np.asarray(tris, dtype=np.int64)
+    if verts is None or tris is None:
+        return None, False
+    if verts.shape[0] != uv.shape[0] or not np.array_equal(verts, uv):
+        return None, bool(verts.shape[0] > uv.shape[0])  # Steiner points where segments cross
+    return np.asarray(tris, dtype=np.int64), False
 
 
 def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation:
@@ -146,10 +154,10 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
     uv = np.ascontiguousarray(uv, dtype=np.float64)
     n = uv.shape[0]
     loops = [np.asarray(lp, dtype=np.int64) for lp in (loops or []) if len(lp) >= 3]
-    faces = None
+    faces, crosses = None, False
     segments = _loop_segments(loops)
     if loops and np.unique(uv, axis=0).shape[0] == n:  # Triangle cannot keep coincident vertices
-        faces = _cdt(uv, segments)
+        faces, crosses = _cdt(uv, segments)
     kind = "cdt" if faces is not None else ("delaunay-fallback" if loops else "delaunay")
     if faces is None:
         try:
@@ -169,4 +177,4 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
         inside = _inside(centroids, uv, loops)
     if not inside.any():
         raise InvalidInputError("no uv triangle lies inside the detected boundary loops: the map collapsed.")
-    return UvTriangulation(faces=faces[inside], kind=kind, n_removed=int((~inside).sum()))
+    return UvTriangulation(faces=faces[inside], kind=kind, n_removed=int((~inside).sum()), boundary_crosses=crosses)

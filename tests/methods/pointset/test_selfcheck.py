@@ -215,3 +215,21 @@ def test_coverage_does_not_apply_to_a_uniform_random_sample():
         assert check["coverage"]["applicable"] is applicable
         assert check["passed"], check["reason"]
     assert check["coverage"]["largest_uncovered_group"] < 8
+
+
+def test_a_boundary_image_that_crosses_itself_fails():
+    """A map that folds at the boundary: the outer loop's image is a figure eight (two
+    corners of a square grid swapped in uv). Triangle must add a vertex where the
+    constraint segments cross; the check says so instead of silently falling back to an
+    unconstrained triangulation whose triangles all look fine."""
+    pts, outer, rim = _grid_with_hole()
+    uv = pts[:, :2].copy()
+    a, b = outer[2], outer[len(outer) // 2 + 2]  # two loop points on opposite sides
+    uv[[a, b]] = uv[[b, a]]
+    check = check_pointset_map(pts, uv, np.tile([0.0, 0.0, 1.0], (len(pts), 1)), [outer, rim])
+    assert check["boundary_crosses"] is True
+    assert not check["passed"] and "boundary-crossing" in check["failed"]
+    assert "cross" in check["reason"]
+    # the untouched map's loops do not cross
+    clean = check_pointset_map(pts, pts[:, :2], np.tile([0.0, 0.0, 1.0], (len(pts), 1)), [outer, rim])
+    assert clean["boundary_crosses"] is False and clean["passed"]
