@@ -23,7 +23,7 @@ from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
 # Aliased: build_frontend has a boolean parameter of the same name.
 from .surface_neighbours import surface_knn_graph
-from .normals import check_user_normals, orient_normals, pca_normals
+from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 from .normals import smooth_normals as neighbourhood_smoothed
 from .tangent_weights import (
     DEFAULT_REG_EPS,
@@ -229,7 +229,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     -------
     FrontEnd
         ``diagnostics`` holds: ``n_points``, ``k_nn``, ``mean_spacing``, ``normals_source``
-        ("given"/"pca"), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
+        ("given"/"pca"), ``normal_fit`` (:func:`~methods.pointset.normals.noise_adaptive_normals`
+        facts), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
         ``negative_weights`` (:func:`~methods.pointset.tangent_weights.negative_weight_stats`,
         interior vs. angle-criterion boundary points), ``reconstruction_error`` {mean,
         max, unit: "l^2"} (R_x divided by l^2), ``boundary`` (loop extraction facts).
@@ -285,7 +286,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         h_local = local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local" else np.full(n, spacing)
 
     with timer("normals"):
-        fitted = pca_normals(p, graph.indices)
+        # PCA on the kNN, refitted on more points where the fit residual says noise.
+        fitted, normal_fit = noise_adaptive_normals(p, graph.indices)
         if given is not None:
             oriented = given[order]
             check_user_normals(p, oriented, fitted, graph.indices)
@@ -354,6 +356,7 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         "k_nn": k_nn,
         "mean_spacing": float(spacing),
         "normals_source": "given" if given is not None else "pca",
+        "normal_fit": normal_fit,
         "neighbours": dict(nbr_diag, mode=neighbours),
         "ball_size": {"min": int(balls.sizes.min()), "mean": float(balls.sizes.mean()),
                       "max": int(balls.sizes.max())},
