@@ -233,3 +233,61 @@ def test_a_boundary_image_that_crosses_itself_fails():
     # the untouched map's loops do not cross
     clean = check_pointset_map(pts, pts[:, :2], np.tile([0.0, 0.0, 1.0], (len(pts), 1)), [outer, rim])
     assert clean["boundary_crosses"] is False and clean["passed"]
+
+
+def _noisy_grid(n=40, noise=0.5, seed=5):
+    """A jittered n x n grid of spacing 1 with normal (z) noise of ``noise`` spacings, its
+    outer loop and the true map (x, y)."""
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    xy = np.c_[x.ravel(), y.ravel()]
+    inner = ~np.isin(np.arange(n * n), _ring(n))
+    xy[inner] += rng.uniform(-0.3, 0.3, (int(inner.sum()), 2))  # boundary kept straight
+    pts = np.c_[xy, noise * rng.standard_normal(n * n)]
+    return pts, _ring(n), xy
+
+
+def _estimated_normals(pts, adaptive: bool):
+    from methods.pointset.neighbourhoods import knn_graph
+    from methods.pointset.normals import noise_adaptive_normals, orient_normals, pca_normals
+
+    graph = knn_graph(pts, 8)
+    fitted = noise_adaptive_normals(pts, graph.indices)[0] if adaptive else pca_normals(pts, graph.indices)
+    return orient_normals(pts, fitted, graph.indices)
+
+
+def test_the_true_map_of_a_noisy_sampling_passes_with_noise_adaptive_normals():
+    # Noise of 0.5 spacings along the normal: the exact map has no fold, but 8-point PCA
+    # normals (18 degrees mean error) made the flip test call some of its triangles
+    # flipped. With the front end's noise-adaptive normals it passes.
+    pts, outer, xy = _noisy_grid()
+    plain = check_pointset_map(pts, xy, _estimated_normals(pts, adaptive=False), [outer])
+    assert plain["n_flipped"] > 0  # the false alarm this guards against
+    check = check_pointset_map(pts, xy, _estimated_normals(pts, adaptive=True), [outer])
+    assert check["passed"], check["reason"]
+    assert check["n_flipped"] == 0 and check["turning_ok"]
+
+
+def test_a_fold_in_a_noisy_sampling_still_fails():
+    pts, outer, xy = _noisy_grid()
+    normals = _estimated_normals(pts, adaptive=True)
+    uv = xy.copy()
+    centre = np.argmin(np.hypot(xy[:, 0] - 20.0, xy[:, 1] - 20.0))
+    uv[centre] += [1.8, 1.8]  # pushed past its diagonal neighbour: a local fold
+    check = check_pointset_map(pts, uv, normals, [outer])
+    assert not check["passed"] and "flipped" in check["failed"] and check["n_flipped"] >= 2
+
+
+def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
+    # Three points nearly collinear in the tangent plane, lifted by noise into a
+    # well-shaped 3D triangle (3D quality 0.23): the sign of its projected area, which
+    # the flip test reads, is the noise's. It is a sliver; a well-shaped one is not.
+    from methods.pointset.selfcheck import SLIVER_QUALITY, _tangent_sliver
+
+    tri = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.05, 0.9]],
+                    [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.5, 0.9]]])
+    normal3d = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    q3d = 0.5 * np.linalg.norm(normal3d, axis=1) / 4.0
+    assert q3d[0] > SLIVER_QUALITY  # the old 3D test called it well shaped
+    mean_normal = np.tile([0.0, 0.0, 3.0], (2, 1))  # three vertex normals summed
+    assert _tangent_sliver(tri, normal3d, mean_normal).tolist() == [True, False]
