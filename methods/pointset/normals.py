@@ -100,8 +100,9 @@ def pca_fit(points: np.ndarray, nbh_indices: np.ndarray, valid: np.ndarray | Non
         valid = np.ones(nbh_indices.shape, dtype=bool)
     normals = np.empty((m, 3))
     lam = np.empty((m, 3))
-    for start in range(0, m, _PCA_CHUNK):
-        sl = slice(start, min(start + _PCA_CHUNK, m))
+    chunk = max(1, _PCA_CHUNK * 9 // (nbh_indices.shape[1] + 1))  # pca_normals' memory at K = 8
+    for start in range(0, m, chunk):
+        sl = slice(start, min(start + chunk, m))
         w = np.concatenate([np.ones((sl.stop - sl.start, 1)), valid[sl].astype(np.float64)], axis=1)
         nbh = np.concatenate([points[sl, None, :], points[nbh_indices[sl]]], axis=1)
         count = w.sum(axis=1)
@@ -136,6 +137,9 @@ NOISE_RESIDUAL_GROWTH = 3.0
 
 #: Refit sizes tried per point (each round halves the way down to K).
 _REFIT_ROUNDS = 3
+
+#: Points refitted per batch (neighbour lists and fits of at most ~100 MB).
+_REFIT_CHUNK = 50_000
 
 
 def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, target_deg: float = NOISE_TARGET_DEG,
@@ -205,27 +209,32 @@ def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, targe
     from scipy.spatial import cKDTree
 
     size = np.clip(np.ceil((k + 1) * error_mean[want] / target), k + 1, big_k + 1).astype(np.int64) - 1
-    _, idx = cKDTree(points).query(points[want], k=int(size.max()) + 1, workers=-1)
-    idx = idx[:, 1:]
+    tree = cKDTree(points)
     done = np.zeros(want.size, dtype=bool)
     chosen = np.zeros(want.size, dtype=np.int64)
-    # Largest passing size first; where the residual grows too much, halve the way down
-    # to K (curvature: a smaller refit still averages noise with little bias).
-    for _ in range(_REFIT_ROUNDS):
-        todo = np.flatnonzero(~done & (size > k))
-        if todo.size == 0:
-            break
-        valid = np.arange(idx.shape[1])[None, :] < size[todo, None]
-        big_normals, big_lam, big_error = pca_fit_rows(points, want[todo], idx[todo], valid)
-        big_s2 = big_lam[:, 0] / np.maximum(size[todo] + 1 - 3, 1)
-        # Noise alone: the refit's residual variance is about the typical small-fit one
-        # among its members (a median: robust to the few members at a crease).
-        typical = _masked_median(s2_mean[idx[todo]], valid)
-        ok = (big_error < small_error[todo]) & (big_s2 <= NOISE_RESIDUAL_GROWTH * typical)
-        normals[want[todo[ok]]] = big_normals[ok]
-        done[todo[ok]] = True
-        chosen[todo[ok]] = size[todo[ok]]
-        size[todo[~ok]] = (size[todo[~ok]] + k) // 2
+    for lo in range(0, want.size, _REFIT_CHUNK):  # bounded memory: ~100 MB per chunk
+        sl = slice(lo, min(lo + _REFIT_CHUNK, want.size))
+        rows = want[sl]
+        _, idx = tree.query(points[rows], k=int(size[sl].max()) + 1, workers=-1)
+        idx = idx[:, 1:]
+        # Largest passing size first; where the residual grows too much, halve the way
+        # down to K (curvature: a smaller refit still averages noise with little bias).
+        for _ in range(_REFIT_ROUNDS):
+            todo = np.flatnonzero(~done[sl] & (size[sl] > k))
+            if todo.size == 0:
+                break
+            sz = size[sl][todo]
+            valid = np.arange(idx.shape[1])[None, :] < sz[:, None]
+            big_normals, big_lam, big_error = pca_fit_rows(points, rows[todo], idx[todo], valid)
+            big_s2 = big_lam[:, 0] / np.maximum(sz + 1 - 3, 1)
+            # Noise alone: the refit's residual variance is about the typical small-fit
+            # one among its members (a median: robust to the few members at a crease).
+            typical = _masked_median(s2_mean[idx[todo]], valid)
+            ok = (big_error < small_error[sl][todo]) & (big_s2 <= NOISE_RESIDUAL_GROWTH * typical)
+            normals[rows[todo[ok]]] = big_normals[ok]
+            done[lo + todo[ok]] = True
+            chosen[lo + todo[ok]] = sz[ok]
+            size[lo + todo[~ok]] = (sz[~ok] + k) // 2
     keep = done
     size = chosen
     info["n_refit"] = int(keep.sum())
