@@ -208,3 +208,38 @@ def test_progress_and_summary_label_variants_as_the_report(tmp_path, capsys):
     text = summary_table(rows)
     assert "0 ok, 1 suspect, 1 failed of 2 cells" in text
     assert "SUSPECT plane / scp" in text and "FAILED plane / scp [b_matrix=mass]: SolverError: boom" in text
+
+
+def test_summary_shows_suspect_cells_figures_marked():
+    """A suspect cell has a map and metrics: the summary shows its QC (marked), not NaN."""
+    import pandas as pd
+
+    from bench.sweep import SUSPECT_MARK, summary_table
+
+    rows = pd.DataFrame({
+        "method": ["ocp", "ocp", "scp-tan", "lem"],
+        "params": ["{}", "{}", "{}", "{}"],
+        "dataset": ["bump", "holes", "bump", "bump"],
+        "status": ["ok", "suspect", "suspect", "failed"],
+        "qc_mean": [1.0123, 1.4567, 2.25, None],
+        "foldovers": [0, 3, 17, None],
+        "time_total": [1.0, 2.0, 0.5, None],
+        "error_type": ["", "SelfCheck", "SelfCheck", "SolverError"],
+        "error": ["", "4 flipped triangle(s) of 3711", "loop 0 turns +2.00 (expected +1)", "boom"],
+    })
+    text = summary_table(rows)
+    assert "nan" not in text.lower()
+    qc_block = text.split("\n\n")[0]
+    ocp_line = next(line for line in qc_block.splitlines() if line.startswith("ocp"))
+    # ok figure unmarked, suspect figure marked; both present
+    assert "1.012" in ocp_line and f"1.012{SUSPECT_MARK}" not in ocp_line
+    assert f"1.457{SUSPECT_MARK}" in ocp_line
+    # a variant whose only cells are suspect still has a row; no map on holes: "-"
+    tan_line = next(line for line in qc_block.splitlines() if line.startswith("scp-tan"))
+    assert f"2.250{SUSPECT_MARK}" in tan_line and tan_line.split()[-1] == "-"
+    # a failed cell has no map: lem has no QC row
+    assert not any(line.startswith("lem") for line in qc_block.splitlines())
+    counts = text.split("\n\n")[1]
+    ocp_counts = next(line for line in counts.splitlines() if line.startswith("ocp")).split()
+    assert ocp_counts[1:] == ["3", "1.5", "1"]  # foldovers over ok + suspect, median time, 1 suspect cell
+    assert "1 ok, 2 suspect, 1 failed of 4 cells" in text
