@@ -12,7 +12,14 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   times the squared longest projected edge; equilateral: 0.43) are not counted: three
   nearly collinear points change orientation under any small distortion (counted apart
   as ``n_flipped_slivers``). Measured in the tangent plane, not in 3D, because normal
-  noise lifts a sliver's corners off the plane and makes it look well shaped in 3D.
+  noise lifts a sliver's corners off the plane and makes it look well shaped in 3D; and
+  a triangle that is a sliver for some reference normal within a tolerance of the mean
+  normal counts as one. The tolerance is the normals' error as the points' noise level
+  predicts it (:func:`normal_tolerance_deg`: ``NORMAL_TOL_FACTOR`` = 2.5 times the
+  median predicted error of the kNN plane fits, at most ``NORMAL_TOL_DEG`` = 10; the
+  95th percentile error of the front end's normals at noise 0.5 spacings is 9-10
+  degrees); on clean surfaces it is 0.5-2.3 degrees and clean triangles, lying in their
+  tangent planes, are unaffected by it. Reported as ``normal_tol_deg``.
   Under noise the check is only as good as its normals: the front end's are refitted
   on larger neighbourhoods where the fit residual says noise
   (:func:`methods.pointset.normals.noise_adaptive_normals`).
@@ -54,12 +61,14 @@ from datasets_gen.errors import ParambenchError
 from ..geometry2d import triangle_signed_areas, turning_number
 from .uv_triangulation import triangulate_uv
 
-__all__ = ["check_pointset_map", "loop_coverage", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
+__all__ = ["check_pointset_map", "loop_coverage", "normal_tolerance_deg", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
 
 MAX_FLIPPED = 0
 MAX_DEGENERATE_FRACTION = 0.01
 ZERO_AREA_REL = 1e-10
 SLIVER_QUALITY = 0.05
+NORMAL_TOL_DEG = 10.0
+NORMAL_TOL_FACTOR = 2.5
 BRIDGE_FACTOR = 4.0
 TURNING_TOL = 0.25
 COVER_RADIUS = 3.0
@@ -68,7 +77,8 @@ MAX_UNCOVERED_FRACTION = 0.02
 
 #: The thresholds as reported in ``diagnostics["selfcheck"]["thresholds"]``.
 THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENERATE_FRACTION,
-              "zero_area_rel": ZERO_AREA_REL, "sliver_quality": SLIVER_QUALITY, "bridge_factor": BRIDGE_FACTOR, "turning_tol": TURNING_TOL,
+              "zero_area_rel": ZERO_AREA_REL, "sliver_quality": SLIVER_QUALITY,
+              "normal_tol_deg_max": NORMAL_TOL_DEG, "normal_tol_factor": NORMAL_TOL_FACTOR, "bridge_factor": BRIDGE_FACTOR, "turning_tol": TURNING_TOL,
               "cover_radius_spacings": COVER_RADIUS, "min_missed_ring": MIN_MISSED_RING,
               "max_uncovered_fraction": MAX_UNCOVERED_FRACTION}
 
@@ -96,15 +106,46 @@ def _bridging(longest: np.ndarray, faces: np.ndarray, spacing_pt: np.ndarray) ->
     return longest > BRIDGE_FACTOR * spacing_pt[faces].mean(axis=1)
 
 
-def _tangent_sliver(p: np.ndarray, normal3d: np.ndarray, mean_normal: np.ndarray) -> np.ndarray:
-    """Triangles whose projection on their vertices' mean tangent plane is a sliver.
+def normal_tolerance_deg(points: np.ndarray, knn_indices: np.ndarray) -> float:
+    """The normals' error the flip test allows for, from the points' own noise level.
 
-    Quality = projected area / (longest projected edge)^2 below ``SLIVER_QUALITY``. The
+    ``NORMAL_TOL_FACTOR`` times the median predicted error of the kNN plane fits
+    (:func:`methods.pointset.normals.pca_fit`: the fit residual against the in-plane
+    spread), at most ``NORMAL_TOL_DEG``. Clean generated surfaces predict 0.2-0.9
+    degrees (median), so the tolerance there is 0.5-2.3 degrees; normal noise of 0.25 or
+    0.5 spacings predicts 8-15 degrees at K = 8 and gets ``NORMAL_TOL_DEG``.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    knn_indices : (N, K) numpy.ndarray of int64
+
+    Returns
+    -------
+    float
+        Degrees.
+    """
+    from .normals import pca_fit
+
+    error = pca_fit(points, knn_indices)[2]
+    return float(min(NORMAL_TOL_DEG, NORMAL_TOL_FACTOR * np.degrees(np.median(error))))
+
+
+def _tangent_sliver(p: np.ndarray, normal3d: np.ndarray, mean_normal: np.ndarray,
+                    tol_deg: float = NORMAL_TOL_DEG) -> np.ndarray:
+    """Triangles whose projection on their vertices' mean tangent plane is, or may be, a sliver.
+
+    Quality = projected area / (longest projected edge)^2 below ``SLIVER_QUALITY``, for
+    the mean normal and for every reference normal within ``tol_deg`` of it: the
     flip test reads the sign of that projected area, so this is where it is decided. A
     triangle of noisy points can be well shaped in 3D (the noise lifts its corners off
-    the plane) while its projection is a sliver whose sign the noise sets; measured at
-    noise 0.5 spacings (saddle, 20k points), the one triangle of a correct map that the
-    normals called flipped had 3D quality 0.28 and projected quality 0.03.
+    the plane) while its projection is a sliver whose sign the noise and the normals'
+    error set. Measured at noise 0.5 spacings, on correct maps (0 foldovers on the true
+    mesh): saddle 20k, a triangle the normals called flipped with 3D quality 0.28 and
+    projected quality 0.03; cap 2k seed 1, one with projected quality 0.059 whose true
+    quality is 0.004 (a sliver at the boundary), within the tolerance term here.
+    On a clean surface a triangle lies in its tangent plane and the tolerance adds
+    nothing.
     """
     length = np.linalg.norm(mean_normal, axis=1)
     unit = mean_normal / np.where(length > 0, length, 1.0)[:, None]
@@ -112,7 +153,10 @@ def _tangent_sliver(p: np.ndarray, normal3d: np.ndarray, mean_normal: np.ndarray
     edges = np.stack([flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 1], flat[:, 0] - flat[:, 2]], axis=1)
     longest_sq = np.einsum("mij,mij->mi", edges, edges).max(axis=1)
     area = 0.5 * np.abs(np.einsum("mi,mi->m", normal3d, unit))
-    return (area < SLIVER_QUALITY * longest_sq) | (length == 0)
+    # How much the projected area changes when the reference normal tilts by NORMAL_TOL:
+    # nothing for a triangle lying in the tangent plane, a lot for one noise stood up.
+    wobble = 0.5 * np.linalg.norm(np.cross(normal3d, unit), axis=1) * np.sin(np.radians(tol_deg))
+    return (area < SLIVER_QUALITY * longest_sq + wobble) | (length == 0)
 
 
 def loop_coverage(points: np.ndarray, loops: list, candidates: np.ndarray, knn_indices: np.ndarray,
@@ -164,7 +208,8 @@ def loop_coverage(points: np.ndarray, loops: list, candidates: np.ndarray, knn_i
             "passed": bool(not applicable or largest < MIN_MISSED_RING)}
 
 
-def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool) -> tuple[dict, int]:
+def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
+                tol_deg: float = NORMAL_TOL_DEG) -> tuple[dict, int]:
     p = points[faces]
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     longest = _longest_edge(points, faces)
@@ -179,7 +224,7 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool) -> 
     normal3d = np.cross(e1, e2)
     mean_normal = normals[faces].sum(axis=1)
     agree = np.einsum("mi,mi->m", normal3d, mean_normal)
-    sliver = _tangent_sliver(p, normal3d, mean_normal)
+    sliver = _tangent_sliver(p, normal3d, mean_normal, tol_deg)
     valid = ~(zero | bridging)
     n_neg = np.count_nonzero(agree[valid] < 0)
     n_pos = np.count_nonzero(agree[valid] > 0)
@@ -249,7 +294,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         JSON-serialisable: ``passed`` (bool), ``reason`` (one line; "ok" when passed),
         ``failed`` (names among "flipped", "degenerate", "turning", "coverage"),
         ``triangulation`` ("cdt", "delaunay", "delaunay-fallback" or "none"),
-        ``n_triangles``, ``n_removed_outside``, ``n_flipped``, ``n_flipped_slivers``, ``mirrored``,
+        ``n_triangles``, ``n_removed_outside``, ``normal_tol_deg``, ``n_flipped``,
+        ``n_flipped_slivers``, ``mirrored``,
         ``n_zero_area``, ``n_bridging``, ``n_degenerate``, ``degenerate_fraction``,
         ``turning_numbers`` and ``expected_turning`` (per loop), ``turning_ok``,
         ``coverage`` (:func:`loop_coverage`, or None), ``thresholds``, ``seconds``.
@@ -270,8 +316,10 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         except ParambenchError as exc:
             facts.update(triangulation="none", n_triangles=0, reason_override=str(exc).rstrip("."))
         else:
-            face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops)
-            facts.update(triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
+            tol = normal_tolerance_deg(points, knn)
+            face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops,
+                                                tol_deg=tol)
+            facts.update(normal_tol_deg=round(tol, 3), triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
                          boundary_crosses=tri.boundary_crosses, **face_facts)
     if loops and np.all(np.isfinite(uv)):
         # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.

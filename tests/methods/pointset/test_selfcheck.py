@@ -256,16 +256,21 @@ def _estimated_normals(pts, adaptive: bool):
     return orient_normals(pts, fitted, graph.indices)
 
 
-def test_the_true_map_of_a_noisy_sampling_passes_with_noise_adaptive_normals():
+def test_the_true_map_of_a_noisy_sampling_passes(monkeypatch):
     # Noise of 0.5 spacings along the normal: the exact map has no fold, but 8-point PCA
-    # normals (18 degrees mean error) made the flip test call some of its triangles
-    # flipped. With the front end's noise-adaptive normals it passes.
+    # normals (18 degrees mean error) without the normal tolerance made the flip test
+    # call some of its triangles flipped. Either defence alone removes that here.
+    import methods.pointset.selfcheck as selfcheck
+
     pts, outer, xy = _noisy_grid()
-    plain = check_pointset_map(pts, xy, _estimated_normals(pts, adaptive=False), [outer])
-    assert plain["n_flipped"] > 0  # the false alarm this guards against
-    check = check_pointset_map(pts, xy, _estimated_normals(pts, adaptive=True), [outer])
-    assert check["passed"], check["reason"]
-    assert check["n_flipped"] == 0 and check["turning_ok"]
+    plain, adaptive = _estimated_normals(pts, adaptive=False), _estimated_normals(pts, adaptive=True)
+    for normals in (plain, adaptive):
+        check = check_pointset_map(pts, xy, normals, [outer])
+        assert check["passed"], check["reason"]
+        assert check["n_flipped"] == 0 and check["turning_ok"]
+    monkeypatch.setattr(selfcheck, "NORMAL_TOL_DEG", 0.0)  # caps the tolerance at 0
+    assert check_pointset_map(pts, xy, plain, [outer])["n_flipped"] > 0  # the false alarm
+    assert check_pointset_map(pts, xy, adaptive, [outer])["n_flipped"] == 0
 
 
 def test_a_fold_in_a_noisy_sampling_still_fails():
@@ -291,3 +296,16 @@ def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
     assert q3d[0] > SLIVER_QUALITY  # the old 3D test called it well shaped
     mean_normal = np.tile([0.0, 0.0, 3.0], (2, 1))  # three vertex normals summed
     assert _tangent_sliver(tri, normal3d, mean_normal).tolist() == [True, False]
+
+
+def test_normal_tolerance_follows_the_noise_level():
+    from methods.pointset.neighbourhoods import knn_graph
+    from methods.pointset.selfcheck import NORMAL_TOL_DEG, normal_tolerance_deg
+
+    clean, _, _ = _noisy_grid(noise=0.0)
+    clean[:, 2] = 0.01 * (clean[:, 0] - 20.0) ** 2  # curved, radius >= 50 spacings
+    noisy, outer, xy = _noisy_grid(noise=0.5)
+    assert normal_tolerance_deg(clean, knn_graph(clean, 8).indices) < 1.0
+    assert normal_tolerance_deg(noisy, knn_graph(noisy, 8).indices) == NORMAL_TOL_DEG
+    check = check_pointset_map(noisy, xy, _estimated_normals(noisy, adaptive=True), [outer])
+    assert check["normal_tol_deg"] == NORMAL_TOL_DEG
