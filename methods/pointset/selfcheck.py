@@ -224,7 +224,7 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
     normal3d = np.cross(e1, e2)
     mean_normal = normals[faces].sum(axis=1)
     agree = np.einsum("mi,mi->m", normal3d, mean_normal)
-    sliver = _tangent_sliver(p, normal3d, mean_normal, tol_deg)
+    sliver = _tangent_sliver(points[faces], normal3d, mean_normal, tol_deg)
     valid = ~(zero | bridging)
     n_neg = np.count_nonzero(agree[valid] < 0)
     n_pos = np.count_nonzero(agree[valid] > 0)

@@ -309,3 +309,17 @@ def test_normal_tolerance_follows_the_noise_level():
     assert normal_tolerance_deg(noisy, knn_graph(noisy, 8).indices) == NORMAL_TOL_DEG
     check = check_pointset_map(noisy, xy, _estimated_normals(noisy, adaptive=True), [outer])
     assert check["normal_tol_deg"] == NORMAL_TOL_DEG
+
+
+def test_without_loops_bridging_triangles_are_dropped_and_the_rest_judged():
+    # No loops (a peer without a front end): the Delaunay triangles across the hole are
+    # dropped as outside before the flip test (which once indexed the undropped ones).
+    pts, _, _ = _grid_with_hole()
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    check = check_pointset_map(pts, pts[:, :2], normals, None)
+    assert check["passed"], check["reason"]
+    assert check["n_removed_outside"] > 0 and check["n_flipped"] == 0
+    uv = pts[:, :2].copy()
+    inner = np.flatnonzero((pts[:, 0] == 3) & (pts[:, 1] == 3))[0]
+    uv[inner] += [1.6, 1.6]
+    assert check_pointset_map(pts, uv, normals, None)["n_flipped"] > 0
