@@ -295,7 +295,33 @@ def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
     q3d = 0.5 * np.linalg.norm(normal3d, axis=1) / 4.0
     assert q3d[0] > SLIVER_QUALITY  # the old 3D test called it well shaped
     mean_normal = np.tile([0.0, 0.0, 3.0], (2, 1))  # three vertex normals summed
-    assert _tangent_sliver(tri, normal3d, mean_normal).tolist() == [True, False]
+    sliver, uncertain = _tangent_sliver(tri, normal3d, mean_normal)
+    assert sliver.tolist() == [True, False] and not uncertain.any()
+
+
+def test_a_triangle_stood_up_by_noise_is_uncertain_only_within_the_tolerance():
+    # 3D normal 81.5 degrees from the mean normal, tangent-plane quality 0.15: a tilt of
+    # the reference normal by 10 degrees could make it a sliver, by 0 it cannot.
+    from methods.pointset.selfcheck import _tangent_sliver
+
+    tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.3, 2.0]]])
+    normal3d = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    mean_normal = np.array([[0.0, 0.0, 3.0]])
+    assert [m.tolist() for m in _tangent_sliver(tri, normal3d, mean_normal, 10.0)] == [[False], [True]]
+    assert [m.tolist() for m in _tangent_sliver(tri, normal3d, mean_normal, 0.0)] == [[False], [False]]
+
+
+def test_many_uncertain_flips_fail_the_check(monkeypatch):
+    # Each uncertain flip alone is forgiven; more than MAX_UNCERTAIN_FRACTION of them is
+    # what a fold under noise looks like (random samplings at noise 0.5: 0.24-0.62 %).
+    import methods.pointset.selfcheck as selfcheck
+
+    pts, outer, xy = _noisy_grid()
+    normals = _estimated_normals(pts, adaptive=True)
+    base = check_pointset_map(pts, xy, normals, [outer])
+    assert base["passed"] and base["n_flipped_uncertain"] <= selfcheck.MAX_UNCERTAIN_FRACTION * base["n_triangles"]
+    facts = dict(base, n_flipped_uncertain=int(0.002 * base["n_triangles"]) + 1)
+    assert selfcheck._too_uncertain(facts) and "within the normals' error" in selfcheck._reason(facts)
 
 
 def test_normal_tolerance_follows_the_noise_level():
