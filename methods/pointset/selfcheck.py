@@ -7,15 +7,14 @@ against the 3D geometry. Thresholds (module constants, reported with every check
 * **flipped** (``MAX_FLIPPED`` = 0 allowed): a uv-counter-clockwise triangle whose 3D
   normal disagrees with the mean normal of its points (``dot < 0``). A global mirror is
   not a flip: the majority orientation counts as "not flipped". The test reads the sign
-  of the triangle's area projected on the tangent plane of that mean normal, so
-  triangles whose projection there is a sliver (area below ``SLIVER_QUALITY`` = 0.05
-  times the squared longest projected edge; equilateral: 0.43) are not counted: three
-  nearly collinear points change orientation under any small distortion (counted apart
-  as ``n_flipped_slivers``). Measured in the tangent plane, not in 3D, because normal
-  noise lifts a sliver's corners off the plane and makes it look well shaped in 3D; and
-  a triangle that is a sliver for some reference normal within a tolerance of the mean
-  normal counts as one. The tolerance is the normals' error as the points' noise level
-  predicts it (:func:`normal_tolerance_deg`: ``NORMAL_TOL_FACTOR`` = 2.5 times the
+  of the triangle's area projected on the tangent plane of that mean normal. Slivers
+  there and in 3D (area below ``SLIVER_QUALITY`` = 0.05 times the squared longest edge;
+  equilateral: 0.43) are not counted: three nearly collinear points change orientation
+  under any small distortion (counted apart as ``n_flipped_slivers``). A triangle that
+  is a sliver in the tangent plane but well shaped in 3D (normal noise lifted its
+  corners off the plane), or would be a sliver for some reference normal within a
+  tolerance of the mean normal, has an uncertain sign. The tolerance is the normals'
+  error as the points' noise level predicts it (:func:`normal_tolerance_deg`: ``NORMAL_TOL_FACTOR`` = 2.5 times the
   median predicted error of the kNN plane fits, at most ``NORMAL_TOL_DEG`` = 10; the
   95th percentile error of the front end's normals at noise 0.5 spacings is 9-10
   degrees); on clean surfaces it is 0.5-2.3 degrees and clean triangles, lying in their
@@ -237,7 +236,12 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
     normal3d = np.cross(e1, e2)
     mean_normal = normals[faces].sum(axis=1)
     agree = np.einsum("mi,mi->m", normal3d, mean_normal)
-    sliver, uncertain = _tangent_sliver(points[faces], normal3d, mean_normal, tol_deg)
+    tangent_sliver, uncertain = _tangent_sliver(points[faces], normal3d, mean_normal, tol_deg)
+    # Never judged: slivers both in the tangent plane and in 3D (three nearly collinear
+    # points). A tangent-plane sliver that is well shaped in 3D was stood up by noise:
+    # its sign is uncertain, counted with the others.
+    sliver = tangent_sliver & (0.5 * np.linalg.norm(normal3d, axis=1) < SLIVER_QUALITY * longest**2)
+    uncertain = uncertain | (tangent_sliver & ~sliver)
     valid = ~(zero | bridging)
     n_neg = np.count_nonzero(agree[valid] < 0)
     n_pos = np.count_nonzero(agree[valid] > 0)
