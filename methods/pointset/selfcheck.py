@@ -22,7 +22,7 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   flips (``n_flipped_uncertain``) are allowed up to ``MAX_UNCERTAIN_FRACTION`` = 0.1 % of
   the triangles: measured at noise 0.5 spacings, correct maps (0 foldovers on the true
   mesh; 5 surfaces, 2k and 20k jittered points, 3 seeds) had at most 2 (0.03 % at 2k,
-  0.005 % at 20k), the broken maps of random samplings (15-708 foldovers) 0.24-0.62 %.
+  0.005 % at 20k), the broken maps of random samplings (15-708 foldovers) 0.24-0.58 %.
   Under noise the check is only as good as its normals: the front end's are refitted
   on larger neighbourhoods where the fit residual says noise
   (:func:`methods.pointset.normals.noise_adaptive_normals`).

@@ -313,7 +313,7 @@ def test_a_triangle_stood_up_by_noise_is_uncertain_only_within_the_tolerance():
 
 def test_many_uncertain_flips_fail_the_check(monkeypatch):
     # Each uncertain flip alone is forgiven; more than MAX_UNCERTAIN_FRACTION of them is
-    # what a fold under noise looks like (random samplings at noise 0.5: 0.24-0.62 %).
+    # what a fold under noise looks like (random samplings at noise 0.5: 0.24-0.58 %).
     import methods.pointset.selfcheck as selfcheck
 
     pts, outer, xy = _noisy_grid()
