@@ -1,7 +1,7 @@
 """A point-set map checks itself: flipped and degenerate triangles, loop turning, loop coverage.
 
 The uv points are triangulated with the detected boundary loops as constraints
-(:func:`methods.pointset.uv_triangulation.triangulate_uv`) and the triangles are checked
+(:func:`parambench.methods.pointset.uv_triangulation.triangulate_uv`) and the triangles are checked
 against the 3D geometry. Thresholds (module constants, reported with every check):
 
 * **flipped** (``MAX_FLIPPED`` = 0 allowed): a uv-counter-clockwise triangle whose 3D
@@ -25,7 +25,7 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   0.005 % at 20k), the broken maps of random samplings (15-708 foldovers) 0.24-0.58 %.
   Under noise the check is only as good as its normals: the front end's are refitted
   on larger neighbourhoods where the fit residual says noise
-  (:func:`methods.pointset.normals.noise_adaptive_normals`).
+  (:func:`parambench.methods.pointset.normals.noise_adaptive_normals`).
 * **degenerate** (share of triangles <= ``MAX_DEGENERATE_FRACTION`` = 1 %): zero uv area
   (below ``ZERO_AREA_REL`` = 1e-10 of the median), or a 3D edge longer than
   ``BRIDGE_FACTOR`` = 4 times the local spacing of its points (the triangle bridges a
@@ -59,7 +59,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import triangle_signed_areas, turning_number
 from .uv_triangulation import triangulate_uv
@@ -115,7 +115,7 @@ def normal_tolerance_deg(points: np.ndarray, knn_indices: np.ndarray) -> float:
     """The normals' error the flip test allows for, from the points' own noise level.
 
     ``NORMAL_TOL_FACTOR`` times the median predicted error of the kNN plane fits
-    (:func:`methods.pointset.normals.pca_fit`: the fit residual against the in-plane
+    (:func:`parambench.methods.pointset.normals.pca_fit`: the fit residual against the in-plane
     spread), at most ``NORMAL_TOL_DEG``. Clean generated surfaces predict 0.2-0.9
     degrees (median), so the tolerance there is 0.5-2.3 degrees; normal noise of 0.25 or
     0.5 spacings predicts 8-15 degrees at K = 8 and gets ``NORMAL_TOL_DEG``.

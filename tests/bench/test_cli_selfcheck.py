@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from bench.cli import EXIT_SELFCHECK, main
+from parambench.bench.cli import EXIT_SELFCHECK, main
 
 
 @pytest.fixture(scope="module")
 def bump_xyz(tmp_path_factory):
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     surface = make_surface("bump", 900, sampling="jittered", seed=0)
     path = tmp_path_factory.mktemp("in") / "bump.xyz"
@@ -51,9 +51,9 @@ def test_force_writes_the_failing_map_with_a_warning(bump_xyz, tmp_path, capsys)
 @pytest.fixture(scope="module")
 def sdp_outputs(bump_xyz, tmp_path_factory):
     """flatten --points-only with sdp to .obj and .ply, and the map itself."""
-    from datasets_gen.surface import Surface
-    from methods import get_method
-    from methods.pointset.selfcheck import pointset_faces
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods import get_method
+    from parambench.methods.pointset.selfcheck import pointset_faces
 
     src, points = bump_xyz
     root = tmp_path_factory.mktemp("out")
@@ -105,7 +105,7 @@ def test_inspect_writes_loop_coverage(bump_xyz, tmp_path, capsys):
 
 
 def test_flatten_summary_names_uncertain_flips_only_when_there_are_some():
-    from bench.cli import _selfcheck_summary
+    from parambench.bench.cli import _selfcheck_summary
 
     check = {"passed": True, "n_triangles": 3900, "n_flipped": 0, "n_degenerate": 0, "normal_tol_deg": 10.0}
     assert _selfcheck_summary(check) == "; self-check ok: 0 flipped, 0 degenerate of 3900 triangles"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from methods.pointset.neighbourhoods import knn_graph
-from methods.pointset.normals import NOISE_TARGET_DEG, noise_adaptive_normals, pca_fit, pca_normals
+from parambench.methods.pointset.neighbourhoods import knn_graph
+from parambench.methods.pointset.normals import NOISE_TARGET_DEG, noise_adaptive_normals, pca_fit, pca_normals
 
 
 def _jittered_plane(n_side: int, noise: float, seed: int) -> np.ndarray:

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from matplotlib.path import Path
 
-from methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
-from methods.pointset.uv_triangulation import triangulate_uv
+from parambench.methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
+from parambench.methods.pointset.uv_triangulation import triangulate_uv
 
 
 def _ring(n):
@@ -155,13 +155,13 @@ def test_suggestions_name_a_parameter_of_the_method():
 
 @pytest.fixture(scope="module")
 def bump():
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     return make_surface("bump", 900, sampling="jittered", seed=0).points_only()
 
 
 def test_every_pointset_method_result_carries_its_check(bump):
-    from methods import get_method
+    from parambench.methods import get_method
 
     spinning = get_method("scp-tan")(bump)
     check = spinning.diagnostics["selfcheck"]
@@ -174,8 +174,8 @@ def test_every_pointset_method_result_carries_its_check(bump):
 
 
 def test_candidates_for_coverage_are_the_front_ends_own(bump):
-    from methods.pointset.frontend import build_frontend
-    from methods.pointset.plugin_support import frontend_candidates
+    from parambench.methods.pointset.frontend import build_frontend
+    from parambench.methods.pointset.plugin_support import frontend_candidates
 
     front = build_frontend(bump.points)
     candidates = frontend_candidates(front)
@@ -188,8 +188,8 @@ def test_candidates_for_coverage_are_the_front_ends_own(bump):
 def test_check_runs_on_the_distinct_points_when_some_coincide(bump):
     import warnings
 
-    from datasets_gen.surface import Surface
-    from methods import get_method
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods import get_method
 
     points = np.r_[bump.points, bump.points[:5]]  # five copies: merged before the method runs
     with warnings.catch_warnings():
@@ -205,9 +205,9 @@ def test_coverage_does_not_apply_to_a_uniform_random_sample():
     the points, in groups of 20+, although the one true loop is found and the map is
     right: coverage says it cannot tell (not applicable) instead of failing the map; on a
     jittered sample of the same surface it applies."""
-    from datasets_gen.registry import make_surface
-    from datasets_gen.surface import Surface
-    from methods import get_method
+    from parambench.datasets_gen.registry import make_surface
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods import get_method
 
     for sampling, applicable in (("random", False), ("jittered", True)):
         surface = make_surface("plane", 20000, sampling=sampling, seed=0)
@@ -248,8 +248,8 @@ def _noisy_grid(n=40, noise=0.5, seed=5):
 
 
 def _estimated_normals(pts, adaptive: bool):
-    from methods.pointset.neighbourhoods import knn_graph
-    from methods.pointset.normals import noise_adaptive_normals, orient_normals, pca_normals
+    from parambench.methods.pointset.neighbourhoods import knn_graph
+    from parambench.methods.pointset.normals import noise_adaptive_normals, orient_normals, pca_normals
 
     graph = knn_graph(pts, 8)
     fitted = noise_adaptive_normals(pts, graph.indices)[0] if adaptive else pca_normals(pts, graph.indices)
@@ -260,7 +260,7 @@ def test_the_true_map_of_a_noisy_sampling_passes(monkeypatch):
     # Noise of 0.5 spacings along the normal: the exact map has no fold, but 8-point PCA
     # normals (18 degrees mean error) without the normal tolerance made the flip test
     # call some of its triangles flipped. Either defence alone removes that here.
-    import methods.pointset.selfcheck as selfcheck
+    import parambench.methods.pointset.selfcheck as selfcheck
 
     pts, outer, xy = _noisy_grid()
     plain, adaptive = _estimated_normals(pts, adaptive=False), _estimated_normals(pts, adaptive=True)
@@ -287,7 +287,7 @@ def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
     # Three points nearly collinear in the tangent plane, lifted by noise into a
     # well-shaped 3D triangle (3D quality 0.23): the sign of its projected area, which
     # the flip test reads, is the noise's. It is a sliver; a well-shaped one is not.
-    from methods.pointset.selfcheck import SLIVER_QUALITY, _tangent_sliver
+    from parambench.methods.pointset.selfcheck import SLIVER_QUALITY, _tangent_sliver
 
     tri = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.05, 0.9]],
                     [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.5, 0.9]]])
@@ -302,7 +302,7 @@ def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
 def test_a_triangle_stood_up_by_noise_is_uncertain_only_within_the_tolerance():
     # 3D normal 81.5 degrees from the mean normal, tangent-plane quality 0.15: a tilt of
     # the reference normal by 10 degrees could make it a sliver, by 0 it cannot.
-    from methods.pointset.selfcheck import _tangent_sliver
+    from parambench.methods.pointset.selfcheck import _tangent_sliver
 
     tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.3, 2.0]]])
     normal3d = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -314,7 +314,7 @@ def test_a_triangle_stood_up_by_noise_is_uncertain_only_within_the_tolerance():
 def test_many_uncertain_flips_fail_the_check(monkeypatch):
     # Each uncertain flip alone is forgiven; more than MAX_UNCERTAIN_FRACTION of them is
     # what a fold under noise looks like (random samplings at noise 0.5: 0.24-0.58 %).
-    import methods.pointset.selfcheck as selfcheck
+    import parambench.methods.pointset.selfcheck as selfcheck
 
     pts, outer, xy = _noisy_grid()
     normals = _estimated_normals(pts, adaptive=True)
@@ -325,8 +325,8 @@ def test_many_uncertain_flips_fail_the_check(monkeypatch):
 
 
 def test_normal_tolerance_follows_the_noise_level():
-    from methods.pointset.neighbourhoods import knn_graph
-    from methods.pointset.selfcheck import NORMAL_TOL_DEG, normal_tolerance_deg
+    from parambench.methods.pointset.neighbourhoods import knn_graph
+    from parambench.methods.pointset.selfcheck import NORMAL_TOL_DEG, normal_tolerance_deg
 
     clean, _, _ = _noisy_grid(noise=0.0)
     clean[:, 2] = 0.01 * (clean[:, 0] - 20.0) ** 2  # curved, radius >= 50 spacings
