@@ -72,7 +72,7 @@ SUITES = {
         name="full",
         datasets=("plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions",
                   "gnome-strip", "slit", "fold", "real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet",
-                  "real/spot-top", "real/bunny10k", "real/chameleon"),
+                  "real/spot-top", "real/cortex-lh", "real/bunny10k", "real/chameleon"),
         sizes=(2000, 10000, 50000),
         samplings=("grid", "jittered", "random", "graded"),
         seeds=(0, 1, 2),

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj", "meg-helmet.obj", "spot-top.obj")
+SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj", "meg-helmet.obj", "spot-top.obj", "cortex-lh.obj")
 DATA_IN_PACKAGE = "datasets_gen/data/real"
 
 # Loads each shipped dataset and prints where the package was imported from and the counts.
@@ -28,13 +28,13 @@ from datasets_gen.registry import make_surface
 from datasets_gen.real import real_data_dir
 print(datasets_gen.__file__)
 print(real_data_dir())
-for name in ("real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top"):
+for name in ("real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh"):
     s = make_surface(name)
     print(name, s.n_points, len(s.faces), len(s.boundary_loops))
 """
 
 EXPECTED_COUNTS = {"real/camelhead": (11381, 22704), "real/lilium": (3389, 6590), "real/bump-domain": (4172, 8058),
-                   "real/meg-helmet": (2044, 3987), "real/spot-top": (2089, 4112)}
+                   "real/meg-helmet": (2044, 3987), "real/spot-top": (2089, 4112), "real/cortex-lh": (12226, 23999)}
 
 
 def _clean_env(pythonpath: Path) -> dict:
@@ -121,6 +121,7 @@ def test_sources_file_credits_every_shipped_mesh():
     assert "Redistributions in binary form must reproduce the above copyright" in text  # BSD-3 asks for it
     assert "potpourri3d-1.4.0.tar.gz" in text and "Keenan Crane" in text and "public domain" in text
     assert "y >= -0.23" in text
+    assert "pycortex-1.4.0.tar.gz" in text and "BSD-2-Clause" in text and "targetfacenum=24000" in text
 
 
 def test_every_shipped_mesh_file_is_listed_and_small():

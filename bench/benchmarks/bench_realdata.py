@@ -4,11 +4,12 @@
 ``parambench report RESULTS --benchmark-json realdata.json`` turns the figures into a
 table (:mod:`reports.boundary_benchmark`). Without ``--benchmark-only`` every case is
 skipped: the default run took 3 min 46 s on 2 cores shared with other jobs (2 min of CPU),
-most of it ``ocp`` at 20k points, with 53 cases; the two real meshes added since
-(``-k "meg-helmet or spot-top"``) take 11 s together.
+most of it ``ocp`` at 20k points, with 53 cases; the three real meshes added since
+(``-k "meg-helmet or spot-top or cortex"``) took 7 s together (numba cache warm).
 
 Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
-``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/bunny10k``); every generated surface with ``random`` and
+``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/cortex-lh``,
+``real/bunny10k``); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered, 2000 points). Every method gets positions only.
@@ -51,7 +52,8 @@ from methods.registry import get_method
 from reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_REALDATA_SIZES", "2000,20000").split(",") if s.strip()]
-REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/bunny10k"]
+REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh",
+        "real/bunny10k"]
 GENERATED = [name for name in dataset_names() if not name.startswith("real/")]
 NOISY = ["bump", "holes", "saddle", "slit", "fold"]
 NOISE = 0.5

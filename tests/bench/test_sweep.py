@@ -47,7 +47,7 @@ def test_full_suite_has_at_least_five_real_meshes():
     assert len(real_meshes) >= 5
     # Every shipped mesh is in the full suite, and the quick one keeps two real meshes.
     shipped = [name for name, spec in REAL_DATASETS.items() if spec.location == "package"]
-    assert set(shipped) <= set(full) and {"real/meg-helmet", "real/spot-top"} <= set(shipped)
+    assert set(shipped) <= set(full) and {"real/meg-helmet", "real/spot-top", "real/cortex-lh"} <= set(shipped)
     quick = get_suite("quick").datasets
     assert [name for name in quick if name in REAL_DATASETS] == ["real/lilium", "real/spot-top"]
     # Each real cell runs once, at the file's own size.

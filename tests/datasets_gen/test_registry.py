@@ -10,8 +10,8 @@ from datasets_gen.registry import SAMPLINGS, dataset_info, dataset_names, make_s
 
 PROCEDURAL = ["plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions", "gnome-strip",
               "slit", "fold"]
-REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/bunny10k",
-        "real/chameleon"]
+REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh",
+        "real/bunny10k", "real/chameleon"]
 
 
 def test_names_and_info():
@@ -53,7 +53,8 @@ def test_bad_values():
 
 @pytest.mark.parametrize("name,n,loops", [("real/camelhead", 11381, 1), ("real/lilium", 3389, 1),
                                           ("real/bump-domain", 4172, 1), ("real/meg-helmet", 2044, 1),
-                                          ("real/spot-top", 2089, 1), ("real/bunny10k", 5051, 5)])
+                                          ("real/spot-top", 2089, 1), ("real/cortex-lh", 12226, 1),
+                                          ("real/bunny10k", 5051, 5)])
 def test_real_meshes(name, n, loops):
     s = make_surface(name, 999, sampling="grid", seed=4)
     assert s.name == name and s.n_points == n and len(s.boundary_loops) == loops
@@ -110,7 +111,8 @@ def _disk_topology(faces: np.ndarray, n_vertices: int) -> dict:
                                                  ("real/lilium", 3389, 6590, None),
                                                  ("real/bump-domain", 4172, 8058, None),
                                                  ("real/meg-helmet", 2044, 3987, 99),
-                                                 ("real/spot-top", 2089, 4112, 64)])
+                                                 ("real/spot-top", 2089, 4112, 64),
+                                                 ("real/cortex-lh", 12226, 23999, 451)])
 def test_shipped_meshes_are_disks(name, n, f, loop_edges):
     s = make_surface(name)
     assert s.points.shape == (n, 3) and s.faces.shape == (f, 3)
