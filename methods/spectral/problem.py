@@ -458,7 +458,7 @@ class ConformalProblem:
         local = self._local_loops(red.keep)
         n_cand = mus.size if max_candidates is None else min(mus.size, max_candidates)
         for i in range(n_cand):
-            if self.hermitian or extra:
+            if self.hermitian or len(extra):
                 z_k = vecs[:, i]
             else:
                 z_k = self._scp_reduced(float(mus[i])).state[0]
