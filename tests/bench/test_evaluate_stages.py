@@ -1,13 +1,13 @@
-"""The stages of bench.metrics.evaluate on their own: per-face shape metrics and oriented turning numbers."""
+"""The stages of parambench.bench.metrics.evaluate on their own: per-face shape metrics and oriented turning numbers."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import Delaunay
 
-from bench.metrics.evaluate import _SHAPE_KEYS, _face_shape_metrics, _oriented_turning_numbers
-from bench.metrics.jacobian import face_jacobian_sv
-from bench.metrics.orientation import collapsed_mask
+from parambench.bench.metrics.evaluate import _SHAPE_KEYS, _face_shape_metrics, _oriented_turning_numbers
+from parambench.bench.metrics.jacobian import face_jacobian_sv
+from parambench.bench.metrics.orientation import collapsed_mask
 
 
 def _planar_mesh():

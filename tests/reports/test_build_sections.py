@@ -5,14 +5,14 @@ from __future__ import annotations
 import re
 from html import unescape
 
-from reports import build
-from reports.benchmarks import load_benchmarks
-from reports.build import (_benchmark_section, _optional_sections, _problems_section, _run_section,
+from parambench.reports import build
+from parambench.reports.benchmarks import load_benchmarks
+from parambench.reports.build import (_benchmark_section, _optional_sections, _problems_section, _run_section,
                            _scaling_section, _verdict_section)
-from reports.html import Note, Section
-from reports.labels import add_labels
-from reports.load import load_results
-from reports.tables import summarise
+from parambench.reports.html import Note, Section
+from parambench.reports.labels import add_labels
+from parambench.reports.load import load_results
+from parambench.reports.tables import summarise
 
 
 def _rows(root, make_results, spec=None):
@@ -56,14 +56,14 @@ def test_scaling_section_needs_a_size_curve(tmp_path, make_results, spec_type):
 def test_optional_sections_skip_missing_parts(monkeypatch):
     monkeypatch.setattr(build, "OPTIONAL_SECTIONS", (
         ("reports.no_such_module", "part", "results"),  # not installed: silently left out
-        ("reports.html", "no_such_function", "results"),  # installed, no function: a warning
+        ("parambench.reports.html", "no_such_function", "results"),  # installed, no function: a warning
         ("builtins", "len", "results"),
         ("builtins", "abs", "benchmarks"),  # other kind: not called
         ("builtins", "print", "results"),  # returns None: left out
     ))
     warnings: list[str] = []
     assert _optional_sections("results", ("abc",), warnings) == [3]
-    assert warnings == ["reports.html has no no_such_function: its part of the report is left out."]
+    assert warnings == ["parambench.reports.html has no no_such_function: its part of the report is left out."]
 
 
 def test_benchmark_and_run_sections(tmp_path, mesh_tools):

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets_gen.registry import make_surface
-from methods.pointset.boundary import _true_loops, _walk_pruned, angular_gaps, find_boundary
-from methods.pointset.dem import dem_balls
-from methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
-from methods.pointset.normals import orient_normals, pca_normals, tangent_frames
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.pointset.boundary import _true_loops, _walk_pruned, angular_gaps, find_boundary
+from parambench.methods.pointset.dem import dem_balls
+from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
+from parambench.methods.pointset.normals import orient_normals, pca_normals, tangent_frames
 
 
 def _circle(n, radius=1.0, centre=(0.0, 0.0)):

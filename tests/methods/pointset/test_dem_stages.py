@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
-from methods.pointset import dem
-from methods.pointset.dem import (_assemble, _BallBlock, _BallRule, _centre_ids, _check_options, _dem_range,
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.methods.pointset import dem
+from parambench.methods.pointset.dem import (_assemble, _BallBlock, _BallRule, _centre_ids, _check_options, _dem_range,
                                   _graph_cloud, _heap_capacity, _scratch, dem_balls)
-from methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
-from methods.pointset.normals import orient_normals, pca_normals
+from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
+from parambench.methods.pointset.normals import orient_normals, pca_normals
 
 
 def test_check_options():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from methods.pointset.local_delaunay import _emit_ring, _inverted_sorted, _monotone_hull, _rings_kernel
+from parambench.methods.pointset.local_delaunay import _emit_ring, _inverted_sorted, _monotone_hull, _rings_kernel
 
 
 def _scratch(m):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError
-from methods.spectral.ksearch import (KPoint, _best_regular, _check_bracket, _find_bracket, _Landscape, _minimise,
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError
+from parambench.methods.spectral.ksearch import (KPoint, _best_regular, _check_bracket, _find_bracket, _Landscape, _minimise,
                                       _narrow_bracket, penalized_energy)
 
 

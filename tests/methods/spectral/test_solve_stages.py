@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
-from methods.spectral import ConformalProblem
-from methods.spectral.problem import ConformalSolution, _checked_names
+from parambench.datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
+from parambench.methods.spectral import ConformalProblem
+from parambench.methods.spectral.problem import ConformalSolution, _checked_names
 
 
 @pytest.fixture(scope="module")
