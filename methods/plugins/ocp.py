@@ -23,7 +23,7 @@ import numpy as np
 from datasets_gen.errors import InvalidInputError, UnknownNameError
 from datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
@@ -98,15 +98,22 @@ class Ocp(Method):
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
                 "solver": "direct"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
+    choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES)}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        solver = params["solver"]
-        if solver not in OCP_SOLVERS:
-            raise UnknownNameError(f"unknown solver {solver!r}; choose one of {', '.join(OCP_SOLVERS)}.")
-        if solver == "multilevel" and params["k_search"] != "line":
+    def check_params(self, params: dict) -> None:
+        """Refuse ``solver="multilevel"`` with a k search other than the line search.
+
+        Raises
+        ------
+        InvalidInputError
+            ``solver="multilevel"`` and ``k_search`` is not ``"line"``.
+        """
+        if params["solver"] == "multilevel" and params["k_search"] != "line":
             raise InvalidInputError(f"solver='multilevel' searches k along a line; use k_search='line', "
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
-        timer = StageTimer()
+
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+        solver = params["solver"]
         front = run_frontend(surface, params, timer)
         with timer("laplacian"):
             lap = ocp_laplacian(front, params["energy"], params["area_factor"])
@@ -122,7 +129,7 @@ class Ocp(Method):
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, **extra, "energy": params["energy"],
                 "solver": solver, "k_opt": float(sol.k), "turning": np.asarray(sol.turning).tolist()}
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)
 
 
 def _multilevel_solve(front, lap, timer: StageTimer):
@@ -157,8 +164,7 @@ class ScpTan(Method):
     description = "raw SCP on W^tan at fixed k (shows the spinning failure of Sec. 4.2; points only)"
     defaults = {**FRONTEND_DEFAULTS, "k": 1.0}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         with timer("solve"):
             problem = _conformal_problem(front)
@@ -166,4 +172,4 @@ class ScpTan(Method):
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **problem.counts, "k": float(sol.k),
                 "turning": np.asarray(sol.turning).tolist(), "energy": float(sol.energy)}
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)

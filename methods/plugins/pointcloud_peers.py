@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral import ConformalProblem
@@ -35,8 +35,7 @@ class ScpRobustLaplacian(Method):
     defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30, "k_search": "line"}
     param_grid = {"k_search": ["none", "line"]}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         lap = _robust_laplacian(surface.points, int(params["rl_neighbors"]), timer)
         with timer("solve"):
@@ -45,7 +44,7 @@ class ScpRobustLaplacian(Method):
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics,
                 "k_opt": float(sol.k), "turning": np.asarray(sol.turning).tolist()}
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)
 
 
 @register
@@ -56,8 +55,7 @@ class SdpRobustLaplacian(Method):
     description = "SDP on robust-laplacian's point-cloud Laplacian (peer; points only)"
     defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         lap = _robust_laplacian(surface.points, int(params["rl_neighbors"]), timer)
         with timer("solve"):
@@ -65,4 +63,4 @@ class SdpRobustLaplacian(Method):
             vals, pair = smallest_nontrivial_pair(lap.tocsc(), b.tocsc())
             uv = scale_to_spacing(pair, front)
         diag = dict(frontend_diagnostics(front), eigenvalues=vals.tolist())
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)

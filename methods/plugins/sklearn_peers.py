@@ -14,7 +14,7 @@ import numpy as np
 from datasets_gen.errors import ConvergenceError, ResourceLimitError, SolverError
 from datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, hinted
 from ..pointset.plugin_support import require_neighbours
 from ..registry import register
@@ -43,23 +43,21 @@ class _SklearnLLE(Method):
     defaults = {"n_neighbors": 12, "eigen_solver": "auto", "seed": 0}
     max_points = 200_000
 
-    def run(self, surface: Surface, n_neighbors: int, eigen_solver: str, seed: int) -> Parameterization:
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         from sklearn.manifold import LocallyLinearEmbedding
 
+        n_neighbors, eigen_solver, seed = params["n_neighbors"], params["eigen_solver"], params["seed"]
         if surface.n_points > self.max_points:
             raise ResourceLimitError(f"{self.name} is limited to {self.max_points} points here "
                                      f"(got {surface.n_points}); subsample the point set.")
         solver = eigen_solver
         if solver == "auto":
             solver = "dense" if surface.n_points <= 1500 else "arpack"
-        timer = StageTimer()
         est = LocallyLinearEmbedding(n_neighbors=n_neighbors, n_components=2, method=self.lle_method,
                                      eigen_solver=solver, random_state=seed)
         with timer("solve"):
             uv = _embed(est, surface.points, self.name)
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings,
-                                diagnostics={"reconstruction_error": float(est.reconstruction_error_),
-                                             "eigen_solver": solver})
+        return MethodOutput(uv, {"reconstruction_error": float(est.reconstruction_error_), "eigen_solver": solver})
 
 
 @register
@@ -85,14 +83,14 @@ class IsomapPeer(Method):
     defaults = {"n_neighbors": 10}
     max_points = 20_000
 
-    def run(self, surface: Surface, n_neighbors: int) -> Parameterization:
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         from sklearn.manifold import Isomap
 
+        n_neighbors = params["n_neighbors"]
         if surface.n_points > self.max_points:
             need_gb = 8 * 3 * surface.n_points**2 / 2**30
             raise ResourceLimitError(f"isomap-sklearn needs about {need_gb:.0f} GB for {surface.n_points} points "
                                      f"(dense geodesic distances); subsample to at most {self.max_points} points.")
-        timer = StageTimer()
         with timer("solve"):
             uv = _embed(Isomap(n_neighbors=n_neighbors, n_components=2), surface.points, self.name)
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings)
+        return MethodOutput(uv)
