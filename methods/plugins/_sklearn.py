@@ -1,8 +1,11 @@
-"""Peer rows from scikit-learn's manifold module: LTSA, Hessian LLE and Isomap (paper Fig. 1).
+"""What the scikit-learn peer plugins share (``ltsa-sklearn``, ``hlle-sklearn``, ``isomap-sklearn``).
 
-They run on the same points as the paper's methods so the comparison is like for like.
-They know no boundary and no conformal energy; they are here to show how dimensionality
-reduction methods that assume isometry or local linearity fare on curved patches.
+The peers come from scikit-learn's manifold module (paper Fig. 1). They run on the same
+points as the paper's methods so the comparison is like for like. They know no boundary
+and no conformal energy; they are here to show how dimensionality reduction methods that
+assume isometry or local linearity fare on curved patches.
+
+Not a plugin module (the leading underscore): it registers nothing.
 """
 
 from __future__ import annotations
@@ -17,10 +20,34 @@ from datasets_gen.surface import Surface
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, hinted
 from ..pointset.plugin_support import require_neighbours
-from ..registry import register
+
+__all__ = ["embed", "SklearnLLE"]
 
 
-def _embed(estimator, points: np.ndarray, name: str) -> np.ndarray:
+def embed(estimator, points: np.ndarray, name: str) -> np.ndarray:
+    """``estimator.fit_transform(points)`` with scikit-learn's failures turned into parambench errors.
+
+    Parameters
+    ----------
+    estimator : sklearn.manifold estimator
+        With ``n_neighbors`` and ``n_components=2``.
+    points : (N, 3) numpy.ndarray of float64
+    name : str
+        The method's name, for the messages.
+
+    Returns
+    -------
+    (N, 2) numpy.ndarray of float64
+
+    Raises
+    ------
+    TooFewPointsError
+        ``n_neighbors`` is not below the number of points.
+    ConvergenceError
+        The eigen-solver did not converge.
+    SolverError
+        Any other failure, or non-finite coordinates.
+    """
     require_neighbours(points.shape[0], estimator.n_neighbors, "n_neighbors")
     more = Hint("try a larger n_neighbors", "n_neighbors")
     try:
@@ -38,7 +65,9 @@ def _embed(estimator, points: np.ndarray, name: str) -> np.ndarray:
     return np.ascontiguousarray(uv, dtype=np.float64)
 
 
-class _SklearnLLE(Method):
+class SklearnLLE(Method):
+    """Base of the peers on ``sklearn.manifold.LocallyLinearEmbedding``; subclasses set ``lle_method``."""
+
     lle_method = ""
     defaults = {"n_neighbors": 12, "eigen_solver": "auto", "seed": 0}
     max_points = 200_000
@@ -56,41 +85,5 @@ class _SklearnLLE(Method):
         est = LocallyLinearEmbedding(n_neighbors=n_neighbors, n_components=2, method=self.lle_method,
                                      eigen_solver=solver, random_state=seed)
         with timer("solve"):
-            uv = _embed(est, surface.points, self.name)
+            uv = embed(est, surface.points, self.name)
         return MethodOutput(uv, {"reconstruction_error": float(est.reconstruction_error_), "eigen_solver": solver})
-
-
-@register
-class Ltsa(_SklearnLLE):
-    name = "ltsa-sklearn"
-    description = "scikit-learn local tangent space alignment (peer, Fig. 1)"
-    lle_method = "ltsa"
-
-
-@register
-class HessianLle(_SklearnLLE):
-    name = "hlle-sklearn"
-    description = "scikit-learn Hessian LLE (peer, Fig. 1)"
-    lle_method = "hessian"
-
-
-@register
-class IsomapPeer(Method):
-    """Isomap: geodesic distances on the kNN graph, then classical MDS (dense: O(N^2) memory)."""
-
-    name = "isomap-sklearn"
-    description = "scikit-learn Isomap (peer, Fig. 1; O(N^2) memory, limited to 20k points)"
-    defaults = {"n_neighbors": 10}
-    max_points = 20_000
-
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
-        from sklearn.manifold import Isomap
-
-        n_neighbors = params["n_neighbors"]
-        if surface.n_points > self.max_points:
-            need_gb = 8 * 3 * surface.n_points**2 / 2**30
-            raise ResourceLimitError(f"isomap-sklearn needs about {need_gb:.0f} GB for {surface.n_points} points "
-                                     f"(dense geodesic distances); subsample to at most {self.max_points} points.")
-        with timer("solve"):
-            uv = _embed(Isomap(n_neighbors=n_neighbors, n_components=2), surface.points, self.name)
-        return MethodOutput(uv)
