@@ -23,9 +23,9 @@ DATA_IN_PACKAGE = "datasets_gen/data/real"
 
 # Loads each shipped dataset and prints where the package was imported from and the counts.
 LOAD_SCRIPT = """
-import datasets_gen
-from datasets_gen.registry import make_surface
-from datasets_gen.real import real_data_dir
+import parambench.datasets_gen
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.real import real_data_dir
 print(datasets_gen.__file__)
 print(real_data_dir())
 for name in ("real/camelhead", "real/lilium", "real/bump-domain"):
@@ -140,8 +140,8 @@ def test_setuptools_config_lists_only_existing_package_data():
 
 
 def test_env_var_still_overrides_the_shipped_folder(tmp_path, monkeypatch):
-    from datasets_gen.real import PACKAGE_DATA_DIR, real_data_dir
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.real import PACKAGE_DATA_DIR, real_data_dir
+    from parambench.datasets_gen.registry import make_surface
 
     monkeypatch.delenv("PARAMBENCH_REAL_DATA", raising=False)
     assert real_data_dir() == PACKAGE_DATA_DIR == ROOT / DATA_IN_PACKAGE

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from datasets_gen.errors import ResourceLimitError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import ResourceLimitError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, MethodOutput, StageTimer
 from ..registry import register

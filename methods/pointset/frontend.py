@@ -2,7 +2,7 @@
 
 The point-set methods (LEM, LLE, SDP, OCP) call :func:`build_frontend` and use ``W``,
 ``L`` and the boundary loops of the returned :class:`FrontEnd`. Its options are a
-:class:`~methods.pointset.params.FrontEndParams`. Each timed stage is a function of its
+:class:`~parambench.methods.pointset.params.FrontEndParams`. Each timed stage is a function of its
 own (:func:`knn_stage`, :func:`normals_stage`, :func:`dem_stage`, :func:`weights_stage`,
 :func:`boundary_stage`) working on the points in kd-tree order; ``build_frontend``
 chains them and maps the results back to the input order.
@@ -16,8 +16,8 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError, NoBoundaryError
-from datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
+from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
+from parambench.datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
 
 from ..base import StageTimer
 from .boundary import find_boundary, no_boundary_error
@@ -47,7 +47,7 @@ WEIGHT_KINDS = ("tangent", "lle3d")
 
 #: ``dem_variant`` settings: "paper" is Secs. 3-3.1 to the letter; "robust" (default) adds
 #: the midpoint projection, front-aligned upwind weights and local-linear normal
-#: smoothing (see :mod:`methods.pointset.dem` and :func:`methods.pointset.normals.smooth_normals`).
+#: smoothing (see :mod:`parambench.methods.pointset.dem` and :func:`parambench.methods.pointset.normals.smooth_normals`).
 DEM_VARIANTS = {
     "robust": {"projection": "midpoint", "front_weight": True, "smoothing": "linear"},
     "paper": {"projection": "length", "front_weight": False, "smoothing": "average"},
@@ -81,19 +81,19 @@ class FrontEnd:
     points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
         Consistently oriented unit normals (the given ones, or PCA normals oriented by
-        the rule of :mod:`methods.pointset.normals`); not smoothed.
+        the rule of :mod:`parambench.methods.pointset.normals`); not smoothed.
     knn_indices : (N, K) numpy.ndarray of int64
         K nearest neighbours, nearest first, self excluded.
     mean_spacing : float
         ``l``, mean kNN edge length.
     local_spacing : (N,) numpy.ndarray of float64
         The spacing of ocp's area terms: around each point
-        (:func:`methods.pointset.neighbourhoods.local_spacing`, ten averages; points on
+        (:func:`parambench.methods.pointset.neighbourhoods.local_spacing`, ten averages; points on
         or next to a loop take their interior neighbours' value) when
         ``spacing="local"``, ``l`` everywhere when ``spacing="global"``. Ball radii are
         ``ball_eps_factor * max(local_spacing, l)``.
     ball_indices : (N, B) numpy.ndarray of int64
-        Geodesic K-eps ball members (-1 padding), see :mod:`methods.pointset.dem`.
+        Geodesic K-eps ball members (-1 padding), see :mod:`parambench.methods.pointset.dem`.
     tangent_coords : (N, B, 2) numpy.ndarray of float64
         DEM tangent coordinates of the ball members.
     W : (N, N) scipy.sparse.csr_matrix of float64
@@ -205,7 +205,7 @@ class Neighbourhoods(NamedTuple):
         The inverse permutation: ``input_points = points[inv]``.
     points : (N, 3) numpy.ndarray of float64
         The points in kd-tree order.
-    graph : methods.pointset.neighbourhoods.KnnGraph
+    graph : parambench.methods.pointset.neighbourhoods.KnnGraph
         K nearest neighbours (indices into ``points``).
     neighbour_diagnostics : dict
         Facts of the surface neighbour search (empty for "euclidean").
@@ -284,14 +284,14 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
     given : (N, 3) numpy.ndarray of float64 or None
         The caller's normals, same order as ``points``; PCA normals oriented along a
         minimum spanning tree when None.
-    graph : methods.pointset.neighbourhoods.KnnGraph
+    graph : parambench.methods.pointset.neighbourhoods.KnnGraph
         kNN graph of ``points``.
     spacing : float
         Mean spacing ``l``.
     smooth : bool
         Smooth the frame normals (``smooth_normals``).
     smoothing : {"linear", "average"}
-        How (the DEM variant's rule, :func:`methods.pointset.normals.smooth_normals`).
+        How (the DEM variant's rule, :func:`parambench.methods.pointset.normals.smooth_normals`).
 
     Returns
     -------
@@ -335,13 +335,13 @@ def dem_stage(points: np.ndarray, frame_normals: np.ndarray, adjacency: sp.csr_m
     h_local : (N,) numpy.ndarray of float64
         Spacing field (see :class:`Neighbourhoods`).
     ball_k, ball_eps_factor, dem, max_ball
-        As in :class:`~methods.pointset.params.FrontEndParams`.
+        As in :class:`~parambench.methods.pointset.params.FrontEndParams`.
     dem_variant : {"robust", "paper"}
         Selects projection and upwind weighting (:data:`DEM_VARIANTS`).
 
     Returns
     -------
-    methods.pointset.dem.GeodesicBalls
+    parambench.methods.pointset.dem.GeodesicBalls
     """
     variant = DEM_VARIANTS[dem_variant]
     return dem_balls(points, frame_normals, adjacency, spacing, ball_k=int(ball_k),
@@ -357,7 +357,7 @@ def weights_stage(points: np.ndarray, balls, weights: str = "tangent",
     Parameters
     ----------
     points : (N, 3) numpy.ndarray of float64
-    balls : methods.pointset.dem.GeodesicBalls
+    balls : parambench.methods.pointset.dem.GeodesicBalls
     weights : {"tangent", "lle3d"}
         W^tan on the tangent coordinates (Eq. 13) or 3D LLE weights (Eqs. 10-12).
     reg_eps : float
@@ -396,13 +396,13 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     nb : Neighbourhoods
         From :func:`knn_stage` (adjacency still held).
     frame_normals : (N, 3) numpy.ndarray of float64
-    balls : methods.pointset.dem.GeodesicBalls
+    balls : parambench.methods.pointset.dem.GeodesicBalls
         From :func:`dem_stage`.
     params : FrontEndParams
 
     Returns
     -------
-    boundary : methods.pointset.boundary.BoundaryLoops
+    boundary : parambench.methods.pointset.boundary.BoundaryLoops
         Loops as indices into ``nb.points``.
     retried : bool
         The wider balls were tried.
@@ -450,11 +450,11 @@ def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray,
     Parameters
     ----------
     nb : Neighbourhoods
-    balls : methods.pointset.dem.GeodesicBalls
+    balls : parambench.methods.pointset.dem.GeodesicBalls
     w : (N, B) numpy.ndarray of float64
         Ball weights (kd-tree order, as ``balls``).
     r_x : (N,) numpy.ndarray of float64
-    bnd : methods.pointset.boundary.BoundaryLoops
+    bnd : parambench.methods.pointset.boundary.BoundaryLoops
     retried : bool
     k_nn : int
     normals_given : bool
@@ -512,7 +512,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     FrontEnd
         ``diagnostics`` holds: ``n_points``, ``k_nn``, ``mean_spacing``, ``normals_source``
         ("given"/"pca"), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
-        ``negative_weights`` (:func:`~methods.pointset.tangent_weights.negative_weight_stats`,
+        ``negative_weights`` (:func:`~parambench.methods.pointset.tangent_weights.negative_weight_stats`,
         interior vs. angle-criterion boundary points), ``reconstruction_error`` {mean,
         max, unit: "l^2"} (R_x divided by l^2), ``boundary`` (loop extraction facts).
 

@@ -1,8 +1,8 @@
 """The parameters of the point-set front end, in one dataclass whose defaults are the front end's.
 
-:func:`methods.pointset.frontend.build_frontend` takes a :class:`FrontEndParams`; the
+:func:`parambench.methods.pointset.frontend.build_frontend` takes a :class:`FrontEndParams`; the
 point-set method plugins accept the fields marked as method parameters (see
-:data:`METHOD_FIELDS`) and :data:`methods.pointset.plugin_support.FRONTEND_DEFAULTS` is
+:data:`METHOD_FIELDS`) and :data:`parambench.methods.pointset.plugin_support.FRONTEND_DEFAULTS` is
 derived from it, so a default is written once.
 """
 
@@ -23,7 +23,7 @@ _METHOD = {"method_param": True}
 
 @dataclass(frozen=True)
 class FrontEndParams:
-    """Options of :func:`~methods.pointset.frontend.build_frontend`; the defaults are the front end's.
+    """Options of :func:`~parambench.methods.pointset.frontend.build_frontend`; the defaults are the front end's.
 
     Fields marked as method parameters (:data:`METHOD_FIELDS`) are parameters of every
     point-set method (``ocp``, ``sdp``, ...). The others are set by the front end's
@@ -60,7 +60,7 @@ class FrontEndParams:
         ``(|p-q|^2 + eps)^-1``, normals smoothed by weighted averaging, all as in the
         paper. "robust" (default): midpoint projection, front-aligned upwind weights,
         local-linear normal smoothing; at least as accurate on clean samplings and
-        2-4x more accurate under noise (see :mod:`methods.pointset.dem`).
+        2-4x more accurate under noise (see :mod:`parambench.methods.pointset.dem`).
     spacing : {"local", "global"}
         "local" (default): ocp's area terms follow the spacing around each point, and
         ball radii grow with it where the sampling is sparser than average (never below
@@ -71,14 +71,14 @@ class FrontEndParams:
     neighbours : {"euclidean", "surface"}
         "euclidean" (default): the paper's plain K nearest; "surface": K neighbours kept
         along the surface, not across narrow gaps
-        (:func:`methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
+        (:func:`parambench.methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
         does not separate the touching sheets of the camelhead scan and with noise of 0.5
         spacings it loses the outer loop of "holes" at 2k points, so it is not the default.
     boundary_method : {"angle", "rings"}
         "angle" (default): the paper's angle criterion on the geodesic balls, candidates
-        chained into loops (:mod:`methods.pointset.boundary`); "rings": loops of the
+        chained into loops (:mod:`parambench.methods.pointset.boundary`); "rings": loops of the
         boundary edges of the points' tangent-plane Delaunay one-rings with an alpha-shape
-        test (:mod:`methods.pointset.boundary_rings`): finds slits of regular samplings
+        test (:mod:`parambench.methods.pointset.boundary_rings`): finds slits of regular samplings
         narrower than the balls; otherwise measured on par with "angle".
     """
 

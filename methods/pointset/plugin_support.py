@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from datasets_gen.errors import SolverError, TooFewPointsError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import SolverError, TooFewPointsError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
@@ -20,7 +20,7 @@ __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_
            "frontend_candidates", "selfcheck_result"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
-#: (the method-parameter fields of :class:`~methods.pointset.params.FrontEndParams`).
+#: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
 FRONTEND_DEFAULTS: dict[str, Any] = method_defaults()
 
 
@@ -32,7 +32,7 @@ def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: 
     surface : Surface
     params : dict
         The method's parameters; the keys of :data:`FRONTEND_DEFAULTS` among them are
-        passed on (see :func:`~methods.pointset.params.frontend_params`).
+        passed on (see :func:`~parambench.methods.pointset.params.frontend_params`).
     timer : StageTimer
     weights : {"tangent", "lle3d"}
         The front end's weights.
@@ -46,7 +46,7 @@ def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: 
     TooFewPointsError
         ``k_nn`` is not below the number of points (each point needs ``k_nn`` others).
     ParambenchError
-        Whatever :func:`~methods.pointset.frontend.build_frontend` raises.
+        Whatever :func:`~parambench.methods.pointset.frontend.build_frontend` raises.
     """
     options = frontend_params(params, weights=weights)
     require_neighbours(surface.n_points, options.k_nn, "k_nn")
@@ -81,7 +81,7 @@ def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
     """The angle-criterion boundary candidates of a front end, or None if it cannot tell.
 
     Taken from ``front.boundary_candidates`` when the front end keeps them, otherwise
-    recomputed with :func:`methods.pointset.boundary.angular_gaps` on its balls (None
+    recomputed with :func:`parambench.methods.pointset.boundary.angular_gaps` on its balls (None
     once the balls are dropped).
     """
     given = getattr(front, "boundary_candidates", None)
@@ -134,12 +134,12 @@ def selfcheck_result(surface: Surface, result) -> dict:
     ----------
     surface : Surface
         The surface the method ran on.
-    result : methods.base.Parameterization
+    result : parambench.methods.base.Parameterization
 
     Returns
     -------
     dict
-        The facts of :func:`methods.pointset.selfcheck.check_pointset_map`.
+        The facts of :func:`parambench.methods.pointset.selfcheck.check_pointset_map`.
     """
     from .selfcheck import check_pointset_map
 

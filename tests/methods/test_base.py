@@ -1,14 +1,14 @@
-"""The plugin contract of methods.base: the base class times, checks and builds the result."""
+"""The plugin contract of parambench.methods.base: the base class times, checks and builds the result."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InvalidInputError, UnknownNameError
-from datasets_gen.surface import Surface
-from methods.base import Method, MethodOutput, Parameterization, StageTimer
-from methods.registry import all_methods, get_method
+from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.surface import Surface
+from parambench.methods.base import Method, MethodOutput, Parameterization, StageTimer
+from parambench.methods.registry import all_methods, get_method
 
 
 class _Flat(Method):
@@ -96,7 +96,7 @@ def test_solve_output_diagnostics_are_not_shared_between_results():
 @pytest.mark.parametrize("name", sorted(all_methods()))
 def test_every_builtin_plugin_implements_solve_only(name):
     cls = type(get_method(name))
-    if not cls.__module__.startswith("methods.plugins."):
+    if not cls.__module__.startswith("parambench.methods.plugins."):
         pytest.skip(f"{name} is a third-party plugin")
     assert cls.run is Method.run, f"{name} overrides run; the base class times and builds the result"
     assert cls.solve is not Method.solve, f"{name} does not implement solve"

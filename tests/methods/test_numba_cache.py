@@ -3,7 +3,7 @@
 The subprocess tests copy the project, block numba's in-tree cache folder (a file named
 ``__pycache__`` where the folder would go: as a read-only install does, and unlike permission
 bits this also holds for root) and give the process ``HOME=/proc/nonexistent``, a folder
-nobody can create. Without :mod:`methods.numba_cache` numba raises at import.
+nobody can create. Without :mod:`parambench.methods.numba_cache` numba raises at import.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numba.core.config
 import numpy as np
 import pytest
 
-from methods.numba_cache import can_write, configure_numba_cache
+from parambench.methods.numba_cache import can_write, configure_numba_cache
 
 ROOT = Path(__file__).resolve().parents[2]
 UNWRITABLE = Path("/proc/nonexistent")  # /proc refuses new entries, even to root
@@ -35,8 +35,8 @@ def _blocked_copy(dest: Path) -> Path:
 def _run_cli(tree: Path, tmpdir: Path, *argv: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME", "PYTHONPATH")}
     env.update(HOME=str(UNWRITABLE), TMPDIR=str(tmpdir), PYTHONPATH=str(tree))
-    # The console script's entry point (bench.cli:main), so the copy is what runs.
-    code = f"import sys; from bench.cli import main; sys.exit(main({list(argv)!r}))"
+    # The console script's entry point (parambench.bench.cli:main), so the copy is what runs.
+    code = f"import sys; from parambench.bench.cli import main; sys.exit(main({list(argv)!r}))"
     return subprocess.run([sys.executable, "-c", code], cwd=tmpdir, env=env, capture_output=True, text=True,
                           timeout=300)
 

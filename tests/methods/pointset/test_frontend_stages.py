@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InconsistentNormalsError, InvalidInputError, NoBoundaryError
-from datasets_gen.registry import make_surface
-from methods.pointset.frontend import (
+from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInputError, NoBoundaryError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.pointset.frontend import (
     boundary_stage,
     build_frontend,
     dem_stage,
@@ -19,7 +19,7 @@ from methods.pointset.frontend import (
     validate_inputs,
     weights_stage,
 )
-from methods.pointset.params import FrontEndParams
+from parambench.methods.pointset.params import FrontEndParams
 
 N_SIDE = 30
 H = 1.0 / (N_SIDE - 1)

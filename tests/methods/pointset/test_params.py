@@ -8,12 +8,12 @@ import inspect
 import numpy as np
 import pytest
 
-from datasets_gen.surface import Surface
-from methods.pointset import plugin_support
-from methods.pointset.frontend import build_frontend
-from methods.pointset.params import METHOD_FIELDS, FrontEndParams, frontend_params, method_defaults
-from methods.pointset.plugin_support import FRONTEND_DEFAULTS
-from methods.registry import all_methods, get_method
+from parambench.datasets_gen.surface import Surface
+from parambench.methods.pointset import plugin_support
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.params import METHOD_FIELDS, FrontEndParams, frontend_params, method_defaults
+from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS
+from parambench.methods.registry import all_methods, get_method
 
 #: The point-set methods that run the front end (the scikit-learn peers do not).
 FRONTEND_METHODS = {"fbcp-pc", "lem", "lle", "ocp", "scp-rl", "scp-tan", "sdp", "sdp-rl"}
