@@ -24,7 +24,7 @@ class Cell:
     Parameters
     ----------
     dataset : str
-        Dataset name from ``datasets_gen.registry``.
+        Dataset name from ``parambench.datasets_gen.registry``.
     size : int
         Requested number of points (0 for real datasets: their own size).
     sampling : str
@@ -61,16 +61,16 @@ class Cell:
 
     @property
     def dataset_key(self) -> str:
-        """Identifies the surface (everything but the method): :func:`bench.schema.dataset_key`."""
+        """Identifies the surface (everything but the method): :func:`parambench.bench.schema.dataset_key`."""
         return dataset_key(self.dataset, self.size, self.sampling, self.noise, self.seed)
 
     @property
     def cell_id(self) -> str:
-        """Stable, file-name-safe identifier: :func:`bench.schema.cell_id`."""
+        """Stable, file-name-safe identifier: :func:`parambench.bench.schema.cell_id`."""
         return cell_id(self.dataset, self.size, self.sampling, self.noise, self.seed, self.method, self.params_dict)
 
     def address(self) -> dict:
-        """The row columns that identify the cell (:data:`bench.schema.CELL_KEY_FIELDS`)."""
+        """The row columns that identify the cell (:data:`parambench.bench.schema.CELL_KEY_FIELDS`)."""
         d = {name: getattr(self, name) for name in CELL_KEY_FIELDS}
         d["params"] = self.params_json
         return d

@@ -9,7 +9,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
-from datasets_gen.errors import InputFileError, InvalidInputError, ParambenchError
+from parambench.datasets_gen.errors import InputFileError, InvalidInputError, ParambenchError
 
 __all__ = ["main", "parse_param_values"]
 
@@ -87,7 +87,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(summary_table(table))
     print(f"\nresults: {Path(args.out) / 'results.parquet'} and results.csv")
     if not args.no_report:
-        from reports.build import build_report
+        from parambench.reports.build import build_report
 
         paths = build_report(args.out, benchmark_json=args.benchmark_json or ())
         for kind, path in paths.items():
@@ -111,7 +111,7 @@ def _number(text: str) -> float:
 
 
 def _default_method(surface) -> str:
-    from methods.registry import method_names
+    from parambench.methods.registry import method_names
 
     names = method_names()
     preferred = ("scp", "scp-igl") if surface.has_faces else ("ocp",)
@@ -139,9 +139,9 @@ def _selfcheck_summary(check: dict | None) -> str:
 
 
 def _cmd_flatten(args: argparse.Namespace) -> int:
-    from datasets_gen.io import load_surface
-    from methods.pointset.selfcheck import failure_line, pointset_faces
-    from methods.registry import get_method
+    from parambench.datasets_gen.io import load_surface
+    from parambench.methods.pointset.selfcheck import failure_line, pointset_faces
+    from parambench.methods.registry import get_method
 
     from .uv_output import UV_FORMATS, write_uv
 
@@ -172,9 +172,9 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
-    from datasets_gen.io import load_surface
-    from methods.pointset.frontend import build_frontend
-    from methods.pointset.inspect import inspect_surface
+    from parambench.datasets_gen.io import load_surface
+    from parambench.methods.pointset.frontend import build_frontend
+    from parambench.methods.pointset.inspect import inspect_surface
 
     out = Path(args.output)
     if not out.parent.exists():
@@ -187,7 +187,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     params = parse_param_values(args.param or [], defaults)
     unknown = sorted(set(params) - set(defaults))
     if unknown:
-        from datasets_gen.errors import UnknownNameError
+        from parambench.datasets_gen.errors import UnknownNameError
 
         raise UnknownNameError(f"unknown front-end parameter(s) {', '.join(unknown)}; accepted: {', '.join(sorted(defaults))}.")
     report = inspect_surface(surface, **params)
@@ -206,7 +206,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     if args.other_dir:
         return _cmd_compare(args)
-    from reports.build import build_report
+    from parambench.reports.build import build_report
 
     paths = build_report(args.results_dir, benchmark_json=args.benchmark_json or (), out_dir=args.out)
     for kind, path in paths.items():
@@ -215,7 +215,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from reports.compare import build_comparison
+    from parambench.reports.compare import build_comparison
 
     if args.benchmark_json:
         raise InvalidInputError("--benchmark-json is for the report of one results directory; "
@@ -235,8 +235,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    from datasets_gen.registry import dataset_info
-    from methods.registry import all_methods
+    from parambench.datasets_gen.registry import dataset_info
+    from parambench.methods.registry import all_methods
 
     print("methods:")
     for name, cls in all_methods().items():

@@ -1,6 +1,6 @@
 """Run sweep cells on a Dask distributed cluster.
 
-Workers receive only :class:`~bench.cells.Cell` records (a few strings and numbers) and
+Workers receive only :class:`~parambench.bench.cells.Cell` records (a few strings and numbers) and
 regenerate the surfaces from their seeds; they return the row and arrays, and the client
 writes them, so workers need no shared file system. Tasks lost with a dying worker are
 rescheduled by the scheduler on the remaining workers.

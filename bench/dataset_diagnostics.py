@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError, ParambenchError
-from datasets_gen.surface import Surface
-from methods.mesh.weights import mesh_weights
-from methods.pointset.frontend import build_frontend
+from parambench.datasets_gen.errors import InvalidInputError, ParambenchError
+from parambench.datasets_gen.surface import Surface
+from parambench.methods.mesh.weights import mesh_weights
+from parambench.methods.pointset.frontend import build_frontend
 
 from .cells import Cell
 from .run_cell import _method_input, surface_for

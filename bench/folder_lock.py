@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterator
 
-from datasets_gen.errors import ResultsInUseError
+from parambench.datasets_gen.errors import ResultsInUseError
 
 __all__ = ["LOCK_NAME", "hold_folder"]
 

@@ -15,7 +15,7 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-from methods.base import active_stage, add_stage_hook, remove_stage_hook
+from parambench.methods.base import active_stage, add_stage_hook, remove_stage_hook
 
 __all__ = ["current_rss_mb", "high_water_mb", "PeakMemory"]
 
@@ -46,8 +46,8 @@ class PeakMemory:
     delta_mb : float
         ``peak_mb`` minus the RSS when the block started: what the block added.
     stage_peak_mb : dict of str to float
-        Highest RSS (MiB, whole process) seen while each :class:`methods.base.StageTimer`
-        stage was running (see :func:`methods.base.active_stage`); time outside any
+        Highest RSS (MiB, whole process) seen while each :class:`parambench.methods.base.StageTimer`
+        stage was running (see :func:`parambench.methods.base.active_stage`); time outside any
         stage counts as ``"other"``. Sampled every ``interval``, and exact for a stage
         that raised the process's high-water mark (read when the stage ends).
     """

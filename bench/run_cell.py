@@ -12,10 +12,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from datasets_gen.errors import ParambenchError
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from methods import get_method
+from parambench.datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import get_method
 
 from .cells import Cell
 from .memory import PeakMemory
@@ -158,7 +158,7 @@ def compute_cell(cell: Cell) -> tuple[dict, dict | None]:
                 pass
         row.update({c: metrics.get(c) for c in METRIC_COLUMNS})
         row["turning_numbers"] = encode_json(metrics.get("turning_numbers", []))
-        # Counts over bench.schema.ANGLE_HIST_EDGES_DEG, as JSON like the turning numbers.
+        # Counts over parambench.bench.schema.ANGLE_HIST_EDGES_DEG, as JSON like the turning numbers.
         row["angle_hist"] = encode_json(metrics.get("angle_hist"))
         row.update(status=_status(result), eval_mesh=eval_kind, time_total=result.timings.get("total"),
                    timings=encode_json(result.timings),

@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from datasets_gen.errors import InputFileError
+from parambench.datasets_gen.errors import InputFileError
 
 __all__ = [
     "STATUS_OK", "STATUS_SUSPECT", "STATUS_FAILED",
@@ -39,14 +39,14 @@ SURFACE_KEY_FIELDS = ("dataset", "size", "sampling", "noise", "seed")
 #: The fields that address a cell: the surface, the method and its parameters (JSON).
 CELL_KEY_FIELDS = SURFACE_KEY_FIELDS + ("method", "params")
 
-#: The keys of :func:`bench.metrics.evaluate`'s dict, in order; each is a row column.
+#: The keys of :func:`parambench.bench.metrics.evaluate`'s dict, in order; each is a row column.
 METRIC_KEYS = (
     "qc_mean", "qc_p95", "qc_max", "foldovers", "foldover_fraction", "collapsed",
     "area_distortion", "turning_numbers", "exact_error", "n_eval_faces",
     "mu_mean", "mu_sd", "mu_p95", "area_distortion_normalized", "sigma_ratio_max", "angle_error_mean",
     "flipped_share", "angle_hist",
 )
-#: The keys of :func:`bench.metrics.self_scored` (stored with the prefix ``selfmesh_``).
+#: The keys of :func:`parambench.bench.metrics.self_scored` (stored with the prefix ``selfmesh_``).
 SELFMESH_KEYS = ("qc_mean", "qc_p95", "mu_mean", "mu_p95", "angle_error_mean", "area_distortion_normalized",
                  "n_eval_faces")
 #: Metric columns of a row.

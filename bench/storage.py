@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from datasets_gen.errors import InputFileError
+from parambench.datasets_gen.errors import InputFileError
 
 from .schema import STATUS_FAILED
 
@@ -184,7 +184,7 @@ class ResultStore:
     def remove_stale_temporaries(self) -> int:
         """Delete temporary files left by a writer that was killed mid-write; returns how many.
 
-        Call only while holding the folder lock (:func:`bench.folder_lock.hold_folder`):
+        Call only while holding the folder lock (:func:`parambench.bench.folder_lock.hold_folder`):
         a running writer's temporary file looks the same.
         """
         stale = [p for folder in (self.cells_dir, self.datasets_dir) for p in folder.glob(".*")

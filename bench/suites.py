@@ -7,10 +7,10 @@ import math
 import numbers
 from dataclasses import dataclass, replace
 
-from datasets_gen.build import MIN_GENERATED_POINTS, check_noise
-from datasets_gen.errors import InvalidInputError, TooFewPointsError, UnknownNameError
-from datasets_gen.sampling import SAMPLINGS
-from methods.registry import all_methods
+from parambench.datasets_gen.build import MIN_GENERATED_POINTS, check_noise
+from parambench.datasets_gen.errors import InvalidInputError, TooFewPointsError, UnknownNameError
+from parambench.datasets_gen.sampling import SAMPLINGS
+from parambench.methods.registry import all_methods
 
 from .cells import REAL_PREFIX, Cell
 
@@ -137,12 +137,12 @@ def validate_suite(suite: Suite) -> Suite:
     UnknownNameError
         Unknown method, dataset or sampling names (the message lists the available ones).
     TooFewPointsError
-        A size below the generators' minimum (:data:`datasets_gen.build.MIN_GENERATED_POINTS`).
+        A size below the generators' minimum (:data:`parambench.datasets_gen.build.MIN_GENERATED_POINTS`).
     InvalidInputError
         An empty list, a size or seed that is not a whole number, a negative seed, or
         noise that is negative, NaN or infinite.
     """
-    from datasets_gen.registry import dataset_names
+    from parambench.datasets_gen.registry import dataset_names
 
     registered = all_methods()
     _check_names("methods", suite.methods, list(registered), "method")

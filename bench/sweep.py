@@ -2,7 +2,7 @@
 
 Before any folder is created the suite and options are validated and the results folder's
 writability is checked. The sweep then holds the folder exclusively
-(:mod:`bench.folder_lock`), reads what it already holds, moves unreadable cell files aside,
+(:mod:`parambench.bench.folder_lock`), reads what it already holds, moves unreadable cell files aside,
 says what it will do ("12 done, 84 to run (81 new, 3 failed before and retried)") and runs
 the rest. Cells that failed before are retried unless ``retry_failed=False``; every other
 status (``ok``, ``suspect``, ...) counts as finished.
@@ -17,7 +17,7 @@ from typing import Iterable, Iterator
 import pandas as pd
 from tqdm import tqdm
 
-from reports.labels import variant_labels
+from parambench.reports.labels import variant_labels
 
 from .cells import Cell
 from .dataset_diagnostics import store_missing_diagnostics
@@ -174,7 +174,7 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
               retry_failed: bool = True, wait: bool = False) -> pd.DataFrame:
     """Run the cells of ``suite`` that ``results_dir`` does not hold finished yet.
 
-    Each finished cell is written at once (see :class:`bench.storage.ResultStore`); a
+    Each finished cell is written at once (see :class:`parambench.bench.storage.ResultStore`); a
     failing cell is recorded with its error and the sweep goes on. A one-line plan and a
     line per unreadable cell file go to stderr before the first cell runs.
 
@@ -208,7 +208,7 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
     Raises
     ------
     UnknownNameError, TooFewPointsError, InvalidInputError
-        Bad suite fields or ``workers`` (see :func:`bench.suites.validate_suite`); raised
+        Bad suite fields or ``workers`` (see :func:`parambench.bench.suites.validate_suite`); raised
         before anything is created.
     InputFileError
         ``results_dir`` cannot be created or written; raised before anything is created.
@@ -260,7 +260,7 @@ def summary_table(table: pd.DataFrame) -> str:
     """A compact text table for the terminal: per method variant, mean QC per dataset plus failures.
 
     Variants are labelled as in the report (``"ocp [energy=paper]"``, see
-    :func:`reports.labels.variant_labels`). Means cover ``ok`` cells; ``suspect`` cells (maps
+    :func:`parambench.reports.labels.variant_labels`). Means cover ``ok`` cells; ``suspect`` cells (maps
     that failed their self-check) and ``failed`` cells are counted and listed.
 
     Parameters

@@ -3,7 +3,7 @@
 One row per input point, in input order.
 
 A point set has no faces of its own; the command line passes the triangulation of the uv
-layout that the self-check used (:func:`methods.pointset.selfcheck.pointset_faces`), so a
+layout that the self-check used (:func:`parambench.methods.pointset.selfcheck.pointset_faces`), so a
 textured point-set result opens in any mesh viewer.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets_gen.errors import InputFileError
+from parambench.datasets_gen.errors import InputFileError
 
 __all__ = ["write_uv", "UV_FORMATS"]
 

@@ -1,10 +1,10 @@
-"""From a shape, a size, a sampling and a seed to a :class:`~datasets_gen.surface.Surface`.
+"""From a shape, a size, a sampling and a seed to a :class:`~parambench.datasets_gen.surface.Surface`.
 
 Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
 
 0. Shapes whose geometry scales with the spacing (the narrow gaps of "slit" and "fold")
    are rebuilt for the nominal surface spacing of the requested count (:func:`nominal_spacing`).
-1. Spacing h from the requested count (:func:`~datasets_gen.sampling.sizing.spacing_for_count`),
+1. Spacing h from the requested count (:func:`~parambench.datasets_gen.sampling.sizing.spacing_for_count`),
    measured in the parameter domain for lattice samplings of flat-ish shapes, on the surface
    for the area-uniform samplings (and for shapes whose lattice is area-uniform).
 2. Boundary points along every boundary curve at spacing h (jittered along the curve unless
@@ -20,9 +20,9 @@ Steps (each seeded from its own stream of ``numpy.random.SeedSequence(seed)``):
    - ``random``: uniform by surface area (rejection sampling), exactly the requested count;
    - ``blue-noise``: dart throwing on the surface (Poisson disk, radius 0.59 h, measured in
      3D) over 3x as many area-uniform candidates, the boundary points fixed first; computed
-     as a maximal independent set with array operations (:mod:`~datasets_gen.sampling.poisson_disk`);
+     as a maximal independent set with array operations (:mod:`~parambench.datasets_gen.sampling.poisson_disk`);
    - ``graded``: the same with a local spacing h sigma(x) from a smooth seeded sizing field
-     (:mod:`~datasets_gen.sampling.graded`, density varying 11x), candidates drawn with
+     (:mod:`~parambench.datasets_gen.sampling.graded`, density varying 11x), candidates drawn with
      density ~ sigma^-2 and Poisson radius 0.59 h sigma; the boundary follows h sigma too.
 
    Shapes with a merged-scan strip (gnome-strip) add a second, rotated scan inside the strip.
@@ -70,7 +70,7 @@ def build_surface(shape, n_points: int, sampling: str, seed: int | None, noise: 
 
     Parameters
     ----------
-    shape : datasets_gen.shapes.base.Shape
+    shape : parambench.datasets_gen.shapes.base.Shape
     n_points : int
         Requested number of points (the result is within a few percent).
     sampling : {"grid", "jittered", "random", "blue-noise", "graded"}
@@ -140,7 +140,7 @@ def nominal_spacing(shape, n_points: int) -> float:
 
     Parameters
     ----------
-    shape : datasets_gen.shapes.base.Shape
+    shape : parambench.datasets_gen.shapes.base.Shape
     n_points : int
         Requested number of points.
 

@@ -1,7 +1,7 @@
-"""Reading user files into a :class:`~datasets_gen.surface.Surface`.
+"""Reading user files into a :class:`~parambench.datasets_gen.surface.Surface`.
 
 Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, PTS, PLY without faces) are read by our
-own numpy readers (:mod:`datasets_gen.formats`, one module per format): no native reader
+own numpy readers (:mod:`parambench.datasets_gen.formats`, one module per format): no native reader
 sees the file, so a hostile file cannot crash, hang or silently alter the data. Guarantees
 that users rely on:
 
@@ -57,7 +57,7 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     ------
     InputFileError
         Missing, unreadable or special file, a directory, unsupported extension, or
-        malformed contents (see :mod:`datasets_gen.formats`).
+        malformed contents (see :mod:`parambench.datasets_gen.formats`).
     DuplicatePointsError, DegenerateFacesError, InvalidInputError, TooFewPointsError
         From the Surface's validation of the file's contents.
     """

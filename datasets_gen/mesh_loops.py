@@ -1,9 +1,9 @@
 """Boundary loops of a triangle mesh, oriented with its faces: the one definition.
 
-Both the readers (:mod:`datasets_gen.io`) and the mesh methods
-(:mod:`methods.mesh.topology`) take their loops from here, so a loaded mesh and a
+Both the readers (:mod:`parambench.datasets_gen.io`) and the mesh methods
+(:mod:`parambench.methods.mesh.topology`) take their loops from here, so a loaded mesh and a
 method agree on which loop is which and which way it runs. The evaluation
-(:mod:`bench.metrics.loops`) keeps its own extraction on purpose: the judge does not
+(:mod:`parambench.bench.metrics.loops`) keeps its own extraction on purpose: the judge does not
 share code with the judged, and a test compares the two.
 """
 
@@ -41,7 +41,7 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
 
     A counter-clockwise face order gives a counter-clockwise outer loop and clockwise
     holes in a faithful flattening. Call on an edge-manifold mesh (see
-    :func:`mesh_boundary`, or :func:`methods.mesh.topology.require_manifold`): on other
+    :func:`mesh_boundary`, or :func:`parambench.methods.mesh.topology.require_manifold`): on other
     meshes the loops are not defined.
 
     Parameters

@@ -1,6 +1,6 @@
 """The dataset registry: every named surface the suite can generate or load.
 
->>> from datasets_gen.registry import make_surface
+>>> from parambench.datasets_gen.registry import make_surface
 >>> s = make_surface("cap", 2000, sampling="blue-noise", seed=3)
 >>> s.exact_map_kind
 'conformal'
@@ -42,7 +42,7 @@ def make_surface(name: str, n_points: int = 5000, *, sampling: str = "jittered",
         Requested number of points, at least 100 (the result is within a few percent;
         ``params["n_actual"]`` records it). Ignored by real datasets.
     sampling : {"grid", "jittered", "random", "blue-noise", "graded"}
-        How the parameter domain is sampled (see :mod:`datasets_gen.build`). Ignored by
+        How the parameter domain is sampled (see :mod:`parambench.datasets_gen.build`). Ignored by
         real datasets.
     seed : int or None
         Seeds every random choice; the same seed gives identical arrays.

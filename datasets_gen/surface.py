@@ -5,7 +5,7 @@ robust-laplacian): a ``Surface`` that exists has finite float64 points, in-range
 faces without degenerate triangles, and unit normals if any.
 
 Coincident points are accepted where they are data: in a bare point set (point-set methods
-merge them, :mod:`methods.pointset.coincident`) and in a mesh whose faces keep them apart
+merge them, :mod:`parambench.methods.pointset.coincident`) and in a mesh whose faces keep them apart
 (the cut seams of textured exports). A mesh edge joining two coincident vertices is refused.
 
 Ground truth (exact map, true boundary, the generator's normals) travels on the same object

@@ -14,8 +14,8 @@ from typing import Any, Callable, ClassVar, Iterator
 
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
+from parambench.datasets_gen.surface import Surface
 
 from .hints import method_hints
 from .pose import run_in_unit_pose
@@ -84,7 +84,7 @@ def remove_stage_hook(hook: Callable[[str, str], None]) -> None:
 def active_stage() -> str | None:
     """The innermost :class:`StageTimer` stage running now, or None.
 
-    A memory sampler in another thread (``bench.memory.PeakMemory``) calls this to
+    A memory sampler in another thread (``parambench.bench.memory.PeakMemory``) calls this to
     attribute the resident memory it sees to a stage.
     """
     return _ACTIVE_STAGES[-1] if _ACTIVE_STAGES else None
@@ -179,9 +179,9 @@ class Method:
             With ``timings["total"]`` set and ``params`` fully resolved; one uv row per
             input point. A point-set method runs on one point per group of coincident
             points, and the copies get that point's uv
-            (:func:`methods.pointset.coincident.run_on_representatives`). Point-set
+            (:func:`parambench.methods.pointset.coincident.run_on_representatives`). Point-set
             results (``needs_faces`` False) also carry ``diagnostics["selfcheck"]``, see
-            :func:`methods.pointset.plugin_support.selfcheck_result`; its time is not in
+            :func:`parambench.methods.pointset.plugin_support.selfcheck_result`; its time is not in
             ``timings["total"]``.
 
         Warns
@@ -224,7 +224,7 @@ class Method:
         distinct points, so copies change nothing), its uv copied to the others."""
         if self.needs_faces:
             return run_in_unit_pose(self.run, surface, params)
-        # Imported here because methods.pointset imports this module.
+        # Imported here because parambench.methods.pointset imports this module.
         from .pointset.coincident import run_on_representatives
 
         def checked_in_unit_pose(distinct: Surface, **kwargs: Any) -> Parameterization:
@@ -235,7 +235,7 @@ class Method:
     def _run_and_check(self, surface: Surface, **params: Any) -> Parameterization:
         """:meth:`run`, then the point-set self-check on the same points (``diagnostics["selfcheck"]``).
 
-        Inside :func:`~methods.pointset.coincident.run_on_representatives`, so the check
+        Inside :func:`~parambench.methods.pointset.coincident.run_on_representatives`, so the check
         sees the distinct points the method saw, and reuses that run's front end.
         """
         from .pointset.plugin_support import selfcheck_result

@@ -2,7 +2,7 @@
 
 The methods' one definition of these (the turning-number penalty, the hybrid weights'
 folds, the point-set self-check). The evaluation keeps its own
-(:mod:`bench.metrics.loops`, :mod:`bench.metrics.orientation`) so that it does not share
+(:mod:`parambench.bench.metrics.loops`, :mod:`parambench.bench.metrics.orientation`) so that it does not share
 code with what it judges; a test compares the two.
 """
 

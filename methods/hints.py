@@ -14,7 +14,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Iterator, Mapping
 
-from datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.errors import ParambenchError
 
 __all__ = ["Hint", "hinted", "fit_hints", "method_hints"]
 
@@ -109,7 +109,7 @@ def method_hints(defaults: Mapping[str, Any], params: Mapping[str, Any]) -> Iter
 
     Examples
     --------
-    >>> from datasets_gen.errors import SolverError
+    >>> from parambench.datasets_gen.errors import SolverError
     >>> try:
     ...     with method_hints({"k_search": "line"}, {"k_search": "direct"}):
     ...         raise hinted(SolverError, "no k found", Hint("use k_search='direct'", "k_search", "direct"),

@@ -9,7 +9,7 @@ the system temporary folder, and when nothing is writable turns caching off (ker
 compile afresh in every process instead of failing).
 
 A module with kernels calls :func:`configure_numba_cache` once with its own folder and
-decorates them with ``@numba.njit(cache=<the returned flag>)`` (``methods.pointset.dem``).
+decorates them with ``@numba.njit(cache=<the returned flag>)`` (``parambench.methods.pointset.dem``).
 """
 
 from __future__ import annotations

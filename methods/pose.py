@@ -28,8 +28,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.surface import Surface
 
 __all__ = ["Pose", "surface_pose", "normalised_surface", "run_in_unit_pose"]
 
@@ -139,7 +139,7 @@ def run_in_unit_pose(run: Callable[..., Any], surface: Surface, params: dict) ->
     Parameters
     ----------
     run : callable
-        A method's ``run``; returns a :class:`methods.base.Parameterization`.
+        A method's ``run``; returns a :class:`parambench.methods.base.Parameterization`.
     surface : Surface
         The caller's surface (not modified).
     params : dict

@@ -12,7 +12,7 @@ from __future__ import annotations
 from importlib import import_module
 from importlib.metadata import entry_points
 
-from datasets_gen.errors import UnknownNameError
+from parambench.datasets_gen.errors import UnknownNameError
 
 from .base import Method
 
@@ -37,7 +37,7 @@ def _load() -> None:
     if _LOADED:
         return
     _LOADED = True
-    import_module("methods.plugins")
+    import_module("parambench.methods.plugins")
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         cls = ep.load()
         if not (isinstance(cls, type) and issubclass(cls, Method)):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from datasets_gen.errors import InputFileError
+from parambench.datasets_gen.errors import InputFileError
 
 __all__ = ["BENCHMARK_COLUMNS", "load_benchmarks"]
 

@@ -2,7 +2,7 @@
 
 That benchmark stores, per case, the old and new boundary detector's loops, recall and
 precision and ``ocp``'s quality and time against ``scp-igl`` in ``extra_info``. This
-module picks those benchmarks out of :func:`reports.benchmarks.load_benchmarks`'s table,
+module picks those benchmarks out of :func:`parambench.reports.benchmarks.load_benchmarks`'s table,
 checks each case against the targets of issue 11 and lays them out as one table.
 
 Targets (issue 11, "Done when" 1 and 2): the detector finds every loop with recall >= 0.97
@@ -73,7 +73,7 @@ def boundary_benchmark_rows(stats: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     stats : pandas.DataFrame
-        Output of :func:`reports.benchmarks.load_benchmarks`; benchmarks without
+        Output of :func:`parambench.reports.benchmarks.load_benchmarks`; benchmarks without
         :data:`CASE_KEY` in their ``extra_info`` (other benchmark files) are left out.
 
     Returns
@@ -138,7 +138,7 @@ def boundary_benchmark_table(stats: pd.DataFrame) -> Table | None:
     Parameters
     ----------
     stats : pandas.DataFrame
-        Output of :func:`reports.benchmarks.load_benchmarks`.
+        Output of :func:`parambench.reports.benchmarks.load_benchmarks`.
 
     Returns
     -------
@@ -187,7 +187,7 @@ def boundary_benchmark_section(stats: pd.DataFrame | None) -> Section | None:
     Parameters
     ----------
     stats : pandas.DataFrame or None
-        Output of :func:`reports.benchmarks.load_benchmarks` (None: no benchmark file).
+        Output of :func:`parambench.reports.benchmarks.load_benchmarks` (None: no benchmark file).
 
     Returns
     -------

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.schema import ANGLE_HIST_EDGES_DEG
-from datasets_gen.errors import InputFileError
+from parambench.bench.schema import ANGLE_HIST_EDGES_DEG
+from parambench.datasets_gen.errors import InputFileError
 
 from .benchmarks import load_benchmarks
 from .errors import EmptyResultsError
@@ -49,17 +49,17 @@ _SMALL_ROW_PX = 112
 
 #: Sections other modules may add, as (module, function, input): a module that is not
 #: installed is skipped. ``input`` says what the function is called with: "results" ->
-#: ``function(results, rows)`` (the loaded :class:`~reports.load.Results` and the labelled
+#: ``function(results, rows)`` (the loaded :class:`~parambench.reports.load.Results` and the labelled
 #: rows), placed after the per-surface pages; "benchmarks" -> ``function(stats)`` (the
 #: pytest-benchmark statistics, only when benchmark files were given), placed in the
-#: Benchmarks section. Each returns a :class:`~reports.html.Section` or None (no data).
+#: Benchmarks section. Each returns a :class:`~parambench.reports.html.Section` or None (no data).
 OPTIONAL_SECTIONS = (
-    ("reports.boundary_benchmark", "boundary_benchmark_section", "benchmarks"),
+    ("parambench.reports.boundary_benchmark", "boundary_benchmark_section", "benchmarks"),
 )
 #: A per-surface picture other modules may add to the row of small figures: (module,
 #: function); called as ``function(histograms, edges, title)`` with each drawn variant's
-#: stored ``angle_hist`` and the bin edges of ``bench.schema.ANGLE_HIST_EDGES_DEG``.
-ANGLE_HISTOGRAM = ("reports.figures.angle_histogram", "angle_histogram_figure")
+#: stored ``angle_hist`` and the bin edges of ``parambench.bench.schema.ANGLE_HIST_EDGES_DEG``.
+ANGLE_HISTOGRAM = ("parambench.reports.figures.angle_histogram", "angle_histogram_figure")
 
 
 def check_out_dir(out_dir: Path) -> None:
@@ -243,7 +243,7 @@ def render_html(results: Results, benchmark_json=()) -> str:
     Parameters
     ----------
     results : Results
-        From :func:`reports.load.load_results`.
+        From :func:`parambench.reports.load.load_results`.
     benchmark_json : iterable of path-like
         pytest-benchmark JSON files to include.
 
@@ -424,7 +424,7 @@ def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMAT
     UnknownNameError
         A format other than "html" or "pdf".
     """
-    from datasets_gen.errors import UnknownNameError
+    from parambench.datasets_gen.errors import UnknownNameError
 
     formats = tuple(formats)
     unknown = [f for f in formats if f not in FORMATS]

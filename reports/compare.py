@@ -70,7 +70,7 @@ def compare_rows(rows_a: pd.DataFrame, rows_b: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     rows_a, rows_b : pandas.DataFrame
-        Normalised rows (:attr:`reports.load.Results.rows`) of run A (before) and B (after).
+        Normalised rows (:attr:`parambench.reports.load.Results.rows`) of run A (before) and B (after).
 
     Returns
     -------
@@ -168,7 +168,7 @@ def build_comparison(dir_a, dir_b, *, out_dir=None, formats=("html",)) -> tuple[
     InputFileError
         ``out_dir`` lies inside the package sources.
     """
-    from datasets_gen.errors import UnknownNameError
+    from parambench.datasets_gen.errors import UnknownNameError
 
     formats = tuple(formats)
     unknown = [f for f in formats if f not in ("html", "pdf")]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.errors import ParambenchError
 
 __all__ = ["EmptyResultsError"]
 

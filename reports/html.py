@@ -2,7 +2,7 @@
 
 Images are PNG or JPEG data URIs, the style sheet and a small script are inline, there is no
 external request or font, so the file opens offline and prints the same. The script
-(:mod:`reports.interactive`) makes tables sortable and filterable and opens a cell's
+(:mod:`parambench.reports.interactive`) makes tables sortable and filterable and opens a cell's
 pictures on a click; WeasyPrint ignores it. The same page feeds WeasyPrint for the PDF:
 print rules (``@page``, page breaks) sit in the same style sheet.
 """
@@ -134,7 +134,7 @@ def anchor(title: str) -> str:
 
 
 def render_table(table: Table) -> str:
-    """HTML of a :class:`reports.tables.Table` (texts escaped).
+    """HTML of a :class:`parambench.reports.tables.Table` (texts escaped).
 
     Interactive tables get a search box (screen only) and ``data-sortable``; rows with
     keys get ``data-*`` attributes, which the detail view reads.
@@ -201,7 +201,7 @@ def print_size(picture: Picture, max_width: int = _PRINT_MAX_WIDTH, row_height: 
 
 
 def render_picture(picture: Picture, ident: str = "") -> str:
-    """HTML ``<figure>`` of a :class:`reports.figures.Picture` with its caption.
+    """HTML ``<figure>`` of a :class:`parambench.reports.figures.Picture` with its caption.
 
     ``ident`` becomes the image's id (the print style sheet sizes images by id). Pictures
     with located panels carry them as ``data-panels`` (JSON) and their surface as

@@ -18,10 +18,10 @@ import numpy as np
 import pandas as pd
 
 # The results format is the sweep's: read with the same definitions it writes with.
-from bench.schema import JSON_COLUMNS, NUMERIC_COLUMNS, ROW_COLUMNS, STATUS_FAILED, TEXT_COLUMNS
-from bench.schema import decode_json as parse_json_field
-from bench.schema import dataset_key, decode_loops, encode_json, loops_from_flat
-from datasets_gen.errors import InputFileError
+from parambench.bench.schema import JSON_COLUMNS, NUMERIC_COLUMNS, ROW_COLUMNS, STATUS_FAILED, TEXT_COLUMNS
+from parambench.bench.schema import decode_json as parse_json_field
+from parambench.bench.schema import dataset_key, decode_loops, encode_json, loops_from_flat
+from parambench.datasets_gen.errors import InputFileError
 
 from .errors import EmptyResultsError
 
@@ -301,7 +301,7 @@ def _landscape(raw: dict) -> tuple[dict | None, str]:
 def dataset_key_candidates(dataset: str, size, sampling: str, noise, seed) -> list[str]:
     """File stems under ``datasets/`` that hold a surface's diagnostics.
 
-    One: the key the sweep writes, :func:`bench.schema.dataset_key` (sizes and seeds read
+    One: the key the sweep writes, :func:`parambench.bench.schema.dataset_key` (sizes and seeds read
     back as floats are accepted). A list, so callers can look through several surfaces.
     """
     return [dataset_key(dataset, size, sampling, noise, seed)]

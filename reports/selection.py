@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.schema import dataset_key
+from parambench.bench.schema import dataset_key
 
 from .labels import config_label
 
@@ -60,7 +60,7 @@ def picture_views(rows: pd.DataFrame, root: Path) -> list[PictureView]:
     Parameters
     ----------
     rows : pandas.DataFrame
-        Labelled rows (see :func:`reports.labels.add_labels`).
+        Labelled rows (see :func:`parambench.reports.labels.add_labels`).
     root : pathlib.Path
         The results directory (to see which npz files exist).
 
@@ -93,7 +93,7 @@ def dataset_npz_candidates(view: PictureView) -> list[str]:
     """File stems under ``datasets/`` to try for a view's surface diagnostics, best first.
 
     The view's own size and seed first, then the same size with other seeds, then other
-    sizes (largest first), each keyed by :func:`bench.schema.dataset_key`.
+    sizes (largest first), each keyed by :func:`parambench.bench.schema.dataset_key`.
     """
     pairs = [(view.size, view.seed)]
     family = view.family_rows

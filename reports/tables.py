@@ -1,4 +1,4 @@
-"""The report's tables, as data (:class:`Table`); :mod:`reports.html` renders them.
+"""The report's tables, as data (:class:`Table`); :mod:`parambench.reports.html` renders them.
 
 Seeds are repeats: a summary row is one (configuration, method variant) and shows the
 median over its ok seeds. Every metric is "lower is better" (QC >= 1 with 1 conformal,
@@ -167,7 +167,7 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     rows : pandas.DataFrame
-        Labelled rows (see :func:`reports.labels.add_labels`).
+        Labelled rows (see :func:`parambench.reports.labels.add_labels`).
 
     Returns
     -------
@@ -431,7 +431,7 @@ def benchmark_table(stats: pd.DataFrame) -> Table:
     Parameters
     ----------
     stats : pandas.DataFrame
-        Output of :func:`reports.benchmarks.load_benchmarks`.
+        Output of :func:`parambench.reports.benchmarks.load_benchmarks`.
     """
     cols = [("min", "Min (s)"), ("median", "Median (s)"), ("mean", "Mean (s)"), ("stddev", "Std dev (s)"),
             ("max", "Max (s)")]
@@ -457,7 +457,7 @@ def exponent_table(fits: pd.DataFrame) -> Table:
     Parameters
     ----------
     fits : pandas.DataFrame
-        Output of :func:`reports.figures.scaling.scaling_fits`.
+        Output of :func:`parambench.reports.figures.scaling.scaling_fits`.
     """
     body = []
     for r in fits.itertuples():

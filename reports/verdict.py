@@ -141,7 +141,7 @@ def family_verdicts(summary: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     summary : pandas.DataFrame
-        Output of :func:`reports.tables.summarise`.
+        Output of :func:`parambench.reports.tables.summarise`.
     rows : pandas.DataFrame
         The labelled rows it was computed from (for turning numbers and self-checks).
 

@@ -21,16 +21,16 @@ import time
 import numpy as np
 import pytest
 
-from methods.pointset.dem import dem_balls
-from methods.pointset.frontend import build_frontend
-from methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
-from methods.pointset.normals import orient_normals, pca_normals, smooth_normals
+from parambench.methods.pointset.dem import dem_balls
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
+from parambench.methods.pointset.normals import orient_normals, pca_normals, smooth_normals
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_FRONTEND_SIZES", "10000,100000").split(",") if s.strip()]
 
 
 def _bump(n_points: int):
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     return make_surface("bump", n_points, sampling="jittered", seed=0, noise=0.0)
 

@@ -15,11 +15,11 @@ import time
 
 import pytest
 
-from bench.metrics import evaluate
-from bench.run_cell import surface_for
-from bench.suites import get_suite
-from datasets_gen.errors import ParambenchError
-from methods.registry import get_method
+from parambench.bench.metrics import evaluate
+from parambench.bench.run_cell import surface_for
+from parambench.bench.suites import get_suite
+from parambench.datasets_gen.errors import ParambenchError
+from parambench.methods.registry import get_method
 
 QUICK = get_suite("quick")
 SIZE = QUICK.sizes[0]

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import pytest
 
-from bench.metrics import evaluate
-from bench.run_cell import surface_for
-from bench.suites import get_suite
-from methods.registry import all_methods, get_method
+from parambench.bench.metrics import evaluate
+from parambench.bench.run_cell import surface_for
+from parambench.bench.suites import get_suite
+from parambench.methods.registry import all_methods, get_method
 
-from bench.benchmarks.timing import best_of, run_or_skip
+from parambench.bench.benchmarks.timing import best_of, run_or_skip
 
 QUICK = get_suite("quick")
 SIZE = QUICK.sizes[0]

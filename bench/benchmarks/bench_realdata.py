@@ -2,7 +2,7 @@
 
 ``pytest bench/benchmarks/bench_realdata.py --benchmark-only --benchmark-json=realdata.json``;
 ``parambench report RESULTS --benchmark-json realdata.json`` turns the figures into a
-table (:mod:`reports.boundary_benchmark`). Without ``--benchmark-only`` every case is
+table (:mod:`parambench.reports.boundary_benchmark`). Without ``--benchmark-only`` every case is
 skipped: the default run (53 cases) took 3 min 46 s on 2 cores shared with other jobs
 (2 min of CPU), most of it ``ocp`` at 20k points.
 
@@ -40,14 +40,14 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-import methods.pointset.frontend as frontend_module
-from bench.benchmarks.timing import best_of
-from bench.metrics import evaluate
-from datasets_gen.errors import ParambenchError
-from datasets_gen.registry import dataset_names, make_surface
-from methods.pointset.boundary import find_boundary
-from methods.registry import get_method
-from reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
+import parambench.methods.pointset.frontend as frontend_module
+from parambench.bench.benchmarks.timing import best_of
+from parambench.bench.metrics import evaluate
+from parambench.datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.registry import dataset_names, make_surface
+from parambench.methods.pointset.boundary import find_boundary
+from parambench.methods.registry import get_method
+from parambench.reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_REALDATA_SIZES", "2000,20000").split(",") if s.strip()]
 REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k"]

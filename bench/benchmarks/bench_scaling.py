@@ -18,10 +18,10 @@ import os
 
 import pytest
 
-from bench.memory import PeakMemory
-from bench.run_cell import surface_for
-from bench.benchmarks.timing import best_of, run_or_skip
-from methods.registry import get_method
+from parambench.bench.memory import PeakMemory
+from parambench.bench.run_cell import surface_for
+from parambench.bench.benchmarks.timing import best_of, run_or_skip
+from parambench.methods.registry import get_method
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_BENCH_SIZES", "10000,100000").split(",") if s.strip()]
 #: Benchmark name -> (method, parameters).

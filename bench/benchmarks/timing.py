@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.errors import ParambenchError
 
 
 def best_of(fn, repeat: int = 3) -> float:

@@ -10,7 +10,7 @@ the Beltrami coefficient, angle error and its histogram, flipped share), :func:`
 for a counter-clockwise simple polygon, -1 for a clockwise one.
 
 Nothing here imports the methods' numerics: loops, turning numbers and foldovers are the
-evaluation's own (:mod:`bench.metrics.loops`, :mod:`bench.metrics.orientation`).
+evaluation's own (:mod:`parambench.bench.metrics.loops`, :mod:`parambench.bench.metrics.orientation`).
 """
 
 from .alignment import exact_map_error, similarity_align

@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError
-from datasets_gen.surface import validate_faces, validate_points
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.surface import validate_faces, validate_points
 
 __all__ = ["check_uv", "check_mesh"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 from ._inputs import check_uv
 

@@ -45,7 +45,7 @@ def angle_differences_deg(points: np.ndarray, faces: np.ndarray, uv: np.ndarray)
     points : (N, 3) numpy.ndarray of float64
     faces : (M, 3) numpy.ndarray of int64
     uv : (N, 2) numpy.ndarray of float64
-        Inputs are assumed checked (see :func:`bench.metrics._inputs.check_mesh`).
+        Inputs are assumed checked (see :func:`parambench.bench.metrics._inputs.check_mesh`).
 
     Returns
     -------

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
-from datasets_gen.errors import InvalidInputError, TooFewPointsError
-from datasets_gen.surface import DEGENERATE_AREA_TOL, validate_points
+from parambench.datasets_gen.errors import InvalidInputError, TooFewPointsError
+from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, validate_points
 
 from ._inputs import check_uv
 from .orientation import collapsed_mask, triangle_signed_areas
@@ -88,7 +88,7 @@ def keep_valid_ccw(pts: np.ndarray, uv: np.ndarray, tri: np.ndarray, keep: np.nd
     """The triangles selected by ``keep`` that are valid evaluation faces, counter-clockwise in uv.
 
     Drops faces with (numerically) zero 3D area, by the rule and scale of
-    :func:`datasets_gen.surface.validate_faces` applied to the kept faces (so the result
+    :func:`parambench.datasets_gen.surface.validate_faces` applied to the kept faces (so the result
     always passes validation), and faces collapsed in uv.
 
     Parameters

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 from ..schema import METRIC_KEYS
 
@@ -46,7 +46,7 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
         Known exact map; gives ``exact_error``.
     boundary_loops : list of (L_i,) array_like of int, optional
         Point indices of each boundary loop, outer first. Default: the loops of the
-        evaluation mesh (longest first, :func:`bench.metrics.loops.mesh_boundary_loops`). For a point set pass the surface's own loops:
+        evaluation mesh (longest first, :func:`parambench.bench.metrics.loops.mesh_boundary_loops`). For a point set pass the surface's own loops:
         the uv Delaunay mesh has extra small holes wherever the sampling is sparse or the
         map tears (uniform random samples of a disk give about one per 200 points), and
         loops through its non-manifold vertices can have turning number 0.

@@ -1,7 +1,7 @@
 """The judge's own boundary loops and turning numbers.
 
-Written apart from the methods' versions (:mod:`datasets_gen.mesh_loops`,
-:mod:`methods.geometry2d`) on purpose: the evaluation must not share code with what it
+Written apart from the methods' versions (:mod:`parambench.datasets_gen.mesh_loops`,
+:mod:`parambench.methods.geometry2d`) on purpose: the evaluation must not share code with what it
 evaluates, or a bug in the methods' loops would also hide itself in the scores.
 ``tests/bench/test_metrics_independent.py`` compares the two on several inputs.
 """
@@ -94,7 +94,7 @@ def signed_area_2d(polygon: np.ndarray) -> float:
     """Signed area of a closed 2D polygon, positive if counter-clockwise.
 
     The sum of the signed areas of the fan of triangles from its first vertex
-    (:func:`bench.metrics.orientation.triangle_signed_areas`).
+    (:func:`parambench.bench.metrics.orientation.triangle_signed_areas`).
 
     Parameters
     ----------

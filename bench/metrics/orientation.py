@@ -2,7 +2,7 @@
 
 The evaluation's one definition of a foldover: every count, share and picture of flipped
 triangles in :mod:`bench` comes from here. The methods keep their own
-(:mod:`methods.geometry2d`), so a bug in theirs cannot hide itself in the scores.
+(:mod:`parambench.methods.geometry2d`), so a bug in theirs cannot hide itself in the scores.
 """
 
 from __future__ import annotations

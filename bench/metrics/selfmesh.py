@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import Delaunay, QhullError
 
-from datasets_gen.errors import InvalidInputError
-from datasets_gen.surface import validate_points
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.surface import validate_points
 
 from ..schema import SELFMESH_KEYS
 from ._inputs import check_uv
@@ -147,7 +147,7 @@ def self_scored(points, uv, loops) -> dict:
     -------
     dict
         ``selfmesh_<key>`` for every key of :data:`SELFMESH_KEYS`, values as in
-        :func:`bench.metrics.evaluate`.
+        :func:`parambench.bench.metrics.evaluate`.
 
     Raises
     ------

@@ -3,7 +3,7 @@
 They replace pymeshlab's loaders, which crashed (segfault, abort), hung or silently changed
 data on hostile files: every reader parses the whole file with numpy, checks counts against
 the file size, indices against the vertex count and every coordinate for finiteness, and
-raises :class:`~datasets_gen.errors.InputFileError` with one line naming the file, the line
+raises :class:`~parambench.datasets_gen.errors.InputFileError` with one line naming the file, the line
 or byte offset, the problem and what to do.
 """
 

@@ -40,7 +40,7 @@ def read_pts(path: Path, data: bytes) -> RawMesh:
     Raises
     ------
     InputFileError
-        As :func:`~datasets_gen.formats.xyz.read_xyz` for text; for binary: a malformed
+        As :func:`~parambench.datasets_gen.formats.xyz.read_xyz` for text; for binary: a malformed
         header, no ``position`` property, a point count that disagrees with the file size,
         NaN or infinite coordinates.
     """

@@ -84,7 +84,7 @@ def graded_sizing(shape, rng: np.random.Generator, ratio: float = DENSITY_RATIO)
 
     Parameters
     ----------
-    shape : datasets_gen.shapes.base.Shape
+    shape : parambench.datasets_gen.shapes.base.Shape
     rng : numpy.random.Generator
         Draws the wave directions and phases.
     ratio : float
@@ -116,7 +116,7 @@ def graded_sizing(shape, rng: np.random.Generator, ratio: float = DENSITY_RATIO)
 def sample_by_density(shape, sizing: SizingField, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` parameter points whose lifts have density proportional to sigma^-2 on the surface.
 
-    Area-uniform proposals (:func:`~datasets_gen.sampling.area_uniform.sample_by_area`) are
+    Area-uniform proposals (:func:`~parambench.datasets_gen.sampling.area_uniform.sample_by_area`) are
     kept with probability (sigma_min / sigma)^2.
 
     Returns

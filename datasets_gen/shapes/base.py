@@ -1,10 +1,10 @@
 """The contract of a procedural surface: a parameter domain and its map to 3D.
 
 A :class:`Shape` knows its geometry only. Sampling, meshing and noise are generic and
-live in :mod:`datasets_gen.sampling` and :mod:`datasets_gen.build`; they ask the shape
+live in :mod:`parambench.datasets_gen.sampling` and :mod:`parambench.datasets_gen.build`; they ask the shape
 for five things:
 
-- ``domain``: the parameter domain (:class:`~datasets_gen.domains.Domain`);
+- ``domain``: the parameter domain (:class:`~parambench.datasets_gen.domains.Domain`);
 - ``lift(x)``: 3D points and exact unit normals at parameter points;
 - ``chart(x)``: a planar chart in which the mesher runs Delaunay. It must preserve
   orientation (counter-clockwise in the chart = counter-clockwise seen from the normals'
@@ -88,7 +88,7 @@ class Shape:
         Parameters
         ----------
         h : float
-            Nominal spacing on the surface, > 0 (see :func:`datasets_gen.build.nominal_spacing`).
+            Nominal spacing on the surface, > 0 (see :func:`parambench.datasets_gen.build.nominal_spacing`).
 
         Returns
         -------

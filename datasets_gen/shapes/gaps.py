@@ -3,7 +3,7 @@
 Euclidean k-nearest-neighbour graphs bridge such gaps, which is what these datasets test.
 The gap is set in units of the sampling spacing, so it stays 2-3 spacings wide at every
 size: the generator rebuilds the shape for the nominal surface spacing of the requested
-count (:meth:`~datasets_gen.shapes.base.Shape.at_spacing`); built on its own, a shape uses
+count (:meth:`~parambench.datasets_gen.shapes.base.Shape.at_spacing`); built on its own, a shape uses
 ``DEFAULT_SPACING`` (about 2000 points). Both are developable with their unrolling as the
 exact (isometric) map, so the ground-truth mesh is meshed in the unrolled domain and no
 ground-truth edge crosses the gap.

@@ -3,7 +3,7 @@
 After the paper's Gnome model (Fig. 13): "mainly regularly sampled, with a small strip of
 irregular sampling where it appears that two scans were merged". The geometry is an
 elliptic paraboloid z = height (1 - x^2 - 0.6 y^2) over the unit disk (slope <= 0.6).
-The generator (:mod:`datasets_gen.build`) samples the disk as requested (scan A), then a
+The generator (:mod:`parambench.datasets_gen.build`) samples the disk as requested (scan A), then a
 second scan B (the same sampling, rotated by ``strip_angle`` degrees and shifted) is kept
 inside the strip |x - strip_center| < strip_width / 2 and merged: B points closer than
 ``min_spacing`` * h to a kept point are dropped (no near-duplicates).

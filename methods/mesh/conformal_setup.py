@@ -7,8 +7,8 @@ from typing import Any
 import igl
 import numpy as np
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import StageTimer
 from ..hints import Hint, hinted
@@ -99,8 +99,8 @@ def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, nor
     timer : StageTimer
         Stages ``topology`` and ``weights`` are recorded.
     weights, normalized, uniform_at
-        See :func:`methods.mesh.weights.mesh_weights` (a hybrid ``uniform_at`` of
-        ``"auto"`` must be resolved first: :mod:`methods.mesh.hybrid`).
+        See :func:`parambench.methods.mesh.weights.mesh_weights` (a hybrid ``uniform_at`` of
+        ``"auto"`` must be resolved first: :mod:`parambench.methods.mesh.hybrid`).
     b_matrix : {"boundary", "mass"}
         Mullen's boundary indicator, or libigl's Voronoi mass matrix (what
         ``igl.spectra.lscm`` uses).
@@ -116,7 +116,7 @@ def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, nor
     Raises
     ------
     DisconnectedError, NotADiskError
-        From :func:`methods.mesh.topology.require_connected_disk_like`.
+        From :func:`parambench.methods.mesh.topology.require_connected_disk_like`.
     UnknownNameError
         Unknown weights or b_matrix.
     InvalidInputError

@@ -3,7 +3,7 @@
 Negative cotangent weights are common (every non-Delaunay edge has one) and mostly
 harmless; only some of them fold the map over. The rule here is local and driven by the
 map itself: solve with cotangent weights, take the flipped triangles, make their vertices
-and ``rings`` rings of neighbours uniform (:func:`methods.mesh.weights.mesh_weights` with a
+and ``rings`` rings of neighbours uniform (:func:`parambench.methods.mesh.weights.mesh_weights` with a
 vertex mask), solve again, and repeat while folds remain, growing the uniform region
 around the flipped triangles and the vertices already chosen by ``r * rings`` rings in
 round r (at most ``max_rounds`` rounds). A mesh whose cotangent map does not
@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface
 
 from ..base import StageTimer
 from ..geometry2d import flipped_triangles
@@ -50,7 +50,7 @@ def flipped_faces(z: np.ndarray, faces: np.ndarray) -> np.ndarray:
     -------
     (M,) numpy.ndarray of bool
         Collapsed triangles (zero uv area) are not flipped
-        (:func:`methods.geometry2d.flipped_triangles` of ``(u, v)``).
+        (:func:`parambench.methods.geometry2d.flipped_triangles` of ``(u, v)``).
     """
     return flipped_triangles(np.column_stack([z.real, z.imag]), faces)
 

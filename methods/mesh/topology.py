@@ -1,4 +1,4 @@
-"""Topology of triangle meshes: manifold and disk checks (boundary loops: :mod:`datasets_gen.mesh_loops`)."""
+"""Topology of triangle meshes: manifold and disk checks (boundary loops: :mod:`parambench.datasets_gen.mesh_loops`)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from datasets_gen.errors import DisconnectedError, NotADiskError
+from parambench.datasets_gen.errors import DisconnectedError, NotADiskError
 # The one definition of a mesh's loops lives below the methods, where the readers use it too.
-from datasets_gen.mesh_loops import boundary_loops
+from parambench.datasets_gen.mesh_loops import boundary_loops
 
 __all__ = [
     "boundary_loops",

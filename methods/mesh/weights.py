@@ -40,7 +40,7 @@ hybrid
     ``uniform_at`` (its row and, to keep W symmetric, its column). Which vertices is the
     point of Sec. 5 / Fig. 12: uniform weights only where negative cotangent weights fold
     the map. That needs the map, so the plugins' default ``uniform_at="auto"`` is the
-    fold-driven rule of :mod:`methods.mesh.hybrid` (solve with cotangent weights, make
+    fold-driven rule of :mod:`parambench.methods.mesh.hybrid` (solve with cotangent weights, make
     the vertices around flipped triangles uniform, solve again), which calls this
     function with a vertex mask. Here ``uniform_at`` is a vertex set (indices, a
     ``"3,17,42"`` string or a boolean mask) or ``"negative"`` (also the default, None):
@@ -62,7 +62,7 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
 
 from ..hints import Hint, hinted
 
@@ -197,7 +197,7 @@ def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray) 
     ------
     InvalidInputError
         ``"auto"`` (the plugins' fold-driven rule needs a solve: see
-        :mod:`methods.mesh.hybrid`), an unparsable string, indices out of range or a
+        :mod:`parambench.methods.mesh.hybrid`), an unparsable string, indices out of range or a
         boolean mask of the wrong length.
     """
     n = points.shape[0]
@@ -206,7 +206,7 @@ def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray) 
     if isinstance(uniform_at, str) and uniform_at == "auto":
         raise InvalidInputError(
             "uniform_at='auto' is the fold-driven rule of the scp and dncp-opt methods (it needs their solve, "
-            "see methods.mesh.hybrid); mesh_weights takes 'negative' or a vertex set."
+            "see parambench.methods.mesh.hybrid); mesh_weights takes 'negative' or a vertex set."
         )
     if isinstance(uniform_at, str):
         try:
@@ -259,7 +259,7 @@ def mesh_weights(points: np.ndarray, faces: np.ndarray, kind: str, normalized: b
         Only for ``kind="hybrid"``: vertices whose row is uniform. None or ``"negative"``:
         the vertices with a negative cotangent weight; ``"3,17,42"`` or an index array:
         those vertices; a boolean mask: the True ones. (``"auto"``, the methods' default,
-        is resolved by :func:`methods.mesh.hybrid.fold_driven_hybrid` before this call.)
+        is resolved by :func:`parambench.methods.mesh.hybrid.fold_driven_hybrid` before this call.)
 
     Returns
     -------

@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets_gen.errors import NotADiskError, SolverError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import NotADiskError, SolverError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..mesh.topology import require_connected_disk_like

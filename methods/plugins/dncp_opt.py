@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area, solve_with_k_rule
@@ -21,7 +21,7 @@ class DncpOpt(Method):
     is ``"line"`` (Eq. 16), ``"direct"`` (generalised eigenvalue) or ``"none"`` (plain
     DNCP at k = 1). The output is scaled so that its boundary encloses the 3D area.
     ``weights="hybrid"`` with ``uniform_at="auto"`` (the default) is uniform only around
-    the folds of the cotangent map (:mod:`methods.mesh.hybrid`, Fig. 12).
+    the folds of the cotangent map (:mod:`parambench.methods.mesh.hybrid`, Fig. 12).
     """
 
     name = "dncp-opt"

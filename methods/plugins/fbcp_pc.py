@@ -5,11 +5,11 @@ clouds", J. Sci. Comput. 90:14 (2022), arXiv 2010.15399. The steps:
 
 1. Per point, its k nearest neighbours are projected to its PCA tangent plane and
    Delaunay-triangulated; the point's one-ring in that local triangulation is kept
-   (:func:`methods.pointset.local_delaunay.local_delaunay_rings`).
+   (:func:`parambench.methods.pointset.local_delaunay.local_delaunay_rings`).
 2. At boundary points the one-ring triangles outside the boundary are dropped
-   (:func:`~methods.pointset.local_delaunay.drop_outside_boundary`).
+   (:func:`~parambench.methods.pointset.local_delaunay.drop_outside_boundary`).
 3. The cotangent weight of each edge is accumulated over the one-rings that hold it and
-   symmetrised (:func:`~methods.pointset.local_delaunay.one_ring_cotangent_weights`).
+   symmetrised (:func:`~parambench.methods.pointset.local_delaunay.one_ring_cotangent_weights`).
 4. The LSCM energy ``E_D(u) - A(u)`` (Dirichlet energy of the weights minus the signed
    area enclosed by the boundary loops) is minimised with a free boundary.
 
@@ -58,9 +58,9 @@ Choices the paper leaves open, made here:
   not, so this sum is exact (the mesh cotangent weight) wherever the one-rings agree.
 * **Free boundary.** ``free_boundary="spectral"`` (default): the smallest eigenvector of
   ``(L/2 - M) z = lambda B z`` with B the boundary indicator (SCP, Mullen et al. 2008,
-  the project's :class:`methods.spectral.ConformalProblem` at k = 1), which fixes no
+  the project's :class:`parambench.methods.spectral.ConformalProblem` at k = 1), which fixes no
   point. ``"two-pins"``: LSCM as in the paper, the two boundary points farthest apart in
-  3D pinned to 0 and 1 (:func:`methods.mesh.pins.farthest_pair`). The two agree to the
+  3D pinned to 0 and 1 (:func:`parambench.methods.mesh.pins.farthest_pair`). The two agree to the
   solver's accuracy when the energy is positive definite off the similarities.
 * **Boundary.** ``boundary="detected"``: the front end's loops (the same boundary ``ocp``
   uses). ``boundary="given"``: the loops in ``surface.boundary_loops`` (e.g. a
@@ -68,7 +68,7 @@ Choices the paper leaves open, made here:
   from that of the map. A method's input never carries them (``Surface.method_input``);
   the sweep passes them back only to cells that ask for ``boundary="given"``.
 * **Output scale.** uv is scaled so its mean kNN edge equals the 3D spacing, as the other
-  point-set methods (:func:`methods.pointset.plugin_support.scale_to_spacing`).
+  point-set methods (:func:`parambench.methods.pointset.plugin_support.scale_to_spacing`).
 
 Time: 10.8 s for 100k points (jittered bump, 2 cores; front end 4.2 s, local Delaunay
 and weights 1.6 s, solve 3.1 s).
@@ -83,8 +83,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 
-from datasets_gen.errors import DisconnectedError, InvalidInputError, UnknownNameError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import DisconnectedError, InvalidInputError, UnknownNameError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..mesh.pins import farthest_pair
@@ -197,7 +197,7 @@ class FbcpPc(Method):
     def wants_given_boundary(self, params: dict) -> bool:
         """True when ``params`` ask for the caller's loops (``boundary="given"``).
 
-        The sweep (:func:`bench.run_cell.compute_cell`) asks this before it strips the
+        The sweep (:func:`parambench.bench.run_cell.compute_cell`) asks this before it strips the
         ground truth, and keeps ``surface.boundary_loops`` for such cells only.
         """
         return params.get("boundary", self.defaults["boundary"]) == "given"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..mesh.pins import farthest_pair

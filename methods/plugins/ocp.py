@@ -6,7 +6,7 @@
   stands in for the per-point scale of Eq. 14 and for the boundary term of the
   Dirichlet energy that row-normalised, linear-reproducing rows lose.
 * ``"neumann-tan"``: W^tan rows scaled by their Eq. 14 factor plus the Neumann boundary
-  term (:func:`methods.pointset.neumann_laplacian.neumann_laplacian` with W^tan rows).
+  term (:func:`parambench.methods.pointset.neumann_laplacian.neumann_laplacian` with W^tan rows).
 * ``"neumann"`` (default): the same with quadratic-consistent interior weights and
   linear-exact boundary weights; k_opt ~ 1, and exact (k = 1, identity map) on planar
   regions.
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets_gen.errors import InvalidInputError, UnknownNameError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
@@ -30,7 +30,7 @@ from ..registry import register
 from ..spectral import ConformalProblem
 
 #: ``solver`` values of ``ocp``: today's single-level solve, or the two-level one of
-#: :mod:`methods.spectral.multilevel`.
+#: :mod:`parambench.methods.spectral.multilevel`.
 OCP_SOLVERS = ("direct", "multilevel")
 
 
@@ -48,7 +48,7 @@ def ocp_laplacian(front, energy: str = "neumann", area_factor: float = DEFAULT_A
 
     Parameters
     ----------
-    front : methods.pointset.frontend.FrontEnd
+    front : parambench.methods.pointset.frontend.FrontEnd
     energy : {"paper", "neumann-tan", "neumann"}
     area_factor : float
         Area per point in units of l^2 (Neumann energies only).
@@ -86,7 +86,7 @@ class Ocp(Method):
     ``solver``: ``"direct"`` (default) solves on every point; ``"multilevel"`` first
     solves on a Poisson-disk subsample (radius 2 l, boundary loops kept) and uses that
     map to shrink the fine k search to a ~20-function boundary subspace
-    (:mod:`methods.spectral.multilevel`; line search only). Measured against "direct"
+    (:mod:`parambench.methods.spectral.multilevel`; line search only). Measured against "direct"
     at 20k-300k points: the same k_opt to 3e-5 and map to 8.3e-4 of the diameter
     (1e-4 or better except on a random sampling), end to end within noise at 100k and
     0.84x at 300k: the fine interior is still factorised once, so the path is not

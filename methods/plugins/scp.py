@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
@@ -22,7 +22,7 @@ class Scp(Method):
     for cotangent, uniform and hybrid weights (the line search where k = 1 is
     indefinite) and the line search otherwise. ``weights="hybrid"`` with
     ``uniform_at="auto"`` (the default) is uniform only around the folds of the cotangent
-    map (:mod:`methods.mesh.hybrid`, Fig. 12); ``uniform_at="negative"`` or a vertex list
+    map (:mod:`parambench.methods.mesh.hybrid`, Fig. 12); ``uniform_at="negative"`` or a vertex list
     fixes the uniform vertices instead.
 
     The output is scaled so that its boundary encloses the 3D surface area.

@@ -5,8 +5,8 @@ from __future__ import annotations
 import igl.spectra
 import numpy as np
 
-from datasets_gen.errors import SolverError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import SolverError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..mesh.topology import require_connected_disk_like

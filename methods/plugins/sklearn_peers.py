@@ -11,8 +11,8 @@ import warnings
 
 import numpy as np
 
-from datasets_gen.errors import ConvergenceError, ResourceLimitError, SolverError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import ConvergenceError, ResourceLimitError, SolverError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, Parameterization, StageTimer
 from ..hints import Hint, hinted

@@ -12,7 +12,7 @@ side), which keeps the surface on the left. Each boundary point's successor is t
 nearest other boundary point of its ball lying ahead (positive component along that
 direction). Loops are the cycles of this successor map. Walking with the surface on the
 left makes the outer loop counter-clockwise and holes clockwise seen from the normals'
-side, the convention of :class:`datasets_gen.surface.Surface`.
+side, the convention of :class:`parambench.datasets_gen.surface.Surface`.
 
 Fake loops: cycles with fewer than ``min_loop_size`` points (default 8) are dropped as
 isolated gaps in the sampling, and so are cycles shorter (3D perimeter) than two ball
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import InvalidInputError, NoBoundaryError
+from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 
 from .normals import tangent_frames
 
@@ -311,7 +311,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     ----------
     points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
-        The normals whose tangent frames (:func:`methods.pointset.normals.tangent_frames`)
+        The normals whose tangent frames (:func:`parambench.methods.pointset.normals.tangent_frames`)
         the DEM coordinates are expressed in.
     ball_indices : (N, B) numpy.ndarray of int64
         -1 at padding.

@@ -1,11 +1,11 @@
 """Boundary loops from per-point tangent-plane Delaunay one-rings (``boundary_method="rings"``).
 
-The angle criterion (:mod:`methods.pointset.boundary`) looks at whole geodesic balls of
+The angle criterion (:mod:`parambench.methods.pointset.boundary`) looks at whole geodesic balls of
 2.5 spacings, so a ball that reaches across a slit 2 spacings wide sees no angular gap.
 This detector looks at triangles instead:
 
 1. Each point's one-ring in the Delaunay triangulation of its 16 nearest neighbours on its
-   tangent plane (:func:`methods.pointset.local_delaunay.local_delaunay_rings`);
+   tangent plane (:func:`parambench.methods.pointset.local_delaunay.local_delaunay_rings`);
    neighbours steeply off the tangent plane (the facing sheet of a fold) are left out.
 2. Alpha test. A ring triangle is *empty* (not surface) when its circumradius, on the
    mean tangent plane of its corners (normal noise does not inflate it), exceeds
@@ -20,11 +20,11 @@ This detector looks at triangles instead:
    samplings have 10 % of their triangles above 1.08 and voids up to 3-4.
 3. Each point's kept triangles form sectors of its fan; the spoke that ends its widest
    gap (empty triangles or the open side) leads on along the boundary with the surface
-   on the left, so loops come out as :class:`datasets_gen.surface.Surface` expects:
+   on the left, so loops come out as :class:`parambench.datasets_gen.surface.Surface` expects:
    outer counter-clockwise, holes clockwise seen from the normals' side.
 4. Loops are the cycles of these successors, with the angle detector's repairs: links to
    points whose own ring has no gap are cut and bridged to the next boundary point ahead
-   (:func:`methods.pointset.boundary.bridge_successors`), remaining dead ends joined to the
+   (:func:`parambench.methods.pointset.boundary.bridge_successors`), remaining dead ends joined to the
    nearest chain start, and cycles under ``min_loop_size`` pruned. Points the walk passed
    over (noise tilts neighbouring tangent planes) are put back. Loops enclosing less than
    ``min_area`` squared spacings, and short loops spaced wider than the sampling around a
@@ -56,7 +56,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
 from .boundary import _MAX_PRUNE_ROUNDS, BoundaryLoops, _loop_spacing, bridge_successors, cycles
@@ -175,7 +175,7 @@ def ring_triangle_kept(points: np.ndarray, normals: np.ndarray, rings: np.ndarra
         Oriented unit normals.
     rings : (N, C, 2) numpy.ndarray of int64
         One-ring triangles ``(i, a, b)``, -1 padding
-        (:func:`methods.pointset.local_delaunay.local_delaunay_rings`).
+        (:func:`parambench.methods.pointset.local_delaunay.local_delaunay_rings`).
     spacing : (N,) numpy.ndarray of float64
         Local spacing per point.
     options : RingsOptions
@@ -308,7 +308,7 @@ def ring_successors(points: np.ndarray, normals: np.ndarray, rings: np.ndarray,
         Gaps per point.
     bisector : (N, 2) numpy.ndarray of float64
         Unit direction into the middle of the widest gap in each point's tangent frame
-        (:func:`methods.pointset.normals.tangent_frames`); meaningless where ``succ`` is -1.
+        (:func:`parambench.methods.pointset.normals.tangent_frames`); meaningless where ``succ`` is -1.
     """
     n = points.shape[0]
     e1, e2 = tangent_frames(normals)
@@ -333,7 +333,7 @@ def _walk(points, normals, succ, candidates, bisector, reach, min_loop_size):
 
     Noise makes neighbouring rings disagree, so a successor can be a point whose own ring
     has no gap: such links are cut and the boundary point looks for the next boundary
-    point ahead within ``reach`` (:func:`methods.pointset.boundary.bridge_successors`);
+    point ahead within ``reach`` (:func:`parambench.methods.pointset.boundary.bridge_successors`);
     points of cycles shorter than ``min_loop_size`` are dropped and the walk repeated.
     """
     e1, e2 = tangent_frames(normals)
@@ -487,7 +487,7 @@ def find_boundary_rings(points: np.ndarray, normals: np.ndarray, spacing: np.nda
         Consistently oriented unit normals; the loops are oriented about them.
     spacing : (N,) numpy.ndarray of float64
         Local spacing around each point (e.g.
-        :func:`methods.pointset.neighbourhoods.local_spacing` with one pass).
+        :func:`parambench.methods.pointset.neighbourhoods.local_spacing` with one pass).
     decimate : int
         Keep every ``decimate``-th point of each loop.
     min_loop_size : int

@@ -8,7 +8,7 @@ its representative's uv. The output keeps one row per input point, in input orde
 
 Points count as coincident when closer than ``MERGE_SPACING_TOL`` times the median
 nearest-neighbour spacing (never less than the bounding-box tolerance of
-:func:`datasets_gen.surface.find_duplicate_points`, so the front end's own check accepts
+:func:`parambench.datasets_gen.surface.find_duplicate_points`, so the front end's own check accepts
 the representatives).
 """
 
@@ -23,7 +23,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from datasets_gen.surface import Surface, duplicate_tolerance, find_duplicate_points
+from parambench.datasets_gen.surface import Surface, duplicate_tolerance, find_duplicate_points
 
 __all__ = ["CoincidentPointsWarning", "CoincidentGroups", "MERGE_SPACING_TOL", "merge_tolerance",
            "coincident_groups", "run_on_representatives"]
@@ -76,7 +76,7 @@ def merge_tolerance(points: np.ndarray, tree: cKDTree | None = None) -> float:
     -------
     float
         ``MERGE_SPACING_TOL`` times the median distance to the nearest distinct point,
-        at least :func:`~datasets_gen.surface.duplicate_tolerance`.
+        at least :func:`~parambench.datasets_gen.surface.duplicate_tolerance`.
     """
     floor = duplicate_tolerance(points)
     tree = cKDTree(points) if tree is None else tree
@@ -139,7 +139,7 @@ def run_on_representatives(run: Callable[..., Any], surface: Surface, params: di
     Parameters
     ----------
     run : callable
-        ``run(surface, **params)`` returning a :class:`~methods.base.Parameterization`
+        ``run(surface, **params)`` returning a :class:`~parambench.methods.base.Parameterization`
         over the points it is given.
     surface : Surface
         The method's input; faces, if any, are not passed on (a point-set method reads

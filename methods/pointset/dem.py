@@ -9,7 +9,7 @@ distance). Every point p it finalises gets tangent coordinates at s, evaluated i
   small offset only guards near-coincident points).
 
 ``M_qs`` is the minimal rotation taking q's normal to s's normal, followed by the
-tangent frame of s (:func:`methods.pointset.normals.tangent_frames`). As in the authors'
+tangent frame of s (:func:`parambench.methods.pointset.normals.tangent_frames`). As in the authors'
 code, an estimate whose squared length is off by more than 75% from the squared front
 distance is rescaled to that distance (a guard against catastrophic propagation).
 
@@ -54,14 +54,14 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
 
 __all__ = ["GeodesicBalls", "dem_balls", "DEM_KINDS", "PROJECTIONS", "DEFAULT_MAX_BALL"]
 
-# On-disk kernel cache where one is writable, none otherwise (see methods.numba_cache).
+# On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 DEM_KINDS = ("upwind", "plain")
@@ -303,7 +303,7 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
         for the paper's "normal smoothing").
     adjacency : (N, N) scipy.sparse.csr_matrix
         Symmetric neighbourhood graph with Euclidean edge lengths
-        (:func:`methods.pointset.neighbourhoods.symmetric_adjacency`).
+        (:func:`parambench.methods.pointset.neighbourhoods.symmetric_adjacency`).
     mean_spacing : float
         ``l``; the ball radius is ``ball_eps_factor * l``.
     ball_k : int
@@ -322,7 +322,7 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     centres : (M,) array_like of int, optional
         Compute only these balls (rows of the result follow this order); all by default.
     local_spacing : (N,) numpy.ndarray of float64, optional
-        Per-point spacing (:func:`methods.pointset.neighbourhoods.local_spacing`): ball i
+        Per-point spacing (:func:`parambench.methods.pointset.neighbourhoods.local_spacing`): ball i
         then has radius ``ball_eps_factor * local_spacing[i]``, so balls follow the local
         density; default: ``mean_spacing`` everywhere (the paper's global eps).
 

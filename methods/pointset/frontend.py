@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError, NoBoundaryError
-from datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
+from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
+from parambench.datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
 
 from ..base import StageTimer
 from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary, no_boundary_error
@@ -40,7 +40,7 @@ WEIGHT_KINDS = ("tangent", "lle3d")
 
 #: ``dem_variant`` settings: "paper" is Secs. 3-3.1 to the letter; "robust" (default) adds
 #: the midpoint projection, front-aligned upwind weights and local-linear normal
-#: smoothing (see :mod:`methods.pointset.dem` and :func:`methods.pointset.normals.smooth_normals`).
+#: smoothing (see :mod:`parambench.methods.pointset.dem` and :func:`parambench.methods.pointset.normals.smooth_normals`).
 DEM_VARIANTS = {
     "robust": {"projection": "midpoint", "front_weight": True, "smoothing": "linear"},
     "paper": {"projection": "length", "front_weight": False, "smoothing": "average"},
@@ -74,19 +74,19 @@ class FrontEnd:
     points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
         Consistently oriented unit normals (the given ones, or PCA normals oriented by
-        the rule of :mod:`methods.pointset.normals`); not smoothed.
+        the rule of :mod:`parambench.methods.pointset.normals`); not smoothed.
     knn_indices : (N, K) numpy.ndarray of int64
         K nearest neighbours, nearest first, self excluded.
     mean_spacing : float
         ``l``, mean kNN edge length.
     local_spacing : (N,) numpy.ndarray of float64
         The spacing of ocp's area terms: around each point
-        (:func:`methods.pointset.neighbourhoods.local_spacing`, ten averages; points on
+        (:func:`parambench.methods.pointset.neighbourhoods.local_spacing`, ten averages; points on
         or next to a loop take their interior neighbours' value) when
         ``spacing="local"``, ``l`` everywhere when ``spacing="global"``. Ball radii are
         ``ball_eps_factor * max(local_spacing, l)``.
     ball_indices : (N, B) numpy.ndarray of int64
-        Geodesic K-eps ball members (-1 padding), see :mod:`methods.pointset.dem`.
+        Geodesic K-eps ball members (-1 padding), see :mod:`parambench.methods.pointset.dem`.
     tangent_coords : (N, B, 2) numpy.ndarray of float64
         DEM tangent coordinates of the ball members.
     W : (N, N) scipy.sparse.csr_matrix of float64
@@ -209,28 +209,28 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     neighbours : {"euclidean", "surface"}
         "euclidean" (default): the paper's plain K nearest; "surface": K neighbours kept
         along the surface, not across narrow gaps
-        (:func:`methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
+        (:func:`parambench.methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
         does not separate the touching sheets of the camelhead scan and with noise of 0.5
         spacings it loses the outer loop of "holes" at 2k points, so it is not the default.
     boundary_method : {"angle", "rings"}
         "angle" (default): the paper's angle criterion on the geodesic balls, candidates
-        chained into loops (:mod:`methods.pointset.boundary`); "rings": loops of the
+        chained into loops (:mod:`parambench.methods.pointset.boundary`); "rings": loops of the
         boundary edges of the points' tangent-plane Delaunay one-rings with an alpha-shape
-        test (:mod:`methods.pointset.boundary_rings`): finds slits of regular samplings
+        test (:mod:`parambench.methods.pointset.boundary_rings`): finds slits of regular samplings
         narrower than the balls; otherwise measured on par with "angle".
     dem_variant : {"robust", "paper"}
         "paper": T_q p by length-preserving projection, upwind weights
         ``(|p-q|^2 + eps)^-1``, normals smoothed by weighted averaging, all as in the
         paper. "robust" (default): midpoint projection, front-aligned upwind weights,
         local-linear normal smoothing; at least as accurate on clean samplings and
-        2-4x more accurate under noise (see :mod:`methods.pointset.dem`).
+        2-4x more accurate under noise (see :mod:`parambench.methods.pointset.dem`).
 
     Returns
     -------
     FrontEnd
         ``diagnostics`` holds: ``n_points``, ``k_nn``, ``mean_spacing``, ``normals_source``
         ("given"/"pca"), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
-        ``negative_weights`` (:func:`~methods.pointset.tangent_weights.negative_weight_stats`,
+        ``negative_weights`` (:func:`~parambench.methods.pointset.tangent_weights.negative_weight_stats`,
         interior vs. angle-criterion boundary points), ``reconstruction_error`` {mean,
         max, unit: "l^2"} (R_x divided by l^2), ``boundary`` (loop extraction facts).
 

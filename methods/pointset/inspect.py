@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface
 
 from .frontend import build_frontend
 from .plugin_support import frontend_candidates
@@ -14,7 +14,7 @@ __all__ = ["inspect_surface"]
 
 
 def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
-    """Run :func:`~methods.pointset.frontend.build_frontend` on a surface's points and report.
+    """Run :func:`~parambench.methods.pointset.frontend.build_frontend` on a surface's points and report.
 
     Faces, if any, are ignored; the surface's normals are passed on when it has them.
 
@@ -33,7 +33,7 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         ``reconstruction_error`` {"mean", "max", "unit"} (R_x / l^2), ``ball_size``,
         ``timings`` (seconds per stage), ``params``, the full ``diagnostics`` and
         ``selfcheck``: the boundary part of a map's self-check, ``{"coverage":
-        loop_coverage(...) or None}`` (:func:`methods.pointset.selfcheck.loop_coverage`:
+        loop_coverage(...) or None}`` (:func:`parambench.methods.pointset.selfcheck.loop_coverage`:
         do the loops cover the angle-criterion candidates?).
 
     Raises

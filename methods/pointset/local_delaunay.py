@@ -25,7 +25,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
@@ -120,7 +120,7 @@ def local_delaunay_rings(points: np.ndarray, normals: np.ndarray, candidates: np
         Duplicate-free positions.
     normals : (N, 3) numpy.ndarray of float64
         Unit normals of the tangent planes (e.g. PCA normals,
-        :func:`methods.pointset.normals.pca_normals`); signs do not matter.
+        :func:`parambench.methods.pointset.normals.pca_normals`); signs do not matter.
     candidates : (N, C) numpy.ndarray of int64
         Candidate neighbours of each point (e.g. its k nearest neighbours), -1 padding;
         a point's own index and repeated entries are ignored.

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import DisconnectedError, TooFewPointsError
+from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError
 
 __all__ = ["local_spacing", "KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order"]
 

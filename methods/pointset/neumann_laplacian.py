@@ -40,7 +40,7 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 __all__ = [
     "DEFAULT_AREA_FACTOR",
@@ -282,7 +282,7 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
     -------
     (N, N) scipy.sparse.csr_matrix of float64
         Rows sum to zero; scaled so that ``1/2 u^T L u`` approximates the Dirichlet
-        energy (k_opt ~ 1 in :class:`~methods.spectral.ConformalProblem`).
+        energy (k_opt ~ 1 in :class:`~parambench.methods.spectral.ConformalProblem`).
 
     Raises
     ------

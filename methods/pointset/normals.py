@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
-from datasets_gen.errors import InconsistentNormalsError, InvalidInputError
+from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInputError
 
 __all__ = [
     "pca_normals",

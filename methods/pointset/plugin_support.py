@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from datasets_gen.errors import SolverError, TooFewPointsError
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.errors import SolverError, TooFewPointsError
+from parambench.datasets_gen.surface import Surface
 
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
@@ -41,7 +41,7 @@ def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: 
     TooFewPointsError
         ``k_nn`` is not below the number of points (each point needs ``k_nn`` others).
     ParambenchError
-        Whatever :func:`~methods.pointset.frontend.build_frontend` raises.
+        Whatever :func:`~parambench.methods.pointset.frontend.build_frontend` raises.
     """
     kwargs = {k: params[k] for k in FRONTEND_DEFAULTS if k in params}
     require_neighbours(surface.n_points, kwargs.get("k_nn", FRONTEND_DEFAULTS["k_nn"]), "k_nn")
@@ -76,7 +76,7 @@ def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
     """The angle-criterion boundary candidates of a front end, or None if it cannot tell.
 
     Taken from ``front.boundary_candidates`` when the front end keeps them, otherwise
-    recomputed with :func:`methods.pointset.boundary.angular_gaps` on its balls (None
+    recomputed with :func:`parambench.methods.pointset.boundary.angular_gaps` on its balls (None
     once the balls are dropped).
     """
     given = getattr(front, "boundary_candidates", None)
@@ -129,12 +129,12 @@ def selfcheck_result(surface: Surface, result) -> dict:
     ----------
     surface : Surface
         The surface the method ran on.
-    result : methods.base.Parameterization
+    result : parambench.methods.base.Parameterization
 
     Returns
     -------
     dict
-        The facts of :func:`methods.pointset.selfcheck.check_pointset_map`.
+        The facts of :func:`parambench.methods.pointset.selfcheck.check_pointset_map`.
     """
     from .selfcheck import check_pointset_map
 

@@ -1,7 +1,7 @@
 """A point-set map checks itself: flipped and degenerate triangles, loop turning, loop coverage.
 
 The uv points are triangulated with the detected boundary loops as constraints
-(:func:`methods.pointset.uv_triangulation.triangulate_uv`) and the triangles are checked
+(:func:`parambench.methods.pointset.uv_triangulation.triangulate_uv`) and the triangles are checked
 against the 3D geometry. Thresholds (module constants, reported with every check):
 
 * **flipped** (``MAX_FLIPPED`` = 0 allowed): a uv-counter-clockwise triangle whose 3D
@@ -43,7 +43,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import triangle_signed_areas, turning_number
 from .uv_triangulation import triangulate_uv

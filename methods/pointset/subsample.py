@@ -1,6 +1,6 @@
 """A well-spread subsample of a point set that keeps given points (boundary loops) dense.
 
-The coarse level of the multilevel solve (:mod:`methods.spectral.multilevel`) needs
+The coarse level of the multilevel solve (:mod:`parambench.methods.spectral.multilevel`) needs
 points no closer than a radius to each other in the interior, while every boundary-loop
 point stays, so that the coarse problem has exactly the fine problem's loops. The sample
 is a maximal independent set of the "closer than ``radius``" graph (a Poisson-disk
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 __all__ = ["poisson_disk_subsample"]
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 __all__ = [
     "DEFAULT_REG_EPS",

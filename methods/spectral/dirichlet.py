@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
-from datasets_gen.errors import ConvergenceError, SolverError
+from parambench.datasets_gen.errors import ConvergenceError, SolverError
 
 from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
@@ -46,7 +46,7 @@ def _real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return vals[:2].real, pair
 
 
-@single_threaded_blas()  # ARPACK's small dense steps; see methods.spectral.threads
+@single_threaded_blas()  # ARPACK's small dense steps; see parambench.methods.spectral.threads
 def smallest_nontrivial_pair(a_mat: sp.spmatrix, b_mat: sp.spmatrix, *, perm: np.ndarray | None = None,
                              nev: int = 2, ncv: int | None = None, tol: float = 1e-8,
                              seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -71,7 +71,7 @@ def smallest_nontrivial_pair(a_mat: sp.spmatrix, b_mat: sp.spmatrix, *, perm: np
         tol = 1e-10; the same span to a subspace angle of 6e-8).
     tol : float
         ARPACK relative tolerance. The solves with a mixed-precision factorisation
-        (:class:`~methods.spectral.sparse_eigen.SparseFactor`) are refined to a tenth
+        (:class:`~parambench.methods.spectral.sparse_eigen.SparseFactor`) are refined to a tenth
         of it, not to full double precision: each refinement step is a triangular
         solve, and the Krylov iteration cannot use more accuracy than ``tol``.
     seed : int

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError
 
 from ..hints import Hint, hinted
 from .turning import is_regular_turning, turning_penalty

@@ -1,7 +1,7 @@
 """Two-level SCP k search: a Poisson-disk subsample chooses the subspace, every point decides.
 
 The conformal problem's area matrix M and B live on the boundary loops only, so a coarse
-level that keeps every loop point (:func:`methods.pointset.subsample.poisson_disk_subsample`)
+level that keeps every loop point (:func:`parambench.methods.pointset.subsample.poisson_disk_subsample`)
 has the fine problem's loops exactly, and its map gives values on the fine boundary
 without interpolation. The coarse Laplacian is the Galerkin product ``L_c = P^T L P``;
 P interpolates each fine point from its six nearest coarse points with weights that sum
@@ -42,7 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 from .problem import ConformalProblem, ConformalSolution
 from .threads import single_threaded_blas
@@ -167,7 +167,7 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     stage : callable, optional
         ``stage(name)`` gives a context manager around each level (``"coarse"``: the
         prolongation, the Galerkin product and the coarse search; ``"fine"``: the fine
-        search, refinement and extension), e.g. a :class:`methods.base.StageTimer`.
+        search, refinement and extension), e.g. a :class:`parambench.methods.base.StageTimer`.
 
     Returns
     -------

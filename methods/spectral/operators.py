@@ -3,7 +3,7 @@
 With z = u + i v and a real Laplacian L = D - W (rows summing to zero),
 
 * Dirichlet energy  ``E_D(z) = 1/2 Re(z^H L z)`` (exact for cotangent weights at the
-  scale of :mod:`methods.mesh.weights`);
+  scale of :mod:`parambench.methods.mesh.weights`);
 * signed area       ``A(z) = z^H M z`` with M Hermitian, ``M[i, j] = -i/4`` and
   ``M[j, i] = +i/4`` for every oriented boundary edge i -> j (Eq. 6 summed over all
   loops, so holes oriented clockwise subtract their area);
@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import InvalidInputError
 
 __all__ = ["check_loops", "area_matrix", "boundary_indicator", "conformal_operator", "is_symmetric", "rayleigh_energy"]
 

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
 
 from ..hints import Hint, hinted
 from .ksearch import DEFAULT_R, KPoint, line_search
@@ -80,10 +80,10 @@ class ConformalProblem:
     ----------
     laplacian : (V, V) scipy.sparse matrix of float64
         L = D - W; rows must sum to zero. Scaled so that k = 1 is conformal for
-        cotangent weights (see :mod:`methods.mesh.weights`).
+        cotangent weights (see :mod:`parambench.methods.mesh.weights`).
     loops : sequence of (L_i,) array_like of int
         Oriented boundary loops: the outer one counter-clockwise in the intended image,
-        holes clockwise (e.g. :func:`methods.mesh.topology.boundary_loops`, which follows
+        holes clockwise (e.g. :func:`parambench.methods.mesh.topology.boundary_loops`, which follows
         the face orientation).
     b_matrix : "boundary" or (V, V) scipy.sparse matrix
         Mullen et al.'s B (1 at every boundary vertex), or a given positive
@@ -100,7 +100,7 @@ class ConformalProblem:
         With more boundary vertices than this, the SCP k search runs on a boundary
         subspace (``backend="subspace"``) under ``backend="auto"``.
     subspace_modes : int
-        Fourier modes of that subspace (:func:`methods.spectral.subspace.boundary_basis`).
+        Fourier modes of that subspace (:func:`parambench.methods.spectral.subspace.boundary_basis`).
     subspace_extra : (K, e) numpy.ndarray of float64, optional
         Further functions on the concatenated boundary loops added to that subspace (a
         coarse level's map, :mod:`.multilevel`); when given, the SCP k search under
@@ -130,7 +130,7 @@ class ConformalProblem:
         rowsum = np.abs(np.asarray(lap.sum(axis=1)).ravel())
         if rowsum.max() > 1e-8 * max(abs(lap).max(), 1.0):
             raise InvalidInputError("the Laplacian's rows do not sum to zero; build it as L = D - W "
-                                    "(methods.mesh.weights.laplacian).")
+                                    "(parambench.methods.mesh.weights.laplacian).")
         self.laplacian = lap
         self.n = n
         self.loops = check_loops(loops, n)
@@ -311,7 +311,7 @@ class ConformalProblem:
         Parameters
         ----------
         **line_kwargs
-            Passed to :func:`methods.spectral.ksearch.line_search`.
+            Passed to :func:`parambench.methods.spectral.ksearch.line_search`.
 
         Returns
         -------
@@ -533,7 +533,7 @@ class ConformalProblem:
             DNCP's pinned vertices and their positions (complex).
         backend : {"auto", "sparse", "boundary", "subspace"}
         r, growth, bracket, xatol
-            See :func:`methods.spectral.ksearch.line_search`.
+            See :func:`parambench.methods.spectral.ksearch.line_search`.
 
         Returns
         -------
@@ -552,7 +552,7 @@ class ConformalProblem:
         ConvergenceError
             The k search found no t = 1 crossing or did not converge.
         """
-        with single_threaded_blas():  # many small dense calls; see methods.spectral.threads
+        with single_threaded_blas():  # many small dense calls; see parambench.methods.spectral.threads
             return self._solve(mode, k_search, k=k, pins=pins, pin_values=pin_values, backend=backend, r=r,
                                growth=growth, bracket=bracket, xatol=xatol)
 

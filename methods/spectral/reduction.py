@@ -20,7 +20,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-from datasets_gen.errors import SolverError
+from parambench.datasets_gen.errors import SolverError
 
 from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
@@ -110,7 +110,7 @@ class BoundaryReduction:
             return out
         arrays_per_column = 4 if self._factor.mixed else 1
         block = max(8, int(self._max_block_bytes // (8 * arrays_per_column * self.interior.size)))
-        with single_threaded_blas():  # see methods.spectral.threads
+        with single_threaded_blas():  # see parambench.methods.spectral.threads
             for start in range(0, x.shape[1], block):
                 cols = slice(start, min(start + block, x.shape[1]))
                 out[:, cols] -= self._l_ki @ self._factor.solve(np.ascontiguousarray(self._l_ik @ x[:, cols]))

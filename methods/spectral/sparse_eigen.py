@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
-from datasets_gen.errors import ConvergenceError, SolverError, UnknownNameError
+from parambench.datasets_gen.errors import ConvergenceError, SolverError, UnknownNameError
 
 from ..hints import Hint, hinted
 from .threads import single_threaded_blas
@@ -45,7 +45,7 @@ class SparseFactor:
         In mixed precision a CSR or CSC matrix is kept by reference for the
         refinement residuals: do not modify it while the factor is in use.
     perm : (V,) numpy.ndarray of int64, optional
-        Symmetric elimination order (e.g. :func:`~methods.spectral.ordering.nested_dissection`);
+        Symmetric elimination order (e.g. :func:`~parambench.methods.spectral.ordering.nested_dissection`);
         SuperLU's minimum degree on ``A^T + A`` otherwise.
     hermitian : bool
         Factor without row pivoting, so that :meth:`negative_pivots` gives the inertia.
@@ -308,7 +308,7 @@ def smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: boo
     ConvergenceError
         ARPACK did not converge, or the smallest eigenvalue could not be isolated.
     """
-    with single_threaded_blas():  # see methods.spectral.threads
+    with single_threaded_blas():  # see parambench.methods.spectral.threads
         return _smallest_eigenpair(k_mat, b_mat, hermitian=hermitian, perm=perm, allow_negative=allow_negative,
                                    check_inertia=check_inertia, nev=nev, tol=tol, seed=seed, max_shifts=max_shifts)
 

@@ -22,7 +22,7 @@ interior solves per step), so the subspace decides the k but not the map. Measur
 3e-5 (saddle) relative after 6-8 steps, and k_opt with the dense search to 1e-7-9e-5.
 A single search can miss by far more where the map near k_opt is not smooth along the
 boundary (measured: 1.4e-3 on a jittered cylinder and 5.6e-2 on a random-sampled bump
-at 20k points, 0.18 at 5k), so :class:`~methods.spectral.problem.ConformalProblem`
+at 20k points, 0.18 at 5k), so :class:`~parambench.methods.spectral.problem.ConformalProblem`
 keeps the refinement's directions (``refine(absorb=True)``) and searches again on the
 grown subspace until k_opt settles (to 2e-6 and 2e-5 of the dense search on those two).
 """
@@ -36,7 +36,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
-from datasets_gen.errors import SolverError
+from parambench.datasets_gen.errors import SolverError
 
 from ..hints import Hint, hinted
 from .ksearch import KPoint

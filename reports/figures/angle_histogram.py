@@ -53,7 +53,7 @@ def angle_histogram_figure(histograms: Sequence[tuple[str, object]], edges: np.n
         ``edges``); variants without a histogram are skipped.
     edges : (B + 1,) array_like of float
         The bin edges in degrees the counts were taken over
-        (``bench.schema.ANGLE_HIST_EDGES_DEG``).
+        (``parambench.bench.schema.ANGLE_HIST_EDGES_DEG``).
     title : str
         The surface's name.
 

@@ -21,7 +21,7 @@ def benchmark_figure(stats: pd.DataFrame) -> Picture | None:
     Parameters
     ----------
     stats : pandas.DataFrame
-        Output of :func:`reports.benchmarks.load_benchmarks`.
+        Output of :func:`parambench.reports.benchmarks.load_benchmarks`.
 
     Returns
     -------

@@ -53,7 +53,7 @@ def scaling_fits(rows: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     rows : pandas.DataFrame
-        Labelled rows (see :func:`reports.labels.add_labels`).
+        Labelled rows (see :func:`parambench.reports.labels.add_labels`).
 
     Returns
     -------

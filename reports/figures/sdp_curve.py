@@ -17,7 +17,7 @@ def sdp_curve_figure(curve: pd.DataFrame) -> Picture | None:
     Parameters
     ----------
     curve : pandas.DataFrame
-        Output of :func:`reports.claims.sdp_size_curve` (columns ``family``, ``variant``,
+        Output of :func:`parambench.reports.claims.sdp_size_curve` (columns ``family``, ``variant``,
         ``n``, ``qc_mean``, ``foldover_fraction``).
 
     Returns

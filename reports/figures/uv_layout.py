@@ -34,7 +34,7 @@ class LayoutPanel:
     """One method's map: its label, arrays and headline numbers for the panel title.
 
     ``qc_mean_high`` is the highest QC mean of the methods the panel stands for, when it
-    draws several near-identical maps (:mod:`reports.map_groups`); the title then gives the
+    draws several near-identical maps (:mod:`parambench.reports.map_groups`); the title then gives the
     range.
     """
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from datasets_gen.real import real_data_dir
+from parambench.datasets_gen.real import real_data_dir
 
 
 @pytest.fixture

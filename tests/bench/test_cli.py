@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.cli import main
-from bench.metrics import count_foldovers, jacobian_singular_values
+from parambench.bench.cli import main
+from parambench.bench.metrics import count_foldovers, jacobian_singular_values
 
 
 def _read_obj(path):
@@ -132,7 +132,7 @@ def test_inspect_writes_frontend_json(real_dir, tmp_path):
 
 
 def test_flatten_point_cloud_with_ocp(tmp_path, write_obj):
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     surface = make_surface("bump", 1500, sampling="jittered", seed=0)
     src = write_obj(tmp_path / "bump.obj", surface.points, surface.faces)
@@ -185,10 +185,10 @@ def test_run_option_that_is_not_a_number_is_one_line(tmp_path, capsys):
 
 
 def test_run_retries_failed_cells_and_refuses_a_busy_folder(tmp_path, capsys):
-    from bench.folder_lock import hold_folder
-    from bench.run_cell import failed_row
-    from bench.storage import ResultStore
-    from bench.suites import Suite, expand_cells
+    from parambench.bench.folder_lock import hold_folder
+    from parambench.bench.run_cell import failed_row
+    from parambench.bench.storage import ResultStore
+    from parambench.bench.suites import Suite, expand_cells
 
     out = tmp_path / "r"
     argv = ["run", "--datasets", "plane", "--sizes", "500", "--methods", "scp", "--out", str(out),

@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from bench.cli import EXIT_SELFCHECK, main
+from parambench.bench.cli import EXIT_SELFCHECK, main
 
 
 @pytest.fixture(scope="module")
 def bump_xyz(tmp_path_factory):
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     surface = make_surface("bump", 900, sampling="jittered", seed=0)
     path = tmp_path_factory.mktemp("in") / "bump.xyz"
@@ -51,9 +51,9 @@ def test_force_writes_the_failing_map_with_a_warning(bump_xyz, tmp_path, capsys)
 @pytest.fixture(scope="module")
 def sdp_outputs(bump_xyz, tmp_path_factory):
     """flatten --points-only with sdp to .obj and .ply, and the map itself."""
-    from datasets_gen.surface import Surface
-    from methods import get_method
-    from methods.pointset.selfcheck import pointset_faces
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods import get_method
+    from parambench.methods.pointset.selfcheck import pointset_faces
 
     src, points = bump_xyz
     root = tmp_path_factory.mktemp("out")

@@ -15,8 +15,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.suites import Suite
-from bench.sweep import run_sweep
+from parambench.bench.suites import Suite
+from parambench.bench.sweep import run_sweep
 
 pytestmark = pytest.mark.slow
 

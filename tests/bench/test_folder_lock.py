@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from bench.folder_lock import LOCK_NAME, hold_folder
-from datasets_gen.errors import ResultsInUseError
+from parambench.bench.folder_lock import LOCK_NAME, hold_folder
+from parambench.datasets_gen.errors import ResultsInUseError
 
 # A holder in another process: takes the lock, says so, then sleeps until killed or done.
 _HOLDER = """
 import sys, time
-from bench.folder_lock import hold_folder
+from parambench.bench.folder_lock import hold_folder
 with hold_folder(sys.argv[1]):
     print("held", flush=True)
     time.sleep(float(sys.argv[2]))

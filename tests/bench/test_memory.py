@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from bench.memory import PeakMemory, current_rss_mb, high_water_mb
-from methods.base import StageTimer, active_stage
+from parambench.bench.memory import PeakMemory, current_rss_mb, high_water_mb
+from parambench.methods.base import StageTimer, active_stage
 
 
 def test_active_stage_follows_nested_stages():

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from methods.pose import surface_pose
+from parambench.methods.pose import surface_pose
 import pytest
 
-from bench.cells import Cell
-from bench.cli import main
-from bench.run_cell import compute_cell, surface_for
-from methods import Method, Parameterization
-from methods.registry import register, _REGISTRY
+from parambench.bench.cells import Cell
+from parambench.bench.cli import main
+from parambench.bench.run_cell import compute_cell, surface_for
+from parambench.methods import Method, Parameterization
+from parambench.methods.registry import register, _REGISTRY
 
 
 class _PointSpy(Method):
@@ -58,7 +58,7 @@ def test_generated_surface_reaches_methods_without_ground_truth(spies, noise):
         assert row["status"] in ("ok", "suspect"), row["error"]
         (given,) = spy.seen
         assert _no_ground_truth(given) and given.normals is None
-        # methods see the centred, unit-size principal-frame copy of the points (methods.pose)
+        # methods see the centred, unit-size principal-frame copy of the points (parambench.methods.pose)
         np.testing.assert_allclose(given.points, surface_pose(truth.points).to_unit(truth.points), atol=1e-12)
     assert point_spy.seen[0].faces is None
     np.testing.assert_array_equal(mesh_spy.seen[0].faces, truth.faces)
@@ -67,15 +67,15 @@ def test_generated_surface_reaches_methods_without_ground_truth(spies, noise):
 
 
 def test_file_normals_are_data_until_noise_moves_the_points(spies):
-    from bench.run_cell import _method_input
-    from datasets_gen.registry import make_surface
+    from parambench.bench.run_cell import _method_input
+    from parambench.datasets_gen.registry import make_surface
 
     point_spy, _ = spies
     truth = surface_for("real/chameleon", 0, "", 0.0, 0)
     assert truth.params["normals"] == "file"
     compute_cell(Cell("real/chameleon", 0, "", 0.0, 0, point_spy.name))
     (given,) = point_spy.seen
-    # as `flatten` would pass them, turned into the unit pose's frame (methods.pose)
+    # as `flatten` would pass them, turned into the unit pose's frame (parambench.methods.pose)
     np.testing.assert_allclose(given.normals, truth.normals @ surface_pose(truth.points).rotation.T, atol=1e-12)
     assert _no_ground_truth(given)
     # once noise has moved the points, the file's normals describe the clean surface: withheld
@@ -84,7 +84,7 @@ def test_file_normals_are_data_until_noise_moves_the_points(spies):
 
 
 def test_flatten_merges_copies_with_one_line_and_writes_every_row(tmp_path, capsys):
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     base = make_surface("bump", 800, sampling="jittered", seed=0).points
     rng = np.random.default_rng(1)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from bench.metrics import (
+from parambench.bench.metrics import (
     ANGLE_HIST_EDGES_DEG,
     METRIC_KEYS,
     SELFMESH_KEYS,
@@ -34,7 +34,7 @@ from bench.metrics import (
     uv_delaunay_faces,
     weighted_quantile,
 )
-from datasets_gen.errors import DegenerateFacesError, InvalidInputError
+from parambench.datasets_gen.errors import DegenerateFacesError, InvalidInputError
 
 
 # ---------------------------------------------------------------- helpers
@@ -397,7 +397,7 @@ def test_uv_delaunay_drops_triangles_spanning_a_hole():
 
 
 def test_uv_delaunay_orients_faces_whatever_qhull_returns(monkeypatch):
-    import bench.metrics.eval_mesh as eval_mesh
+    import parambench.bench.metrics.eval_mesh as eval_mesh
 
     class Scrambled:  # qhull does not promise an orientation: reverse every other simplex
         def __init__(self, uv):
@@ -638,8 +638,8 @@ def test_self_scored_needs_loops():
 
 
 def test_point_set_cell_stores_the_new_and_self_scored_columns():
-    from bench.cells import Cell
-    from bench.run_cell import METRIC_COLUMNS, compute_cell
+    from parambench.bench.cells import Cell
+    from parambench.bench.run_cell import METRIC_COLUMNS, compute_cell
 
     row, _ = compute_cell(Cell("bump", 900, "jittered", 0.0, 0, "sdp"))
     assert row["status"] == "ok"

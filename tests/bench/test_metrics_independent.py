@@ -1,6 +1,6 @@
 """The judge's own loops, turning numbers and foldovers agree with the methods' versions.
 
-``bench.metrics`` re-implements these on purpose (it must not import the methods'
+``parambench.bench.metrics`` re-implements these on purpose (it must not import the methods'
 numerics); comparing the two on several inputs makes a bug in either one show here.
 """
 
@@ -10,15 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import bench.metrics as metrics_pkg
-from bench.metrics import (count_foldovers, flipped_mask, mesh_boundary_loops, signed_area_2d,
+import parambench.bench.metrics as metrics_pkg
+from parambench.bench.metrics import (count_foldovers, flipped_mask, mesh_boundary_loops, signed_area_2d,
                            triangle_signed_areas, turning_number)
-from datasets_gen.mesh_loops import boundary_loops as methods_boundary_loops
-from datasets_gen.registry import make_surface
-from methods.geometry2d import flipped_triangles as methods_flipped
-from methods.geometry2d import signed_area_2d as methods_signed_area_2d
-from methods.geometry2d import triangle_signed_areas as methods_triangle_areas
-from methods.geometry2d import turning_number as methods_turning_number
+from parambench.datasets_gen.mesh_loops import boundary_loops as methods_boundary_loops
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.geometry2d import flipped_triangles as methods_flipped
+from parambench.methods.geometry2d import signed_area_2d as methods_signed_area_2d
+from parambench.methods.geometry2d import triangle_signed_areas as methods_triangle_areas
+from parambench.methods.geometry2d import turning_number as methods_turning_number
 
 
 def _cyclic_key(loop) -> tuple:

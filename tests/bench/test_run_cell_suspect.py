@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from bench.cells import Cell
-from bench.run_cell import compute_cell
+from parambench.bench.cells import Cell
+from parambench.bench.run_cell import compute_cell
 
 
 def test_spinning_map_is_stored_as_suspect_with_its_metrics():

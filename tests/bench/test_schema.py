@@ -5,16 +5,16 @@ import json
 import numpy as np
 import pytest
 
-from bench.cells import Cell
-from bench.dataset_diagnostics import store_missing_diagnostics
-from bench.metrics import evaluate, self_scored
-from bench.run_cell import compute_cell, store_cell
-from bench.schema import (JSON_COLUMNS, METRIC_KEYS, NUMERIC_COLUMNS, ROW_COLUMNS, SELFMESH_KEYS, TEXT_COLUMNS,
+from parambench.bench.cells import Cell
+from parambench.bench.dataset_diagnostics import store_missing_diagnostics
+from parambench.bench.metrics import evaluate, self_scored
+from parambench.bench.run_cell import compute_cell, store_cell
+from parambench.bench.schema import (JSON_COLUMNS, METRIC_KEYS, NUMERIC_COLUMNS, ROW_COLUMNS, SELFMESH_KEYS, TEXT_COLUMNS,
                           dataset_key, decode_json, decode_loops, encode_json, encode_loops, slug)
-from bench.storage import ResultStore
-from datasets_gen.errors import InputFileError
-from datasets_gen.registry import make_surface
-from reports.load import dataset_key_candidates, load_cell_arrays, load_dataset_arrays, load_results
+from parambench.bench.storage import ResultStore
+from parambench.datasets_gen.errors import InputFileError
+from parambench.datasets_gen.registry import make_surface
+from parambench.reports.load import dataset_key_candidates, load_cell_arrays, load_dataset_arrays, load_results
 
 
 def test_column_kinds_partition_the_row():
@@ -89,7 +89,7 @@ def test_a_stored_cell_reads_back_with_every_column(tmp_path, method):
 
 
 def test_surface_diagnostics_cotangent_rows_are_normalised():
-    from bench.dataset_diagnostics import surface_diagnostics
+    from parambench.bench.dataset_diagnostics import surface_diagnostics
 
     surface = make_surface("holes", 500, seed=2)
     arrays = surface_diagnostics(surface)

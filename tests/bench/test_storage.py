@@ -6,9 +6,9 @@ import os
 import numpy as np
 import pytest
 
-from bench.cells import Cell
-from bench.storage import ResultStore, StoredCells, check_output_dir
-from datasets_gen.errors import InputFileError
+from parambench.bench.cells import Cell
+from parambench.bench.storage import ResultStore, StoredCells, check_output_dir
+from parambench.datasets_gen.errors import InputFileError
 
 
 def test_rows_and_arrays_round_trip(tmp_path):

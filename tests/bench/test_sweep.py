@@ -15,10 +15,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.cells import Cell
-from bench.storage import ResultStore
-from bench.suites import Suite, expand_cells, get_suite
-from bench.sweep import run_sweep
+from parambench.bench.cells import Cell
+from parambench.bench.storage import ResultStore
+from parambench.bench.suites import Suite, expand_cells, get_suite
+from parambench.bench.sweep import run_sweep
 
 TINY = Suite(name="tiny", datasets=("plane", "saddle"), sizes=(600,), samplings=("jittered",), seeds=(0,),
              methods=("lscm-igl", "scp-igl"))
@@ -33,7 +33,7 @@ def test_expand_cells_is_deterministic_and_complete():
 
 
 def test_quick_suite_covers_every_registered_method():
-    from methods.registry import method_names
+    from parambench.methods.registry import method_names
 
     cells = expand_cells(get_suite("quick"))
     assert {c.method for c in cells} == set(method_names())
@@ -77,7 +77,7 @@ def test_same_command_same_table(tmp_path):
 
 def test_killed_run_keeps_finished_cells(tmp_path):
     out = tmp_path / "r"
-    argv = [sys.executable, "-m", "bench.cli", "run", "--datasets", "plane", "saddle", "bump", "cap",
+    argv = [sys.executable, "-m", "parambench.bench.cli", "run", "--datasets", "plane", "saddle", "bump", "cap",
             "--sizes", "800", "--methods", "scp-igl", "lscm-igl", "--out", str(out), "--no-report", "--no-progress"]
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             cwd=Path(__file__).resolve().parents[2])
@@ -121,7 +121,7 @@ def _plan_line(err: str) -> str:
 
 
 def test_failed_cells_are_retried_unless_kept(tmp_path, capsys):
-    from bench.run_cell import failed_row
+    from parambench.bench.run_cell import failed_row
 
     first, second = expand_cells(PLANE)
     store = ResultStore(tmp_path)
@@ -161,8 +161,8 @@ def test_truncated_cell_file_is_reported_and_recomputed(tmp_path, capsys):
 
 
 def test_sweep_refuses_a_folder_in_use_and_computes_nothing(tmp_path):
-    from bench.folder_lock import hold_folder
-    from datasets_gen.errors import ResultsInUseError
+    from parambench.bench.folder_lock import hold_folder
+    from parambench.datasets_gen.errors import ResultsInUseError
 
     (tmp_path / "r").mkdir()
     with hold_folder(tmp_path / "r"):  # stands in for another sweep on the same folder
@@ -188,7 +188,7 @@ def test_bad_suite_is_refused_before_any_folder(tmp_path, field, value, error):
 
 
 def test_bad_workers_refused_before_any_folder(tmp_path):
-    from datasets_gen.errors import InvalidInputError
+    from parambench.datasets_gen.errors import InvalidInputError
 
     with pytest.raises(InvalidInputError, match="--workers"):
         run_sweep(PLANE, str(tmp_path / "r"), workers=0, progress=False)
@@ -196,7 +196,7 @@ def test_bad_workers_refused_before_any_folder(tmp_path):
 
 
 def test_progress_and_summary_label_variants_as_the_report(tmp_path, capsys):
-    from bench.sweep import summary_table
+    from parambench.bench.sweep import summary_table
 
     suite = replace(PLANE, seeds=(0,), variants=(("scp", (("b_matrix", "mass"),)),))
     table = run_sweep(suite, str(tmp_path), progress=True, diagnostics=False)

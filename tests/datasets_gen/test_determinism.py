@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.registry import make_surface
+from parambench.datasets_gen.registry import make_surface
 
 ARRAYS = ("points", "faces", "normals", "boundary_mask", "exact_uv")
 

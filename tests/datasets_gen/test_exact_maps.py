@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.registry import make_surface
-from datasets_gen.shapes import SHAPES
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.shapes import SHAPES
 
 
 def test_flat_maps_are_the_identity():

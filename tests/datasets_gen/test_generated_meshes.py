@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.registry import SAMPLINGS, dataset_names, make_surface
-from datasets_gen.shapes import SHAPES
-from methods.mesh.topology import require_connected_disk_like
+from parambench.datasets_gen.registry import SAMPLINGS, dataset_names, make_surface
+from parambench.datasets_gen.shapes import SHAPES
+from parambench.methods.mesh.topology import require_connected_disk_like
 
 PROCEDURAL = [n for n in dataset_names() if not n.startswith("real/")]
 N_HOLES = {"holes": 3, "holes-bumped": 3, "slit": 1}
@@ -109,7 +109,7 @@ def test_protrusions_sampling_is_uniform_on_the_surface(helpers):
 
 def test_holes_boundary_loops_are_the_domain_circles():
     s = make_surface("holes", 3000, sampling="grid", seed=0)
-    from datasets_gen.shapes.flat import HOLES
+    from parambench.datasets_gen.shapes.flat import HOLES
 
     outer = s.points[s.boundary_loops[0], :2]
     assert np.all(np.isclose(np.abs(outer), 1.0).any(axis=1))  # on the square's sides

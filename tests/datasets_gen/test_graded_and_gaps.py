@@ -7,15 +7,15 @@ import pytest
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from datasets_gen.build import nominal_spacing
-from datasets_gen.domains import Disk, Domain, Stadium
-from datasets_gen.errors import InvalidInputError
-from datasets_gen.registry import SAMPLINGS, dataset_info, dataset_names, make_surface
-from datasets_gen.sampling.boundary import place_boundary
-from datasets_gen.sampling.graded import DENSITY_RATIO, graded_sizing
-from datasets_gen.sampling.poisson_disk import poisson_disk_select
-from datasets_gen.shapes import SHAPES
-from methods.mesh.topology import require_connected_disk_like
+from parambench.datasets_gen.build import nominal_spacing
+from parambench.datasets_gen.domains import Disk, Domain, Stadium
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.registry import SAMPLINGS, dataset_info, dataset_names, make_surface
+from parambench.datasets_gen.sampling.boundary import place_boundary
+from parambench.datasets_gen.sampling.graded import DENSITY_RATIO, graded_sizing
+from parambench.datasets_gen.sampling.poisson_disk import poisson_disk_select
+from parambench.datasets_gen.shapes import SHAPES
+from parambench.methods.mesh.topology import require_connected_disk_like
 
 from .conftest import unique_edges
 

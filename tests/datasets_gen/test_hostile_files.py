@@ -14,9 +14,9 @@ import struct
 import numpy as np
 import pytest
 
-from bench.cli import main as cli_main
-from datasets_gen.errors import InputFileError
-from datasets_gen.io import load_surface
+from parambench.bench.cli import main as cli_main
+from parambench.datasets_gen.errors import InputFileError
+from parambench.datasets_gen.io import load_surface
 
 # a square of 4 triangles around its centre: 5 vertices
 PTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 0.2]])

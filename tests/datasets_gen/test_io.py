@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InputFileError
-from datasets_gen.io import SUPPORTED_EXTENSIONS, load_surface
-from datasets_gen.real import pymeshlab_samples_dir, real_data_dir
+from parambench.datasets_gen.errors import InputFileError
+from parambench.datasets_gen.io import SUPPORTED_EXTENSIONS, load_surface
+from parambench.datasets_gen.real import pymeshlab_samples_dir, real_data_dir
 
 # A square of 4 triangles around a raised centre, plus one unreferenced vertex in the middle
 # of the list: the loader must keep it, in place.
@@ -286,7 +286,7 @@ def _sample_files():
 def test_our_readers_agree_with_pymeshlab_on_well_formed_files(path):
     import pymeshlab
 
-    from datasets_gen.formats import read_file
+    from parambench.datasets_gen.formats import read_file
 
     if not path.is_file():
         pytest.skip(f"{path} is not installed")

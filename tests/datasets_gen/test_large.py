@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.registry import make_surface
-from methods.mesh.topology import require_connected_disk_like
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.mesh.topology import require_connected_disk_like
 
 
 @pytest.mark.slow

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InputFileError, InvalidInputError, TooFewPointsError, UnknownNameError
-from datasets_gen.registry import SAMPLINGS, dataset_info, dataset_names, make_surface
+from parambench.datasets_gen.errors import InputFileError, InvalidInputError, TooFewPointsError, UnknownNameError
+from parambench.datasets_gen.registry import SAMPLINGS, dataset_info, dataset_names, make_surface
 
 PROCEDURAL = ["plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions", "gnome-strip",
               "slit", "fold"]

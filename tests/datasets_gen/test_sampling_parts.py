@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from datasets_gen.domains import Disk, Domain, Rect
-from datasets_gen.sampling.area_uniform import sample_by_area
-from datasets_gen.sampling.boundary import near_boundary, place_boundary
-from datasets_gen.sampling.lattice import jitter_in_disk, triangular_lattice
-from datasets_gen.sampling.poisson_disk import poisson_disk_select
-from datasets_gen.sampling.sizing import BOUNDARY_EXCESS, LATTICE_DENSITY, spacing_for_count
-from datasets_gen.shapes import SHAPES
+from parambench.datasets_gen.domains import Disk, Domain, Rect
+from parambench.datasets_gen.sampling.area_uniform import sample_by_area
+from parambench.datasets_gen.sampling.boundary import near_boundary, place_boundary
+from parambench.datasets_gen.sampling.lattice import jitter_in_disk, triangular_lattice
+from parambench.datasets_gen.sampling.poisson_disk import poisson_disk_select
+from parambench.datasets_gen.sampling.sizing import BOUNDARY_EXCESS, LATTICE_DENSITY, spacing_for_count
+from parambench.datasets_gen.shapes import SHAPES
 
 
 def test_triangular_lattice_is_equilateral():

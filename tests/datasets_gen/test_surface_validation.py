@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from datasets_gen.errors import (
+from parambench.datasets_gen.errors import (
     DegenerateFacesError,
     DuplicatePointsError,
     InvalidInputError,
     TooFewPointsError,
 )
-from datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface
 
 
 def _square():
@@ -47,7 +47,7 @@ def test_too_few_points():
 
 
 def test_coincident_points_of_a_point_set_are_data():
-    # point-set methods merge them (methods.pointset.coincident); the Surface keeps every row
+    # point-set methods merge them (parambench.methods.pointset.coincident); the Surface keeps every row
     pts, _ = _square()
     s = Surface(np.vstack([pts, pts[1]]))
     assert s.n_points == 6 and np.array_equal(s.points[5], s.points[1])
@@ -74,7 +74,7 @@ def test_edge_joining_coincident_vertices_is_refused():
 
 
 def test_require_unique_points_still_refuses_for_its_callers():
-    from datasets_gen.surface import require_unique_points
+    from parambench.datasets_gen.surface import require_unique_points
 
     pts, _ = _square()
     with pytest.raises(DuplicatePointsError, match="1 and 5"):
@@ -82,7 +82,7 @@ def test_require_unique_points_still_refuses_for_its_callers():
 
 
 def test_method_input_holds_no_ground_truth():
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     gt = make_surface("cap", 300, sampling="jittered", seed=0)  # cap has an exact map
     assert gt.normals is not None and gt.exact_uv is not None and gt.boundary_loops is not None

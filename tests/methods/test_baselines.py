@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from bench.metrics import evaluate
-from datasets_gen.registry import make_surface
-from methods import get_method
+from parambench.bench.metrics import evaluate
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods import get_method
 
 
 def _metrics(surface, method):

@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.metrics import evaluate, similarity_align
-from datasets_gen.errors import MissingFacesError, NotADiskError
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from methods import get_method
+from parambench.bench.metrics import evaluate, similarity_align
+from parambench.datasets_gen.errors import MissingFacesError, NotADiskError
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import get_method
 
 #: QC mean may exceed scp-igl's by this fraction (measured +0.002 % and -0.01 %).
 QC_MARGIN = 1e-3

@@ -10,13 +10,13 @@ import re
 import numpy as np
 import pytest
 
-from datasets_gen.errors import ConvergenceError, NoBoundaryError, ParambenchError, SolverError, TooFewPointsError
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from methods import Parameterization, get_method
-from methods.hints import FALLBACK, Hint, fit_hints, hinted, method_hints
-from methods.registry import all_methods
-from methods.spectral.ksearch import KPoint, line_search
+from parambench.datasets_gen.errors import ConvergenceError, NoBoundaryError, ParambenchError, SolverError, TooFewPointsError
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import Parameterization, get_method
+from parambench.methods.hints import FALLBACK, Hint, fit_hints, hinted, method_hints
+from parambench.methods.registry import all_methods
+from parambench.methods.spectral.ksearch import KPoint, line_search
 
 #: Every parameter name of every registered method that could not pass for an English word.
 PARAM_NAMES = {p for cls in all_methods().values() for p in cls.defaults if "_" in p}

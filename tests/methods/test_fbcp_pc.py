@@ -17,13 +17,13 @@ import pytest
 import scipy.sparse as sp
 from scipy.spatial import Delaunay, cKDTree
 
-from bench.metrics import evaluate
-from bench.run_cell import _method_input
-from datasets_gen.errors import InvalidInputError, UnknownNameError
-from datasets_gen.registry import make_surface
-from methods import get_method
-from methods.plugins.fbcp_pc import _loop_neighbour_columns, fbcp_laplacian
-from methods.pointset.local_delaunay import (drop_outside_boundary, local_delaunay_rings,
+from parambench.bench.metrics import evaluate
+from parambench.bench.run_cell import _method_input
+from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods import get_method
+from parambench.methods.plugins.fbcp_pc import _loop_neighbour_columns, fbcp_laplacian
+from parambench.methods.pointset.local_delaunay import (drop_outside_boundary, local_delaunay_rings,
                                              one_ring_cotangent_weights)
 
 #: QC mean may exceed scp-igl's by this fraction (worst measured: +0.014 %).

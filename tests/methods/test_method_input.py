@@ -6,16 +6,16 @@ import warnings
 
 import numpy as np
 
-from methods.pose import surface_pose
+from parambench.methods.pose import surface_pose
 import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from bench.metrics import count_foldovers, jacobian_singular_values
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from methods import Method, Parameterization, get_method
-from methods.pointset.coincident import MERGE_SPACING_TOL, CoincidentPointsWarning, coincident_groups
+from parambench.bench.metrics import count_foldovers, jacobian_singular_values
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import Method, Parameterization, get_method
+from parambench.methods.pointset.coincident import MERGE_SPACING_TOL, CoincidentPointsWarning, coincident_groups
 
 
 def _spacing(points):
@@ -100,7 +100,7 @@ def test_every_point_set_method_gets_distinct_points_and_no_faces():
         out = _Spy()(Surface(np.vstack([pts, pts[[5, 7, 5]]]), faces, name="spy"))
     given = _Spy.seen[0]
     assert given.n_points == 40 and given.faces is None
-    # the distinct points, in the unit pose every method sees (methods.pose)
+    # the distinct points, in the unit pose every method sees (parambench.methods.pose)
     np.testing.assert_allclose(given.points, surface_pose(pts).to_unit(pts), atol=1e-12)
     np.testing.assert_array_equal(out.uv[40:], out.uv[[5, 7, 5]])
 
@@ -111,7 +111,7 @@ def test_no_copies_no_warning_and_same_surface():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _Spy()(surface)
-    # nothing merged: the method sees all points, only moved to the unit pose (methods.pose)
+    # nothing merged: the method sees all points, only moved to the unit pose (parambench.methods.pose)
     np.testing.assert_allclose(_Spy.seen[0].points, surface_pose(surface.points).to_unit(surface.points), atol=1e-12)
 
 
@@ -182,7 +182,7 @@ def cut_disk():
 
 
 def test_cut_mesh_is_one_disk_with_the_seam_on_its_boundary(cut_disk):
-    from datasets_gen.mesh_loops import mesh_boundary
+    from parambench.datasets_gen.mesh_loops import mesh_boundary
 
     surface, n_before, path = cut_disk
     loops, _ = mesh_boundary(surface.faces, surface.n_points)
@@ -206,8 +206,8 @@ def test_mesh_methods_flatten_a_cut_mesh(cut_disk, method):
 
 
 def test_textured_bunny_obj_loads_as_a_mesh():
-    from datasets_gen.io import load_surface
-    from datasets_gen.real import pymeshlab_samples_dir
+    from parambench.datasets_gen.io import load_surface
+    from parambench.datasets_gen.real import pymeshlab_samples_dir
 
     surface = load_surface(pymeshlab_samples_dir() / "bunny10k_textured.obj")
     assert surface.has_faces and surface.n_points == 5051 and len(surface.faces) == 9999

@@ -13,13 +13,13 @@ import pytest
 import scipy.sparse as sp
 from scipy.spatial.distance import pdist, squareform
 
-from bench.metrics import evaluate
-from bench.metrics.alignment import similarity_align
-from datasets_gen.errors import InvalidInputError, UnknownNameError
-from datasets_gen.registry import make_surface
-from methods import get_method
-from methods.pointset.subsample import poisson_disk_subsample
-from methods.spectral.multilevel import interpolation_matrix, multilevel_scp
+from parambench.bench.metrics import evaluate
+from parambench.bench.metrics.alignment import similarity_align
+from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods import get_method
+from parambench.methods.pointset.subsample import poisson_disk_subsample
+from parambench.methods.spectral.multilevel import interpolation_matrix, multilevel_scp
 
 
 def _grid(n: int = 20) -> np.ndarray:

@@ -3,7 +3,7 @@
 The subprocess tests copy the project, block numba's in-tree cache folder (a file named
 ``__pycache__`` where the folder would go: as a read-only install does, and unlike permission
 bits this also holds for root) and give the process ``HOME=/proc/nonexistent``, a folder
-nobody can create. Without :mod:`methods.numba_cache` numba raises at import.
+nobody can create. Without :mod:`parambench.methods.numba_cache` numba raises at import.
 """
 
 from __future__ import annotations
@@ -18,27 +18,35 @@ import numba.core.config
 import numpy as np
 import pytest
 
-from methods.numba_cache import can_write, configure_numba_cache
+from parambench.methods.numba_cache import can_write, configure_numba_cache
 
 ROOT = Path(__file__).resolve().parents[2]
 UNWRITABLE = Path("/proc/nonexistent")  # /proc refuses new entries, even to root
 
 
 def _blocked_copy(dest: Path) -> Path:
-    """The project's packages in ``dest``, with numba's in-tree cache impossible to create."""
+    """The project's packages in ``dest/parambench`` (the installed layout), with numba's
+    in-tree cache impossible to create."""
     for package in ("methods", "datasets_gen", "bench", "reports"):
-        shutil.copytree(ROOT / package, dest / package, ignore=shutil.ignore_patterns("__pycache__"))
-    (dest / "methods" / "pointset" / "__pycache__").write_text("not a folder\n")
+        shutil.copytree(ROOT / package, dest / "parambench" / package, ignore=shutil.ignore_patterns("__pycache__"))
+    (dest / "parambench" / "methods" / "pointset" / "__pycache__").write_text("not a folder\n")
     return dest
 
 
 def _run_cli(tree: Path, tmpdir: Path, *argv: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME", "PYTHONPATH")}
     env.update(HOME=str(UNWRITABLE), TMPDIR=str(tmpdir), PYTHONPATH=str(tree))
-    # The console script's entry point (bench.cli:main), so the copy is what runs.
-    code = f"import sys; from bench.cli import main; sys.exit(main({list(argv)!r}))"
+    # The console script's entry point (parambench.bench.cli:main), so the copy is what runs.
+    code = f"import sys; from parambench.bench.cli import main; sys.exit(main({list(argv)!r}))"
     return subprocess.run([sys.executable, "-c", code], cwd=tmpdir, env=env, capture_output=True, text=True,
                           timeout=300)
+
+
+def _run_python(tree: Path, tmpdir: Path, code: str) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.update(PYTHONPATH=str(tree))
+    return subprocess.run([sys.executable, "-c", code], cwd=tmpdir, env=env, capture_output=True, text=True,
+                          timeout=120)
 
 
 @pytest.fixture(scope="module")
@@ -55,6 +63,9 @@ def test_list_runs_without_a_writable_home(blocked):
     assert not can_write(UNWRITABLE / ".cache" / "numba")
     done = _run_cli(tree, tmpdir, "list")
     assert done.returncode == 0, done.stderr
+    # The copy ran, not an installed parambench (its numba kernels are what the test blocks).
+    where = _run_python(tree, tmpdir, "import parambench.methods as m; print(m.__file__)")
+    assert Path(where.stdout.strip()).is_relative_to(tree), where.stderr
     assert "ocp" in done.stdout and "real/camelhead" in done.stdout
 
 

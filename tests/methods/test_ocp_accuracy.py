@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import pytest
 
-from bench.metrics import evaluate
-from datasets_gen.registry import make_surface
-from methods import get_method
+from parambench.bench.metrics import evaluate
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods import get_method
 
 N_POINTS = 5000
 #: Honest bound: the worst measured case is +0.06 %.

@@ -7,12 +7,12 @@ import pytest
 import scipy.sparse as sp
 import scipy.spatial
 
-from bench.metrics import evaluate, similarity_align
-from datasets_gen.errors import InvalidInputError, MissingFacesError, NoBoundaryError
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from methods import get_method
-from methods.spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
+from parambench.bench.metrics import evaluate, similarity_align
+from parambench.datasets_gen.errors import InvalidInputError, MissingFacesError, NoBoundaryError
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import get_method
+from parambench.methods.spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
 
 POINT_METHODS = ["lem", "lle", "sdp", "ocp", "scp-tan", "scp-rl", "sdp-rl"]
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from dataclasses import replace
 
-from bench.metrics import evaluate
-from datasets_gen.registry import make_surface
-from methods import get_method, method_names
-from methods.pose import normalised_surface, surface_pose
+from parambench.bench.metrics import evaluate
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods import get_method, method_names
+from parambench.methods.pose import normalised_surface, surface_pose
 
 
 def _random_rotation(seed: int) -> np.ndarray:

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from datasets_gen.errors import MissingFacesError, UnknownNameError
-from datasets_gen.surface import Surface
-from methods import Method, Parameterization, get_method, method_names, register
-from methods.pose import surface_pose
-from methods.registry import all_methods
+from parambench.datasets_gen.errors import MissingFacesError, UnknownNameError
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import Method, Parameterization, get_method, method_names, register
+from parambench.methods.pose import surface_pose
+from parambench.methods.registry import all_methods
 
 
 def test_baselines_registered():
@@ -35,7 +35,7 @@ def test_mesh_baselines_refuse_point_sets(name):
 
 @pytest.fixture
 def clean_registry():
-    from methods import registry
+    from parambench.methods import registry
 
     before = dict(registry._REGISTRY)
     yield
@@ -54,7 +54,7 @@ def test_registered_plugin_runs_and_is_timed(clean_registry):
 
     pts = np.random.default_rng(1).random((20, 3))
     result = get_method("test-xy-projection")(Surface(pts), scale=2.0)
-    # plugins see the centred, unit-size principal-frame copy (methods.pose); uv comes back in input units
+    # plugins see the centred, unit-size principal-frame copy (parambench.methods.pose); uv comes back in input units
     pose = surface_pose(pts)
     np.testing.assert_allclose(result.uv, pose.to_unit(pts)[:, :2] * pose.scale * 2.0)
     assert result.params == {"scale": 2.0} and result.timings["total"] >= 0

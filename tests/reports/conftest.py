@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.schema import dataset_key, encode_loops
+from parambench.bench.schema import dataset_key, encode_loops
 
 #: Time exponents the synthetic timings follow, per method.
 TIME_EXPONENTS = {"lscm": 1.1, "scp": 1.3, "ocp": 1.5}
@@ -276,7 +276,7 @@ def results_dir(tmp_path) -> Path:
 @pytest.fixture(scope="session")
 def built_report(tmp_path_factory):
     """The default results with their HTML and PDF report (and a benchmark file), built once per session."""
-    from reports.build import build_report
+    from parambench.reports.build import build_report
 
     root = tmp_path_factory.mktemp("built") / "results"
     rows = write_results(root)

@@ -10,8 +10,8 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from bench.metrics import ANGLE_HIST_EDGES_DEG, evaluate
-from reports.figures.angle_histogram import angle_histogram_figure, parse_angle_hist
+from parambench.bench.metrics import ANGLE_HIST_EDGES_DEG, evaluate
+from parambench.reports.figures.angle_histogram import angle_histogram_figure, parse_angle_hist
 
 
 def _image(picture):

@@ -7,10 +7,10 @@ import math
 
 import pytest
 
-from reports.benchmarks import load_benchmarks
-from reports.boundary_benchmark import (CASE_KEY, boundary_benchmark_rows, boundary_benchmark_section,
+from parambench.reports.benchmarks import load_benchmarks
+from parambench.reports.boundary_benchmark import (CASE_KEY, boundary_benchmark_rows, boundary_benchmark_section,
                                         boundary_benchmark_table, boundary_ok, ocp_ok)
-from reports.html import render_table
+from parambench.reports.html import render_table
 
 
 def _case(label, *, true_loops=1, old=(1, 1.0, 1.0), new=(1, 1.0, 1.0), ocp_qc=1.01, scp_qc=1.0, folds=0,

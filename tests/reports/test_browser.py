@@ -93,7 +93,7 @@ def test_report_opens_cleanly_with_decoded_images(driver, built_report, artifact
 
 
 def test_partial_report_opens_cleanly(driver, tmp_path, make_results, spec_type, artifacts_dir):
-    from reports.build import build_report
+    from parambench.reports.build import build_report
 
     root = tmp_path / "r"
     make_results(root, spec_type(datasets={"saddle": [144]}, methods=("ocp", "lscm"), seeds=(0,),

@@ -9,9 +9,9 @@ from pathlib import Path
 import PIL.Image
 import pytest
 
-from datasets_gen.errors import InputFileError, UnknownNameError
-from reports.build import build_report
-from reports.errors import EmptyResultsError
+from parambench.datasets_gen.errors import InputFileError, UnknownNameError
+from parambench.reports.build import build_report
+from parambench.reports.errors import EmptyResultsError
 
 
 def summary_row_count(html: str) -> int:
@@ -173,8 +173,8 @@ def test_optional_sections_are_added_when_their_module_exists(tmp_path, make_res
     import sys
     import types
 
-    from reports import build
-    from reports.html import Note, Section
+    from parambench.reports import build
+    from parambench.reports.html import Note, Section
 
     root = tmp_path / "r"
     make_results(root, spec_type(datasets={"saddle": [144]}, methods=("scp",), seeds=(0,), failed=()))
@@ -200,8 +200,8 @@ def test_angle_histograms_join_the_surface_row_when_stored(tmp_path, make_result
 
     import numpy as np
 
-    from reports import build
-    from reports.figures._common import figure_to_picture, new_figure
+    from parambench.reports import build
+    from parambench.reports.figures._common import figure_to_picture, new_figure
 
     root = tmp_path / "r"
     make_results(root, spec_type(datasets={"saddle": [144]}, methods=("scp", "lscm"), seeds=(0,), failed=(),

@@ -4,10 +4,10 @@ import json
 
 import pandas as pd
 
-from reports.claims import (check_claims, claim_dncp_equals_scp, claim_hybrid, claim_k_opt, claim_ocp_near_scp,
+from parambench.reports.claims import (check_claims, claim_dncp_equals_scp, claim_hybrid, claim_k_opt, claim_ocp_near_scp,
                             claim_sdp_with_n, claim_spinning, claims_table, sdp_size_curve)
-from reports.labels import add_labels
-from reports.load import normalise_rows
+from parambench.reports.labels import add_labels
+from parambench.reports.load import normalise_rows
 
 NOT_MEASURED = "not measured in this run"
 

@@ -5,9 +5,9 @@ import shutil
 
 import pytest
 
-from bench.cli import main
-from reports.compare import build_comparison, compare_rows
-from reports.load import load_results
+from parambench.bench.cli import main
+from parambench.reports.compare import build_comparison, compare_rows
+from parambench.reports.load import load_results
 
 
 def _edit(root, dataset, size, seed, method, **changes):

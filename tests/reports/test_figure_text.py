@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from methods.registry import all_methods
-from reports.figures import (LandscapeCurve, LayoutPanel, checkerboard_figure, landscape_figure,
+from parambench.methods.registry import all_methods
+from parambench.reports.figures import (LandscapeCurve, LayoutPanel, checkerboard_figure, landscape_figure,
                              uv_layout_figure)
-from reports.figures._common import figure_to_picture, new_figure, overlapping_texts
-from reports.figures.checkerboard import CHECKS_ACROSS, checks_for_size
-from reports.figures.landscape import split_by_scale
-from reports.load import CellArrays
+from parambench.reports.figures._common import figure_to_picture, new_figure, overlapping_texts
+from parambench.reports.figures.checkerboard import CHECKS_ACROSS, checks_for_size
+from parambench.reports.figures.landscape import split_by_scale
+from parambench.reports.load import CellArrays
 
 
 def full_method_list():

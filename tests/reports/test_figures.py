@@ -9,16 +9,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reports.figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
+from parambench.reports.figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
                              boundary_scores, checkerboard_figure, fit_power_law, landscape_figure,
                              negative_fractions, scaling_figure, scaling_fits, uv_layout_figure, weights_figure)
-from reports.figures._common import splat, subsample_faces, view_projection
-from reports.figures.boundary import classify_points
-from reports.figures.checkerboard import checker_parity, subdivision_barycentrics
-from reports.figures.uv_layout import shared_qc_range
-from reports.figures.weights import shared_bins
-from reports.labels import add_labels
-from reports.load import CellArrays, normalise_rows
+from parambench.reports.figures._common import splat, subsample_faces, view_projection
+from parambench.reports.figures.boundary import classify_points
+from parambench.reports.figures.checkerboard import checker_parity, subdivision_barycentrics
+from parambench.reports.figures.uv_layout import shared_qc_range
+from parambench.reports.figures.weights import shared_bins
+from parambench.reports.labels import add_labels
+from parambench.reports.load import CellArrays, normalise_rows
 
 
 def decode(picture):

@@ -4,9 +4,9 @@ import re
 
 import pytest
 
-from reports.figures import Picture
-from reports.html import Note, Section, print_size, render_report, render_table
-from reports.tables import Cell, Table
+from parambench.reports.figures import Picture
+from parambench.reports.html import Note, Section, print_size, render_report, render_table
+from parambench.reports.tables import Cell, Table
 
 
 def test_table_text_is_escaped_and_classes_kept():

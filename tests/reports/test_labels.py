@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 
-from reports.labels import add_labels, config_label, variant_labels
+from parambench.reports.labels import add_labels, config_label, variant_labels
 
 
 def test_variant_label_names_only_the_parameters_that_vary():

@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.cells import Cell
-from datasets_gen.errors import InputFileError, ParambenchError
-from reports.errors import EmptyResultsError
-from reports.load import (NUMERIC_COLUMNS, ROW_COLUMNS, dataset_key_candidates, load_cell_arrays,
+from parambench.bench.cells import Cell
+from parambench.datasets_gen.errors import InputFileError, ParambenchError
+from parambench.reports.errors import EmptyResultsError
+from parambench.reports.load import (NUMERIC_COLUMNS, ROW_COLUMNS, dataset_key_candidates, load_cell_arrays,
                           load_dataset_arrays, load_results, loops_from_flat, normalise_rows, parse_json_field)
 
 

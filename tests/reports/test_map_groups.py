@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from reports.map_groups import SAME_MAP_TOLERANCE, MapGroup, group_maps, similarity_distance
+from parambench.reports.map_groups import SAME_MAP_TOLERANCE, MapGroup, group_maps, similarity_distance
 
 SQUARE = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 

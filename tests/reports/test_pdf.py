@@ -7,7 +7,7 @@ import subprocess
 import matplotlib.image
 import pytest
 
-from reports.build import build_report
+from parambench.reports.build import build_report
 
 pytestmark = pytest.mark.slow  # WeasyPrint takes a few seconds per report
 

@@ -2,7 +2,7 @@
 
 Issue 15: the quick suite's PDF at most 16 pages and its HTML at most 3 MB, one page per
 surface. The run here has the quick suite's surfaces and method variants (read from
-``bench.suites``, so the test follows the suite as methods are added) on small synthetic
+``parambench.bench.suites``, so the test follows the suite as methods are added) on small synthetic
 meshes: most maps distinct (the worst case for panels), two pairs near-identical as in real
 runs (fbcp-pc with the given boundary, libigl's SCP), and one failed cell.
 """
@@ -15,9 +15,9 @@ import zlib
 import numpy as np
 import pytest
 
-from bench.suites import SUITES, expand_cells
-from bench.schema import dataset_key
-from reports.build import build_report
+from parambench.bench.suites import SUITES, expand_cells
+from parambench.bench.schema import dataset_key
+from parambench.reports.build import build_report
 
 pytestmark = pytest.mark.slow  # one report with WeasyPrint, about half a minute
 

@@ -2,9 +2,9 @@
 
 import pandas as pd
 
-from reports.labels import add_labels
-from reports.load import normalise_rows
-from reports.tables import failures_table, overview_table, summarise, summary_tables, suspect_table
+from parambench.reports.labels import add_labels
+from parambench.reports.load import normalise_rows
+from parambench.reports.tables import failures_table, overview_table, summarise, summary_tables, suspect_table
 
 
 def _row(method, seed, status="ok", error="", **metrics):

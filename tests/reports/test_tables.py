@@ -4,9 +4,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reports.labels import add_labels
-from reports.load import normalise_rows
-from reports.tables import (ACCEPTABLE_RULE, SUMMARY_METRICS, acceptable_mask, benchmark_table, best_mask,
+from parambench.reports.labels import add_labels
+from parambench.reports.load import normalise_rows
+from parambench.reports.tables import (ACCEPTABLE_RULE, SUMMARY_METRICS, acceptable_mask, benchmark_table, best_mask,
                             exponent_table, failures_table, format_number, metadata_table, overview_table,
                             stage_memory_table, summarise,
                             summary_tables)

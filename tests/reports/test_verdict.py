@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reports.labels import add_labels
-from reports.load import normalise_rows
-from reports.tables import summarise
-from reports.verdict import (FAMILIES, family_of, family_verdicts, reason_kind, verdict_sentences,
+from parambench.reports.labels import add_labels
+from parambench.reports.load import normalise_rows
+from parambench.reports.tables import summarise
+from parambench.reports.verdict import (FAMILIES, family_of, family_verdicts, reason_kind, verdict_sentences,
                              verdict_table)
 
 

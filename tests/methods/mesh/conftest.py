@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from bench.metrics.alignment import similarity_align
-from bench.metrics.orientation import count_foldovers
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
+from parambench.bench.metrics.alignment import similarity_align
+from parambench.bench.metrics.orientation import count_foldovers
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
 
 
 def rms_after_similarity(uv: np.ndarray, ref: np.ndarray) -> float:

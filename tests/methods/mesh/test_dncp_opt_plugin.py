@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError
-from methods.registry import get_method
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError
+from parambench.methods.registry import get_method
 
 DNCP = get_method("dncp-opt")
 SCP = get_method("scp")
@@ -71,8 +71,8 @@ def test_failures_are_explicit(surfaces):
 
 
 def test_no_crossing_in_bracket_raises(surfaces):
-    from methods.mesh.conformal_setup import build_mesh_problem, resolve_pins
-    from methods.base import StageTimer
+    from parambench.methods.mesh.conformal_setup import build_mesh_problem, resolve_pins
+    from parambench.methods.base import StageTimer
 
     s = surfaces["saddle"]
     prob, loops, _ = build_mesh_problem(s, StageTimer(), weights="cotangent", normalized=False, uniform_at=None,

@@ -6,13 +6,13 @@ import igl
 import numpy as np
 import pytest
 
-from datasets_gen.errors import SolverError
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from bench.metrics import evaluate
-from methods.mesh.hybrid import flipped_faces, grow_rings
-from methods.mesh.weights import negative_cotangent_vertices
-from methods.registry import get_method
+from parambench.datasets_gen.errors import SolverError
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.bench.metrics import evaluate
+from parambench.methods.mesh.hybrid import flipped_faces, grow_rings
+from parambench.methods.mesh.weights import negative_cotangent_vertices
+from parambench.methods.registry import get_method
 
 SCP = get_method("scp")
 DNCP = get_method("dncp-opt")

@@ -1,4 +1,4 @@
-"""Weight kinds of methods.mesh.weights: hand-computed values, symmetry, linear precision."""
+"""Weight kinds of parambench.methods.mesh.weights: hand-computed values, symmetry, linear precision."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
-from datasets_gen.errors import InvalidInputError, UnknownNameError
-from methods.mesh.weights import (WEIGHT_KINDS, laplacian, mesh_weights, negative_cotangent_vertices,
+from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.methods.mesh.weights import (WEIGHT_KINDS, laplacian, mesh_weights, negative_cotangent_vertices,
                                   uniform_vertex_mask)
 
 

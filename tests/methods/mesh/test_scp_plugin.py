@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import MissingFacesError, SolverError, UnknownNameError
-from datasets_gen.registry import make_surface
-from methods.geometry2d import signed_area_2d
-from methods.registry import get_method
+from parambench.datasets_gen.errors import MissingFacesError, SolverError, UnknownNameError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.geometry2d import signed_area_2d
+from parambench.methods.registry import get_method
 
 SCP = get_method("scp")
 SCP_IGL = get_method("scp-igl")

@@ -8,11 +8,11 @@ surfaced as "a boundary loop has 1 vertices".
 import numpy as np
 import pytest
 
-from datasets_gen.errors import NotADiskError, TopologyError
-from datasets_gen.mesh_loops import mesh_boundary
-from datasets_gen.surface import Surface
-from methods import get_method, method_names
-from methods.mesh.topology import (
+from parambench.datasets_gen.errors import NotADiskError, TopologyError
+from parambench.datasets_gen.mesh_loops import mesh_boundary
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import get_method, method_names
+from parambench.methods.mesh.topology import (
     duplicate_faces,
     non_manifold_edges,
     non_manifold_vertices,

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InvalidInputError, NoBoundaryError
-from datasets_gen.registry import make_surface
-from methods.geometry2d import signed_area_2d
-from methods.pointset.boundary import angular_gaps, cycles, find_boundary, no_boundary_error, successors
-from methods.pointset.frontend import build_frontend
+from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.geometry2d import signed_area_2d
+from parambench.methods.pointset.boundary import angular_gaps, cycles, find_boundary, no_boundary_error, successors
+from parambench.methods.pointset.frontend import build_frontend
 
 HOLES = [(-0.45, -0.4, 0.25), (0.45, 0.35, 0.3)]
 
@@ -201,8 +201,8 @@ def test_random_sampling_has_no_void_loops(name):
 def test_void_rings_are_dropped_only_with_local_spacing():
     """The loop-spacing rule is what removes the void rings: without the local spacing
     (the rule's scale) the same call keeps them."""
-    from methods.pointset.frontend import build_frontend as build
-    from methods.pointset import boundary as bnd
+    from parambench.methods.pointset.frontend import build_frontend as build
+    from parambench.methods.pointset import boundary as bnd
 
     surface = make_surface("bump", 20000, sampling="random", seed=0)
     fe = build(surface.points)
@@ -214,7 +214,7 @@ def test_void_rings_are_dropped_only_with_local_spacing():
         spy["result"] = original(*args, **kwargs)
         return spy["result"]
 
-    import methods.pointset.frontend as frontend
+    import parambench.methods.pointset.frontend as frontend
     frontend.find_boundary = without_spacing
     try:
         build(surface.points)

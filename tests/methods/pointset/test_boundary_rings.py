@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InvalidInputError, NoBoundaryError
-from datasets_gen.registry import make_surface
-from datasets_gen.surface import Surface
-from methods import get_method
-from methods.geometry2d import signed_area_2d
-from methods.pointset.frontend import build_frontend
-from methods.pointset.plugin_support import FRONTEND_DEFAULTS
+from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
+from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods import get_method
+from parambench.methods.geometry2d import signed_area_2d
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS
 
 
 def _grid(n: int = 40) -> np.ndarray:

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
 
-from datasets_gen.errors import InvalidInputError
-from methods.pointset.dem import dem_balls
-from methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
-from methods.pointset.normals import orient_normals, pca_normals, smooth_normals, tangent_frames
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.methods.pointset.dem import dem_balls
+from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
+from parambench.methods.pointset.normals import orient_normals, pca_normals, smooth_normals, tangent_frames
 
 
 def _setup(points):

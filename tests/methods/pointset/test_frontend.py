@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from datasets_gen.errors import (
+from parambench.datasets_gen.errors import (
     DisconnectedError,
     DuplicatePointsError,
     InconsistentNormalsError,
@@ -15,9 +15,9 @@ from datasets_gen.errors import (
     NoBoundaryError,
     TooFewPointsError,
 )
-from datasets_gen.surface import Surface
-from methods.pointset.frontend import STAGES, build_frontend
-from methods.pointset.inspect import inspect_surface
+from parambench.datasets_gen.surface import Surface
+from parambench.methods.pointset.frontend import STAGES, build_frontend
+from parambench.methods.pointset.inspect import inspect_surface
 
 
 @pytest.fixture

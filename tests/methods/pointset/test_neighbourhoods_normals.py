@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import DisconnectedError, InconsistentNormalsError, TooFewPointsError
-from methods.pointset.neighbourhoods import knn_graph, require_connected, symmetric_adjacency
-from methods.pointset.normals import (
+from parambench.datasets_gen.errors import DisconnectedError, InconsistentNormalsError, TooFewPointsError
+from parambench.methods.pointset.neighbourhoods import knn_graph, require_connected, symmetric_adjacency
+from parambench.methods.pointset.normals import (
     check_user_normals,
     consistent_signs,
     orient_normals,
@@ -170,7 +170,7 @@ def test_local_spacing_of_a_square_grid_by_hand():
     """Interior points of a square grid of step a: 4 neighbours at a and 4 at a*sqrt(2),
     so the mean 8-NN distance (and its neighbourhood averages) is a (1 + sqrt 2) / 2; the
     edge's larger distances (one-sided neighbourhoods) reach one ring inwards per pass."""
-    from methods.pointset.neighbourhoods import knn_graph, local_spacing
+    from parambench.methods.pointset.neighbourhoods import knn_graph, local_spacing
 
     a = 0.3
     g = np.stack(np.meshgrid(np.arange(30), np.arange(30)), -1).reshape(-1, 2) * a
@@ -189,7 +189,7 @@ def test_balls_follow_local_density():
     sparse half's balls hold barely more than ball_k members (measured median 8, dense
     half 38); with radii from the local spacing (never below the global one) the sparse
     half's balls are full (median 26) and the area terms see the 2x spacing step."""
-    from methods.pointset.frontend import build_frontend
+    from parambench.methods.pointset.frontend import build_frontend
 
     rng = np.random.default_rng(3)
     coarse = np.stack(np.meshgrid(np.arange(0, 40), np.arange(0, 40)), -1).reshape(-1, 2) * 0.1

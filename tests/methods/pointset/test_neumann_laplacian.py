@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import InvalidInputError
-from datasets_gen.registry import make_surface
-from methods.pointset.frontend import build_frontend
-from methods.pointset.neumann_laplacian import (
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.neumann_laplacian import (
     boundary_edge_normals,
     gradient_stencils,
     moment_weights,
     neumann_laplacian,
 )
-from methods.spectral.operators import area_matrix
+from parambench.methods.spectral.operators import area_matrix
 
 
 def _random_balls(n=50, b=14, seed=0):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from matplotlib.path import Path
 
-from methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
-from methods.pointset.uv_triangulation import triangulate_uv
+from parambench.methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
+from parambench.methods.pointset.uv_triangulation import triangulate_uv
 
 
 def _ring(n):
@@ -155,13 +155,13 @@ def test_suggestions_name_a_parameter_of_the_method():
 
 @pytest.fixture(scope="module")
 def bump():
-    from datasets_gen.registry import make_surface
+    from parambench.datasets_gen.registry import make_surface
 
     return make_surface("bump", 900, sampling="jittered", seed=0).points_only()
 
 
 def test_every_pointset_method_result_carries_its_check(bump):
-    from methods import get_method
+    from parambench.methods import get_method
 
     spinning = get_method("scp-tan")(bump)
     check = spinning.diagnostics["selfcheck"]
@@ -174,8 +174,8 @@ def test_every_pointset_method_result_carries_its_check(bump):
 
 
 def test_candidates_for_coverage_are_the_front_ends_own(bump):
-    from methods.pointset.frontend import build_frontend
-    from methods.pointset.plugin_support import frontend_candidates
+    from parambench.methods.pointset.frontend import build_frontend
+    from parambench.methods.pointset.plugin_support import frontend_candidates
 
     front = build_frontend(bump.points)
     candidates = frontend_candidates(front)
@@ -188,8 +188,8 @@ def test_candidates_for_coverage_are_the_front_ends_own(bump):
 def test_check_runs_on_the_distinct_points_when_some_coincide(bump):
     import warnings
 
-    from datasets_gen.surface import Surface
-    from methods import get_method
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods import get_method
 
     points = np.r_[bump.points, bump.points[:5]]  # five copies: merged before the method runs
     with warnings.catch_warnings():
@@ -205,9 +205,9 @@ def test_coverage_does_not_apply_to_a_uniform_random_sample():
     the points, in groups of 20+, although the one true loop is found and the map is
     right: coverage says it cannot tell (not applicable) instead of failing the map; on a
     jittered sample of the same surface it applies."""
-    from datasets_gen.registry import make_surface
-    from datasets_gen.surface import Surface
-    from methods import get_method
+    from parambench.datasets_gen.registry import make_surface
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods import get_method
 
     for sampling, applicable in (("random", False), ("jittered", True)):
         surface = make_surface("plane", 20000, sampling=sampling, seed=0)

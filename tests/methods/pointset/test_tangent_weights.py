@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from datasets_gen.errors import InvalidInputError
-from methods.pointset.frontend import build_frontend
-from methods.pointset.laplacian import graph_laplacian
-from methods.pointset.tangent_weights import (
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.laplacian import graph_laplacian
+from parambench.methods.pointset.tangent_weights import (
     dense_weights,
     lle3d_weights,
     lle_weights,

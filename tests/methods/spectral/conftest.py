@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.registry import make_surface
-from methods.mesh.topology import boundary_loops
-from methods.mesh.weights import laplacian, mesh_weights
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.mesh.topology import boundary_loops
+from parambench.methods.mesh.weights import laplacian, mesh_weights
 
 
 class MeshCase:
@@ -42,7 +42,7 @@ def holes() -> MeshCase:
 @pytest.fixture(scope="session")
 def uv_rms():
     """RMS distance after similarity alignment, over the reference's bbox diagonal."""
-    from bench.metrics.alignment import similarity_align
+    from parambench.bench.metrics.alignment import similarity_align
 
     def rms(uv, ref):
         al = similarity_align(uv, ref)

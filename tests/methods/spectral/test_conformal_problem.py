@@ -6,8 +6,8 @@ import igl
 import numpy as np
 import pytest
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
-from methods.spectral import ConformalProblem
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
+from parambench.methods.spectral import ConformalProblem
 
 
 def identity_uv(case):

@@ -6,12 +6,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
-import methods.spectral.sparse_eigen as sparse_eigen
-from datasets_gen.registry import make_surface
-from methods.base import StageTimer
-from methods.pointset.plugin_support import FRONTEND_DEFAULTS, run_frontend
-from methods.spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
-from methods.spectral.ordering import nested_dissection
+import parambench.methods.spectral.sparse_eigen as sparse_eigen
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.base import StageTimer
+from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS, run_frontend
+from parambench.methods.spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
+from parambench.methods.spectral.ordering import nested_dissection
 
 
 def _sin_subspace_angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -36,7 +36,7 @@ def _pair_gap_amplification(lap: sp.spmatrix, b_mat: sp.spmatrix, perm: np.ndarr
     ``eps (lambda_3 - sigma) / (lambda_3 - lambda_2)``: the factor returned here.
     """
     n = lap.shape[0]
-    # The solver's own shift (methods.spectral.dirichlet.smallest_nontrivial_pair).
+    # The solver's own shift (parambench.methods.spectral.dirichlet.smallest_nontrivial_pair).
     sigma = -1e-6 * (abs(lap).sum() / n) / (abs(b_mat).sum() / n)
     factor = sparse_eigen.SparseFactor((lap - sigma * b_mat).tocsc(), perm, precision="double")
 
@@ -70,7 +70,7 @@ def test_sdp_pair_from_a_mixed_precision_factor_matches_double(monkeypatch):
         return factor
 
     monkeypatch.setattr(sparse_eigen, "MIXED_PRECISION_FROM", 0)
-    monkeypatch.setattr("methods.spectral.dirichlet.SparseFactor", recording_factor)
+    monkeypatch.setattr("parambench.methods.spectral.dirichlet.SparseFactor", recording_factor)
     vals_mixed, pair_mixed = smallest_nontrivial_pair(lap, b_mat, perm=perm)
 
     assert built and built[0].mixed  # the single-precision path really ran

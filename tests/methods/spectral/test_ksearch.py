@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_gen.errors import ConvergenceError, InvalidInputError
-from methods.spectral.ksearch import KPoint, line_search, penalized_energy
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError
+from parambench.methods.spectral.ksearch import KPoint, line_search, penalized_energy
 
 
 def staircase(k_opt: float, width: float = 0.05):

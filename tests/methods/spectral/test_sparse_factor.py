@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from datasets_gen.errors import UnknownNameError
-from methods.spectral.sparse_eigen import MIXED_PRECISION_FROM, SparseFactor
+from parambench.datasets_gen.errors import UnknownNameError
+from parambench.methods.spectral.sparse_eigen import MIXED_PRECISION_FROM, SparseFactor
 
 
 def _grid_laplacian(side: int, shift: float = 1e-3) -> sp.csc_matrix:

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
-from methods.spectral.operators import (
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.methods.spectral.operators import (
     area_matrix,
     boundary_indicator,
     check_loops,
@@ -15,7 +15,7 @@ from methods.spectral.operators import (
     is_symmetric,
     rayleigh_energy,
 )
-from methods.spectral.turning import is_regular_turning, loop_turning_numbers, turning_penalty
+from parambench.methods.spectral.turning import is_regular_turning, loop_turning_numbers, turning_penalty
 
 
 def test_area_of_unit_square_and_hole():

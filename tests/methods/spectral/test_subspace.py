@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from datasets_gen.errors import InvalidInputError
-from datasets_gen.registry import make_surface
-from methods.base import StageTimer
-from methods.plugins.ocp import ocp_laplacian
-from methods.pointset.plugin_support import FRONTEND_DEFAULTS, run_frontend
-from methods.spectral import ConformalProblem
-from methods.spectral.reduction import BoundaryReduction
-from methods.spectral.subspace import BoundarySubspace, boundary_basis
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.base import StageTimer
+from parambench.methods.plugins.ocp import ocp_laplacian
+from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS, run_frontend
+from parambench.methods.spectral import ConformalProblem
+from parambench.methods.spectral.reduction import BoundaryReduction
+from parambench.methods.spectral.subspace import BoundarySubspace, boundary_basis
 
 
 def _ocp_problem(shape: str, n: int) -> ConformalProblem:
@@ -144,7 +144,7 @@ def _ocp_problem_random(shape: str, n: int) -> ConformalProblem:
 
 
 def test_inverse_iteration_gives_the_eigenvector_of_the_smallest_real_part():
-    from methods.spectral.subspace import _inverse_iteration
+    from parambench.methods.spectral.subspace import _inverse_iteration
 
     rng = np.random.default_rng(4)
     op = rng.standard_normal((40, 40)) + 1j * rng.standard_normal((40, 40))

@@ -2,8 +2,8 @@
 
 from threadpoolctl import threadpool_info
 
-import methods.spectral.threads as threads
-from methods.spectral.threads import single_threaded_blas
+import parambench.methods.spectral.threads as threads
+from parambench.methods.spectral.threads import single_threaded_blas
 
 
 def _blas_threads() -> list[int]:
