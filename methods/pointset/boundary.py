@@ -354,27 +354,11 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     ball_radius = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
     # Bridges span up to twice the typical ball radius.
     typical_radius = float(np.median(ball_radius))
-    reach = 2.0 * typical_radius
     outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
-    # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
-    # true loop open: drop the points of small cycles and walk again until none is left.
-    active = candidates.copy()
-    n_dropped_loops = 0
-    for _ in range(_MAX_PRUNE_ROUNDS):
-        succ = successors(ball_indices, coords, active, outward, bisector)
-        succ = bridge_successors(points, e1, e2, active, outward, bisector, succ, reach)
-        all_cycles = cycles(succ, np.flatnonzero(active))
-        small = [c for c in all_cycles if c.size < min_loop_size]
-        if not small:
-            break
-        n_dropped_loops += len(small)
-        active[np.concatenate(small)] = False
-    kept = [c for c in all_cycles if c.size >= min_loop_size
-            and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * max(float(np.median(ball_radius[c])), typical_radius)]
-    if local_spacing is not None:
-        kept = [c for c in kept
-                if c.size >= _MAX_VOID_RING or _loop_spacing(points, c, local_spacing) <= _MAX_LOOP_SPACING]
-    n_dropped_loops += len(all_cycles) - len(kept)
+    all_cycles, n_pruned = _walk_pruned(points, ball_indices, coords, e1, e2, candidates, outward, bisector,
+                                        2.0 * typical_radius, min_loop_size)
+    kept = _true_loops(points, all_cycles, ball_radius, typical_radius, min_loop_size, local_spacing)
+    n_dropped_loops = n_pruned + len(all_cycles) - len(kept)
     if not kept and require_loop:
         raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size)
     kept.sort(key=lambda c: _perimeter(points, c), reverse=True)
@@ -392,3 +376,66 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     }
     return BoundaryLoops(loops=loops, mask=out_mask, candidates=candidates, max_gap=gap,
                          diagnostics=diagnostics)
+
+
+def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+                 candidates: np.ndarray, outward: np.ndarray, bisector: np.ndarray, reach: float,
+                 min_loop_size: int) -> tuple[list[np.ndarray], int]:
+    """Cycles of the boundary walk over the candidates, after pruning the points of small cycles.
+
+    Parameters
+    ----------
+    points, ball_indices, coords
+        As for :func:`find_boundary`.
+    e1, e2 : (N, 3) numpy.ndarray of float64
+        Tangent frames of the DEM coordinates.
+    candidates : (N,) numpy.ndarray of bool
+        Points passing the angle criterion.
+    outward : (N, 3) numpy.ndarray of float64
+        The gap bisector of each point in 3D.
+    bisector : (N, 2) numpy.ndarray of float64
+        The same in tangent coordinates.
+    reach : float
+        Longest bridge (:func:`bridge_successors`).
+    min_loop_size : int
+        Cycles with fewer points are pruned.
+
+    Returns
+    -------
+    cycles : list of numpy.ndarray of int64
+        The last walk's cycles: none smaller than ``min_loop_size`` unless
+        ``_MAX_PRUNE_ROUNDS`` walks all still had small ones.
+    n_pruned : int
+        Small cycles whose points were dropped before the last walk.
+    """
+    # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
+    # true loop open: drop the points of small cycles and walk again until none is left.
+    active = candidates.copy()
+    n_pruned = 0
+    for _ in range(_MAX_PRUNE_ROUNDS):
+        succ = successors(ball_indices, coords, active, outward, bisector)
+        succ = bridge_successors(points, e1, e2, active, outward, bisector, succ, reach)
+        all_cycles = cycles(succ, np.flatnonzero(active))
+        small = [c for c in all_cycles if c.size < min_loop_size]
+        if not small:
+            break
+        n_pruned += len(small)
+        active[np.concatenate(small)] = False
+    return all_cycles, n_pruned
+
+
+def _true_loops(points: np.ndarray, all_cycles: list[np.ndarray], ball_radius: np.ndarray, typical_radius: float,
+                min_loop_size: int, local_spacing: np.ndarray | None) -> list[np.ndarray]:
+    """The cycles that are boundary loops, in their order: big enough, long enough, not void rings.
+
+    A loop needs ``min_loop_size`` points and a perimeter of ``_MIN_PERIMETER_BALLS``
+    ball radii (the larger of its own median and the typical one); with
+    ``local_spacing``, a loop of fewer than ``_MAX_VOID_RING`` points spaced more than
+    ``_MAX_LOOP_SPACING`` local spacings apart is a ring around a void of the sampling.
+    """
+    kept = [c for c in all_cycles if c.size >= min_loop_size
+            and _perimeter(points, c) >= _MIN_PERIMETER_BALLS * max(float(np.median(ball_radius[c])), typical_radius)]
+    if local_spacing is not None:
+        kept = [c for c in kept
+                if c.size >= _MAX_VOID_RING or _loop_spacing(points, c, local_spacing) <= _MAX_LOOP_SPACING]
+    return kept
