@@ -19,10 +19,12 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
 - the detector of the previous release (``old_*``) and of this one (``new_*``): loops
   found (``*_loops``, against ``true_loops``), recall and precision of the detected
   boundary points against the mesh's boundary vertices, and the error when the front end
-  finds no loop. "Old" is the same front end with the loop-spacing rule off
-  (``find_boundary(..., local_spacing=None)``): on the same balls it returns exactly the
-  loops of commit c0f3201's detector (checked on every case of this file at 2k and 20k
-  points, retries on wider balls included), so no frozen copy is kept;
+  finds no loop. "Old" is the same front end with the rules that need the local spacing
+  off (``find_boundary(..., local_spacing=None)``: loop spacing, empty disk inside small
+  loops): on the same balls it returned exactly the loops of commit c0f3201's detector
+  (checked on every case of this file at 2k and 20k points, retries on wider balls
+  included) until the put-back of stepped-over points and the per-point bridge reach,
+  which both columns now use, were added; no frozen copy is kept;
 - ``frontend_seconds``: the front end alone (the old detector's extra call excluded);
 - ``ocp_qc_mean`` and ``ocp_foldovers`` on the ground-truth mesh, the same for
   ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
