@@ -174,18 +174,17 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
+    from dataclasses import fields
+
     from parambench.datasets_gen.io import load_surface
-    from parambench.methods.pointset.frontend import build_frontend
     from parambench.methods.pointset.inspect import inspect_surface
+    from parambench.methods.pointset.params import FrontEndParams
 
     out = Path(args.output)
     if not out.parent.exists():
         raise InputFileError(f"output directory {str(out.parent)!r} does not exist; create it first.")
     surface = load_surface(args.input, points_only=args.points_only)
-    import inspect as _inspect
-
-    defaults = {k: p.default for k, p in _inspect.signature(build_frontend).parameters.items()
-                if p.kind is _inspect.Parameter.KEYWORD_ONLY}
+    defaults = {f.name: f.default for f in fields(FrontEndParams)}
     params = parse_param_values(args.param or [], defaults)
     unknown = sorted(set(params) - set(defaults))
     if unknown:

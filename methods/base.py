@@ -1,8 +1,24 @@
 """The ``Parameterization`` hand-off and the method plugin contract.
 
 A plugin is a small class (the benchopt pattern): a ``name``, ``defaults``, a
-``param_grid`` for sweeps, ``needs_faces``, and ``run(surface, **params)``. Plugins know
-nothing of sweeps, files or reports.
+``param_grid`` for sweeps, ``needs_faces``, optionally ``choices`` (the allowed values of
+some parameters), and :meth:`Method.solve`. Plugins know nothing of sweeps, files or
+reports.
+
+Who does what:
+
+* :meth:`Method.__call__` fills in defaults, refuses unknown parameter names and values
+  outside ``choices`` (then :meth:`Method.check_params`, the plugin's own checks), puts
+  the surface in unit pose, merges coincident points of point sets, times the whole run
+  and runs the point-set self-check.
+* :meth:`Method.run` (the base class's) creates the :class:`StageTimer`, calls
+  :meth:`Method.solve` and builds the :class:`Parameterization` (method name, params,
+  stage timings, diagnostics, faces).
+* A plugin implements only ``solve(surface, params, timer) -> MethodOutput``: its
+  method, timing its stages with ``with timer("stage"):``.
+
+A plugin that overrides :meth:`Method.run` and returns a :class:`Parameterization`
+itself (the contract before ``solve``) still works: ``__call__`` only calls ``run``.
 """
 
 from __future__ import annotations
@@ -20,7 +36,7 @@ from parambench.datasets_gen.surface import Surface
 from .hints import method_hints
 from .pose import run_in_unit_pose
 
-__all__ = ["Parameterization", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
+__all__ = ["Parameterization", "MethodOutput", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
 
 
 @dataclass(eq=False)
@@ -58,6 +74,25 @@ class Parameterization:
         if uv.ndim != 2 or uv.shape[1] != 2:
             raise InvalidInputError(f"uv must have shape (N, 2), got {uv.shape}.")
         self.uv = np.ascontiguousarray(uv)
+
+
+@dataclass(eq=False)
+class MethodOutput:
+    """What a plugin's :meth:`Method.solve` returns; :meth:`Method.run` makes it a :class:`Parameterization`.
+
+    Parameters
+    ----------
+    uv : (N, 2) array_like of float
+        One row per point of the surface ``solve`` was given, in its order.
+    diagnostics : dict
+        Solver facts, JSON-serialisable (see :class:`Parameterization`).
+    faces : (M, 3) numpy.ndarray of int64 or None
+        A triangulation the method built, if any.
+    """
+
+    uv: np.ndarray
+    diagnostics: dict = field(default_factory=dict)
+    faces: np.ndarray | None = None
 
 
 #: Names of the StageTimer stages running now, innermost last (read by memory samplers).
@@ -123,7 +158,8 @@ class StageTimer:
 class Method:
     """Base class of method plugins.
 
-    Subclasses set the class attributes and implement :meth:`run`.
+    Subclasses set the class attributes and implement :meth:`solve` (see the module
+    docstring for what the base class does around it).
 
     Attributes
     ----------
@@ -138,6 +174,9 @@ class Method:
     param_grid : dict of str to list
         Values a sweep tries per parameter (a subset of ``defaults`` keys); missing keys
         use the default.
+    choices : dict of str to tuple
+        For parameters that take one of a few names: the allowed values. Checked by
+        :meth:`__call__` before the method runs.
     """
 
     name: ClassVar[str] = ""
@@ -145,6 +184,7 @@ class Method:
     needs_faces: ClassVar[bool] = False
     defaults: ClassVar[dict[str, Any]] = {}
     param_grid: ClassVar[dict[str, list]] = {}
+    choices: ClassVar[dict[str, tuple]] = {}
 
     def resolve_params(self, params: dict[str, Any]) -> dict[str, Any]:
         """Fill in defaults and reject unknown parameter names.
@@ -163,6 +203,38 @@ class Method:
         merged = dict(self.defaults)
         merged.update(params)
         return merged
+
+    def check_values(self, params: dict[str, Any]) -> None:
+        """Refuse parameter values outside ``choices``, then run :meth:`check_params`.
+
+        Parameters
+        ----------
+        params : dict
+            Resolved parameters (every key of ``defaults``).
+
+        Raises
+        ------
+        UnknownNameError
+            A value not in ``choices[name]``; the message lists the allowed ones.
+        ParambenchError
+            Whatever :meth:`check_params` raises.
+        """
+        for key, allowed in self.choices.items():
+            if params[key] not in allowed:
+                raise UnknownNameError(f"unknown {key} {params[key]!r}; choose one of {', '.join(allowed)}.")
+        self.check_params(params)
+
+    def check_params(self, params: dict[str, Any]) -> None:
+        """Checks of a plugin's parameters beyond ``choices`` (none by default).
+
+        Runs before the surface is touched, so a bad value fails fast. Checks that need
+        the surface belong in :meth:`solve`.
+
+        Parameters
+        ----------
+        params : dict
+            Resolved parameters.
+        """
 
     def __call__(self, surface: Surface, **params: Any) -> Parameterization:
         """Validate, run and time the method.
@@ -194,7 +266,7 @@ class Method:
         MissingFacesError
             Mesh method given a point set.
         UnknownNameError
-            Unknown parameter name.
+            Unknown parameter name, or a value outside ``choices``.
         """
         resolved = self.resolve_params(params)
         if self.needs_faces and not surface.has_faces:
@@ -206,6 +278,7 @@ class Method:
         # Scale and pose: the method sees a centred, unit-size copy; uv comes back in input units.
         # Error hints name only this method's parameters (methods/hints.py).
         with method_hints(self.defaults, resolved):
+            self.check_values(resolved)
             result = self._run_point_or_mesh(surface, **resolved)
         # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
         check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)
@@ -244,6 +317,45 @@ class Method:
         selfcheck_result(surface, result)
         return result
 
-    def run(self, surface: Surface, **params: Any) -> Parameterization:  # pragma: no cover - abstract
-        """Compute the parameterization. Subclasses implement this."""
-        raise NotImplementedError
+    def run(self, surface: Surface, **params: Any) -> Parameterization:
+        """Time :meth:`solve` on ``surface`` and wrap its output in a :class:`Parameterization`.
+
+        No pose normalisation, merging of coincident points or parameter checks: that is
+        :meth:`__call__`, the entry point callers use.
+
+        Parameters
+        ----------
+        surface : Surface
+            The surface as the method sees it (unit pose, distinct points).
+        **params
+            Resolved parameters (every key of ``defaults``).
+
+        Returns
+        -------
+        Parameterization
+            ``uv``, ``diagnostics`` and ``faces`` from :meth:`solve`, the stage timings
+            of its :class:`StageTimer`, this method's name and ``params``.
+        """
+        timer = StageTimer()
+        out = self.solve(surface, params, timer)
+        return Parameterization(uv=out.uv, method=self.name, params=dict(params), timings=timer.timings,
+                                diagnostics=out.diagnostics, faces=out.faces)
+
+    def solve(self, surface: Surface, params: dict[str, Any], timer: StageTimer) -> MethodOutput:
+        """The method itself. Subclasses implement this.
+
+        Parameters
+        ----------
+        surface : Surface
+            The surface in unit pose; for point-set methods, distinct points without faces.
+        params : dict
+            Resolved and checked parameters (every key of ``defaults``).
+        timer : StageTimer
+            Time each stage with ``with timer("name"):``; the stages become
+            ``Parameterization.timings``.
+
+        Returns
+        -------
+        MethodOutput
+        """
+        raise NotImplementedError(f"{type(self).__qualname__} implements neither solve nor run")

@@ -21,6 +21,7 @@ from parambench.datasets_gen.errors import InputFileError
 from .benchmarks import load_benchmarks
 from .errors import EmptyResultsError
 from .claims import check_claims, claims_table, sdp_size_curve
+from .peers import claim_ocp_vs_fbcp, ocp_vs_fbcp_table
 from .figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
                       checkerboard_figure, landscape_figure, scaling_figure, scaling_fits, sdp_curve_figure,
                       uv_layout_figure, weights_figure)
@@ -262,9 +263,24 @@ def render_html(results: Results, benchmark_json=()) -> str:
     warnings = list(results.warnings)
     rows = add_labels(results.rows)
     summary = summarise(rows)
-    n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
-    sections: list[Section] = []
+    sections = [_verdict_section(rows, summary), _claims_section(rows), _overview_section(summary),
+                _problems_section(rows)]
+    # In this order: the surface pages and the optional parts add to ``warnings``, which
+    # the run metadata section at the end lists.
+    sections += [_view_section(results, view, warnings) for view in picture_views(rows, results.root)]
+    sections += _optional_sections("results", (results, rows), warnings)
+    scaling = _scaling_section(results.run, rows)
+    if scaling is not None:
+        sections.append(scaling)
+    if stats is not None:
+        sections.append(_benchmark_section(stats, paths, warnings))
+    sections.append(_run_section(results.run, warnings))
+    return render_report("parambench report", _subtitle(results.run, rows), sections)
 
+
+def _verdict_section(rows: pd.DataFrame, summary: pd.DataFrame) -> Section:
+    """Cell counts, the verdict sentences and the verdict table (a warning instead when every cell failed)."""
+    n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
     verdicts = family_verdicts(summary, rows)
     verdict = Section("Verdict: which method, where, and why", intro=(
         f"{len(rows)} cells: {n_ok} ok, " + (f"{n_suspect} suspect (map failed its self-check), " if n_suspect else "")
@@ -278,14 +294,24 @@ def render_html(results: Results, benchmark_json=()) -> str:
         table = verdict_table(verdicts)
         table.note = ACCEPTABLE_RULE
         verdict.blocks.append(table)
-    sections.append(verdict)
-    claims = Section("The paper's claims, measured", [claims_table(check_claims(rows))])
-    curve = sdp_size_curve(rows)
-    picture = sdp_curve_figure(curve)
+    return verdict
+
+
+def _claims_section(rows: pd.DataFrame) -> Section:
+    """The paper's claims table and the suite's goal against fbcp-pc, with the SDP-against-N
+    curve and the per-surface ocp / fbcp-pc table when the run has them."""
+    claims = Section("The paper's claims, measured", [claims_table([*check_claims(rows), claim_ocp_vs_fbcp(rows)])])
+    picture = sdp_curve_figure(sdp_size_curve(rows))
     if picture is not None:
         claims.blocks.append(Section("SDP against N on surfaces with holes", [picture]))
-    sections.append(claims)
+    peers = ocp_vs_fbcp_table(rows)
+    if peers is not None:
+        claims.blocks.append(Section("ocp against fbcp-pc, surface by surface", [peers]))
+    return claims
 
+
+def _overview_section(summary: pd.DataFrame) -> Section:
+    """The overview table and the per-configuration summary tables (HTML only)."""
     overview = Section("Overview", intro=(
         "Values are medians over seeds; every metric is lower-is-better. Click a header to sort, a summary row to "
         "see that cell's pictures. The surface pages after the tables show, per surface: uv layouts coloured by "
@@ -309,53 +335,62 @@ def render_html(results: Results, benchmark_json=()) -> str:
         "The per-cell summary tables (QC mean, p95 and max, foldovers, area distortion, exact-map error, time and "
         "status of every method on every surface) are in the HTML report (report.html), where they sort, filter "
         "and open each cell's pictures.", "muted print-only"))
-    sections.append(overview)
+    return overview
 
+
+def _problems_section(rows: pd.DataFrame) -> Section:
+    """The failed cells (or a note that none failed) and the suspect ones."""
     failures = failures_table(rows)
     suspects = suspect_table(rows)
     problems = Section("Failed and suspect cells")
     problems.blocks.append(failures if failures.rows else Note("No cell failed.", "muted"))
     if suspects.rows:
         problems.blocks.append(suspects)
-    sections.append(problems)
+    return problems
 
-    for view in picture_views(rows, results.root):
-        sections.append(_view_section(results, view, warnings))
 
-    for module_name, function_name, kind in OPTIONAL_SECTIONS:
+def _optional_sections(kind: str, args: tuple, warnings: list[str]) -> list:
+    """What the installed :data:`OPTIONAL_SECTIONS` of this kind return for ``args`` (None results left out)."""
+    out = []
+    for module_name, function_name, part_kind in OPTIONAL_SECTIONS:
         function = _optional_function(module_name, function_name, warnings)
-        extra = function(results, rows) if function is not None and kind == "results" else None
+        extra = function(*args) if function is not None and part_kind == kind else None
         if extra is not None:
-            sections.append(extra)
+            out.append(extra)
+    return out
 
+
+def _scaling_section(run: dict, rows: pd.DataFrame) -> Section | None:
+    """Time against size with the fitted exponents, and memory per stage when cells ran isolated; None if neither."""
     picture = scaling_figure(rows)
-    memory = stage_memory_table(rows) if _isolated(results.run) else None
-    if picture is not None or memory is not None:
-        scaling = Section("Time against size")
-        if picture is not None:
-            scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
-        if memory is not None:
-            scaling.blocks.append(memory)
-        sections.append(scaling)
+    memory = stage_memory_table(rows) if _isolated(run) else None
+    if picture is None and memory is None:
+        return None
+    scaling = Section("Time against size")
+    if picture is not None:
+        scaling.blocks += [picture, exponent_table(scaling_fits(rows))]
+    if memory is not None:
+        scaling.blocks.append(memory)
+    return scaling
 
-    if stats is not None:
-        bench = Section("Benchmarks", intro="From " + ", ".join(p.name for p in paths) + ".")
-        picture = benchmark_figure(stats)
-        if picture is not None:
-            bench.blocks.append(picture)
-        bench.blocks.append(benchmark_table(stats) if len(stats) else Note("The files hold no benchmark.", "muted"))
-        for module_name, function_name, kind in OPTIONAL_SECTIONS:
-            function = _optional_function(module_name, function_name, warnings)
-            extra = function(stats) if function is not None and kind == "benchmarks" else None
-            if extra is not None:
-                bench.blocks.append(extra)
-        sections.append(bench)
 
-    run_section = Section("Run metadata", [metadata_table(results.run)])
+def _benchmark_section(stats: pd.DataFrame, paths: list[Path], warnings: list[str]) -> Section:
+    """The pytest-benchmark figure and table, and the optional benchmark parts."""
+    bench = Section("Benchmarks", intro="From " + ", ".join(p.name for p in paths) + ".")
+    picture = benchmark_figure(stats)
+    if picture is not None:
+        bench.blocks.append(picture)
+    bench.blocks.append(benchmark_table(stats) if len(stats) else Note("The files hold no benchmark.", "muted"))
+    bench.blocks += _optional_sections("benchmarks", (stats,), warnings)
+    return bench
+
+
+def _run_section(run: dict, warnings: list[str]) -> Section:
+    """Run metadata, and what was skipped while reading."""
+    run_section = Section("Run metadata", [metadata_table(run)])
     if warnings:
         run_section.blocks.append(Note("Skipped while reading: " + " | ".join(warnings), "warning"))
-    sections.append(run_section)
-    return render_report("parambench report", _subtitle(results.run, rows), sections)
+    return run_section
 
 
 def _isolated(run: dict) -> bool:

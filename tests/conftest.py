@@ -14,6 +14,19 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _load_source_tree_helper():
+    # tests/ is not a package (pytest's importlib mode): load the helper by path.
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_parambench_source_tree", ROOT / "tests" / "source_tree.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+SOURCE_TREE_SHIM = _load_source_tree_helper().put_source_tree_first()
+
+
 def _requirement_name(spec: str) -> str:
     """``"dask[distributed]>=2024.1; python_version<'3.13'"`` -> ``"dask"``."""
     return re.split(r"[\s\[<>=!~;@(]", spec.strip(), maxsplit=1)[0]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -18,22 +19,25 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj")
-DATA_IN_PACKAGE = "datasets_gen/data/real"
+SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj", "meg-helmet.obj", "spot-top.obj", "cortex-lh.obj")
+DATA_IN_PACKAGE = "datasets_gen/data/real"  # in the source tree
+DATA_IN_WHEEL = f"parambench/{DATA_IN_PACKAGE}"
+TOP_FOLDERS = ("methods", "datasets_gen", "bench", "reports")
 
 # Loads each shipped dataset and prints where the package was imported from and the counts.
 LOAD_SCRIPT = """
 import parambench.datasets_gen
 from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.real import real_data_dir
-print(datasets_gen.__file__)
+print(parambench.datasets_gen.__file__)
 print(real_data_dir())
-for name in ("real/camelhead", "real/lilium", "real/bump-domain"):
+for name in ("real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh"):
     s = make_surface(name)
     print(name, s.n_points, len(s.faces), len(s.boundary_loops))
 """
 
-EXPECTED_COUNTS = {"real/camelhead": (11381, 22704), "real/lilium": (3389, 6590), "real/bump-domain": (4172, 8058)}
+EXPECTED_COUNTS = {"real/camelhead": (11381, 22704), "real/lilium": (3389, 6590), "real/bump-domain": (4172, 8058),
+                   "real/meg-helmet": (2044, 3987), "real/spot-top": (2089, 4112), "real/cortex-lh": (12226, 23999)}
 
 
 def _clean_env(pythonpath: Path) -> dict:
@@ -49,11 +53,11 @@ def _load_in_subprocess(pythonpath: Path, cwd: Path) -> list[str]:
     return done.stdout.splitlines()
 
 
-def _check_loaded(lines: list[str], tree: Path) -> None:
+def _check_loaded(lines: list[str], tree: Path, data_dir_expected: Path) -> None:
     module_file, data_dir, *rows = lines
     # The interpreter must have imported the copy, not the project this test runs from.
     assert Path(module_file).resolve().is_relative_to(tree.resolve())
-    assert Path(data_dir).resolve() == (tree / DATA_IN_PACKAGE).resolve()
+    assert Path(data_dir).resolve() == data_dir_expected.resolve()
     loaded = {row.split()[0]: tuple(int(x) for x in row.split()[1:]) for row in rows}
     assert loaded == {name: (*counts, 1) for name, counts in EXPECTED_COUNTS.items()}
 
@@ -62,7 +66,12 @@ def _check_loaded(lines: list[str], tree: Path) -> None:
 def wheel(tmp_path_factory) -> Path:
     """Build the project's wheel once (build isolation fetches setuptools>=77 when needed)."""
     out = tmp_path_factory.mktemp("wheel")
-    cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(ROOT)]
+    # From a copy without build/ (setuptools reuses a stale build/lib: files no longer listed
+    # would slip into the wheel) or any other local state.
+    src = tmp_path_factory.mktemp("src") / "parambench"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".venv", ".git", "__pycache__", "*.egg-info", "build",
+                                                             "dist", ".pytest_cache", ".benchmarks", "test-artifacts"))
+    cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     (whl,) = out.glob("parambench-*.whl")
@@ -73,12 +82,12 @@ def wheel(tmp_path_factory) -> Path:
 def test_wheel_ships_the_real_meshes_their_sources_and_the_licence(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     for filename in (*SHIPPED, "SOURCES.md"):
-        assert f"{DATA_IN_PACKAGE}/{filename}" in names
+        assert f"{DATA_IN_WHEEL}/{filename}" in names
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     # Byte-for-byte the files of the source tree, so the wheel loads the same meshes.
     with zipfile.ZipFile(wheel) as zf:
         for filename in SHIPPED:
-            assert zf.read(f"{DATA_IN_PACKAGE}/{filename}") == (ROOT / DATA_IN_PACKAGE / filename).read_bytes()
+            assert zf.read(f"{DATA_IN_WHEEL}/{filename}") == (ROOT / DATA_IN_PACKAGE / filename).read_bytes()
 
 
 @pytest.mark.slow
@@ -96,7 +105,7 @@ def test_real_datasets_load_from_the_unpacked_wheel(wheel, tmp_path):
     zipfile.ZipFile(wheel).extractall(site)
     elsewhere = tmp_path / "cwd"
     elsewhere.mkdir()
-    _check_loaded(_load_in_subprocess(site, elsewhere), site)
+    _check_loaded(_load_in_subprocess(site, elsewhere), site, site / DATA_IN_WHEEL)
 
 
 @pytest.mark.slow
@@ -107,7 +116,11 @@ def test_real_datasets_load_from_a_copy_of_the_project_without_shared_beside_it(
     assert not (copy.parent / "shared").exists()
     elsewhere = tmp_path / "cwd"
     elsewhere.mkdir()
-    _check_loaded(_load_in_subprocess(copy, elsewhere), copy)
+    # The copy imported as the package it installs as: parambench -> the copied folders.
+    shim = tmp_path / "shim"
+    shim.mkdir()
+    (shim / "parambench").symlink_to(copy, target_is_directory=True)
+    _check_loaded(_load_in_subprocess(shim, elsewhere), copy, copy / DATA_IN_PACKAGE)
 
 
 def test_sources_file_credits_every_shipped_mesh():
@@ -115,6 +128,22 @@ def test_sources_file_credits_every_shipped_mesh():
     for filename in SHIPPED:
         assert f"`{filename}`" in text
     assert "libigl-tutorial-data" in text and "Sorkine" in text
+    # The two meshes taken from PyPI packages: package, version, licence, authors, and the cut.
+    assert "bfieldtools-0.11.3-py3-none-any.whl" in text and "BSD-3-Clause" in text
+    assert "Redistributions in binary form must reproduce the above copyright" in text  # BSD-3 asks for it
+    assert "potpourri3d-1.4.0.tar.gz" in text and "Keenan Crane" in text and "public domain" in text
+    assert "y >= -0.23" in text
+    assert "pycortex-1.4.0.tar.gz" in text and "BSD-2-Clause" in text and "targetfacenum=24000" in text
+
+
+def test_every_shipped_mesh_file_is_listed_and_small():
+    folder = ROOT / DATA_IN_PACKAGE
+    meshes = sorted(p.name for p in folder.iterdir() if p.name != "SOURCES.md")
+    assert meshes == sorted(SHIPPED)
+    assert all((folder / name).stat().st_size <= 1_500_000 for name in SHIPPED)
+    from parambench.datasets_gen.real import REAL_DATASETS
+
+    assert sorted(d.filename for d in REAL_DATASETS.values() if d.location == "package") == sorted(SHIPPED)
 
 
 def test_project_code_never_reaches_for_a_shared_folder_beside_it():
@@ -132,8 +161,9 @@ def test_project_code_never_reaches_for_a_shared_folder_beside_it():
 def test_setuptools_config_lists_only_existing_package_data():
     tomllib = pytest.importorskip("tomllib")
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    package_dir = config["tool"]["setuptools"]["package-dir"]
     for package, patterns in config["tool"]["setuptools"]["package-data"].items():
-        base = ROOT / package.replace(".", "/")
+        base = ROOT / package_dir[package]
         assert importlib.util.find_spec(package) is not None
         for pattern in patterns:
             assert list(base.glob(pattern)), f"{package}: {pattern} matches no file"
@@ -150,3 +180,86 @@ def test_env_var_still_overrides_the_shipped_folder(tmp_path, monkeypatch):
     monkeypatch.setenv("PARAMBENCH_REAL_DATA", str(tmp_path))
     assert real_data_dir() == tmp_path
     assert make_surface("real/lilium").n_points == 4
+
+
+def _source_packages() -> set[str]:
+    """Every package folder of the four top-level folders, as its installed dotted name."""
+    names = set()
+    for top in TOP_FOLDERS:
+        for init in (ROOT / top).rglob("__init__.py"):
+            rel = init.parent.relative_to(ROOT)
+            if rel.parts[:2] != ("bench", "benchmarks") and "__pycache__" not in rel.parts:
+                names.add("parambench." + ".".join(rel.parts))
+    return names
+
+
+def test_setuptools_lists_every_package_folder_under_the_parambench_namespace():
+    tomllib = pytest.importorskip("tomllib")
+    setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert set(setuptools["packages"]) == _source_packages()
+    assert setuptools["package-dir"] == {f"parambench.{top}": top for top in TOP_FOLDERS}
+
+
+@pytest.mark.slow
+def test_wheel_holds_only_the_parambench_namespace_without_the_benchmarks(wheel):
+    names = zipfile.ZipFile(wheel).namelist()
+    tops = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
+    assert tops == {"parambench"}
+    assert not any(n.startswith("parambench/bench/benchmarks/") for n in names)
+    # No __init__.py at parambench/: an implicit namespace package, as the source tree has none.
+    assert "parambench/__init__.py" not in names
+    with zipfile.ZipFile(wheel) as zf:
+        (ep,) = [n for n in names if n.endswith(".dist-info/entry_points.txt")]
+        assert "parambench = parambench.bench.cli:main" in zf.read(ep).decode()
+
+
+# Imports every module of the installed package with the test-only extras made unimportable,
+# then checks that the bare top-level names of the source folders are not importable.
+IMPORT_ALL_SCRIPT = """
+import importlib, importlib.abc, pkgutil, sys
+
+class NoTestExtras(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in ("pytest", "pytest_benchmark", "selenium", "_pytest"):
+            raise ImportError(f"test-only dependency {name} imported")
+        return None
+
+sys.meta_path.insert(0, NoTestExtras())
+import parambench
+count = 0
+for info in pkgutil.walk_packages(parambench.__path__, "parambench."):
+    importlib.import_module(info.name)
+    count += 1
+print(count)
+for bare in ("methods", "bench", "reports", "datasets_gen"):
+    try:
+        importlib.import_module(bare)
+    except ModuleNotFoundError:
+        print("absent", bare)
+"""
+
+
+@pytest.mark.slow
+def test_installed_package_imports_without_test_extras_and_has_no_bare_top_level_names(wheel, tmp_path):
+    site = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(site)
+    elsewhere = tmp_path / "cwd"
+    elsewhere.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(site)
+    done = subprocess.run([sys.executable, "-c", IMPORT_ALL_SCRIPT], cwd=elsewhere, env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    count, *absent = done.stdout.split("\n")[:5]
+    n_modules = sum(1 for top in TOP_FOLDERS for f in (ROOT / top).rglob("*.py")
+                    if "benchmarks" not in f.parts and "__pycache__" not in f.parts)
+    assert int(count) == n_modules
+    assert absent == [f"absent {bare}" for bare in ("methods", "bench", "reports", "datasets_gen")]
+
+
+def test_no_module_imports_a_bare_top_level_folder():
+    # `from methods...` would work from the repository folder and break once installed.
+    bare = re.compile(r"^\s*(?:from|import)\s+(?:methods|bench|reports|datasets_gen)\b", re.M)
+    offenders = [str(f.relative_to(ROOT)) for folder in (*TOP_FOLDERS, "tests") for f in (ROOT / folder).rglob("*.py")
+                 if bare.search(f.read_text(encoding="utf-8"))]
+    assert offenders == []

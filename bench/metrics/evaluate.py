@@ -98,57 +98,105 @@ def evaluate(points, faces, uv, *, exact_uv=None, boundary_loops=None, diameter=
     s1, s2, signed, area = face_jacobian_sv(pts, tri, uv)
 
     collapsed = collapsed_mask(signed)
-    orient = majority_orientation(signed)
     n_faces = int(tri.shape[0])
-    live = ~collapsed
     foldovers = count_foldovers(signed)
-
-    if live.any():
-        qc = quasi_conformal(s1[live], s2[live])
-        w = area[live]
-        qc_mean = float(np.average(qc, weights=w))
-        qc_p95 = weighted_quantile(qc, w, 0.95)
-        qc_max = float(qc.max())
-        area_dist = area_distortion(s1[live], s2[live], w)
-        mu = beltrami_abs(s1[live], s2[live])
-        mu_mean = float(np.average(mu, weights=w))
-        mu_sd = float(np.sqrt(np.average((mu - mu_mean) ** 2, weights=w)))
-        mu_p95 = weighted_quantile(mu, w, 0.95)
-        area_norm = normalized_area_distortion(s1, s2, area)
-        sigma_max = float(sigma_ratio_excess(s1[live], s2[live]).max())
-        diff = angle_differences_deg(pts, tri[live], uv)
-        angle_err = float(np.average(angle_error_per_face(diff), weights=w))
-        hist = angle_histogram(diff).tolist()
-        flipped = flipped_share(signed)
-    else:
-        qc_mean = qc_p95 = qc_max = area_dist = None
-        mu_mean = mu_sd = mu_p95 = area_norm = sigma_max = angle_err = None
-        hist = flipped = None
+    shape = _face_shape_metrics(pts, tri, uv, s1, s2, signed, area, ~collapsed)
 
     loops = mesh_boundary_loops(tri) if boundary_loops is None else _check_loops(boundary_loops, pts.shape[0])
-    turning = [float(orient * turning_number(uv[loop])) for loop in loops]
+    turning = _oriented_turning_numbers(uv, loops, majority_orientation(signed))
 
     exact_error = None
     if exact_uv is not None:
         exact_error = exact_map_error(uv, check_uv(exact_uv, pts.shape[0], name="exact_uv"), diameter)
 
     return {
-        "qc_mean": qc_mean,
-        "qc_p95": qc_p95,
-        "qc_max": qc_max,
+        "qc_mean": shape["qc_mean"],
+        "qc_p95": shape["qc_p95"],
+        "qc_max": shape["qc_max"],
         "foldovers": foldovers,
         "foldover_fraction": foldovers / n_faces,
         "collapsed": int(collapsed.sum()),
-        "area_distortion": area_dist,
+        "area_distortion": shape["area_distortion"],
         "turning_numbers": turning,
         "exact_error": exact_error,
         "n_eval_faces": n_faces,
-        "mu_mean": mu_mean,
-        "mu_sd": mu_sd,
-        "mu_p95": mu_p95,
-        "area_distortion_normalized": area_norm,
-        "sigma_ratio_max": sigma_max,
-        "angle_error_mean": angle_err,
-        "flipped_share": flipped,
-        "angle_hist": hist,
+        "mu_mean": shape["mu_mean"],
+        "mu_sd": shape["mu_sd"],
+        "mu_p95": shape["mu_p95"],
+        "area_distortion_normalized": shape["area_distortion_normalized"],
+        "sigma_ratio_max": shape["sigma_ratio_max"],
+        "angle_error_mean": shape["angle_error_mean"],
+        "flipped_share": shape["flipped_share"],
+        "angle_hist": shape["angle_hist"],
     }
+
+
+#: The keys of :func:`_face_shape_metrics`, all None when every face collapsed.
+_SHAPE_KEYS = ("qc_mean", "qc_p95", "qc_max", "area_distortion", "mu_mean", "mu_sd", "mu_p95",
+              "area_distortion_normalized", "sigma_ratio_max", "angle_error_mean", "flipped_share", "angle_hist")
+
+
+def _face_shape_metrics(pts: np.ndarray, tri: np.ndarray, uv: np.ndarray, s1: np.ndarray, s2: np.ndarray,
+                       signed: np.ndarray, area: np.ndarray, live: np.ndarray) -> dict:
+    """QC, Beltrami, area and angle distortion over the non-collapsed faces, weighted by 3D area.
+
+    Parameters
+    ----------
+    pts : (N, 3) numpy.ndarray of float64
+    tri : (M, 3) numpy.ndarray of int64
+    uv : (N, 2) numpy.ndarray of float64
+    s1, s2 : (M,) numpy.ndarray of float64
+        Singular values of each face's Jacobian, s1 >= s2 (:func:`face_jacobian_sv`).
+    signed : (M,) numpy.ndarray of float64
+        Signed uv areas (the orientation of each face).
+    area : (M,) numpy.ndarray of float64
+        3D face areas, the weights.
+    live : (M,) numpy.ndarray of bool
+        Faces with non-zero uv area; the others are left out.
+
+    Returns
+    -------
+    dict
+        The :data:`_SHAPE_KEYS` as in :func:`evaluate`; every value None when no face is live.
+        ``area_distortion_normalized`` and ``flipped_share`` use all faces, as the
+        functions they come from handle collapsed faces themselves.
+    """
+    if not live.any():
+        return dict.fromkeys(_SHAPE_KEYS)
+    qc = quasi_conformal(s1[live], s2[live])
+    w = area[live]
+    mu = beltrami_abs(s1[live], s2[live])
+    mu_mean = float(np.average(mu, weights=w))
+    diff = angle_differences_deg(pts, tri[live], uv)
+    return {
+        "qc_mean": float(np.average(qc, weights=w)),
+        "qc_p95": weighted_quantile(qc, w, 0.95),
+        "qc_max": float(qc.max()),
+        "area_distortion": area_distortion(s1[live], s2[live], w),
+        "mu_mean": mu_mean,
+        "mu_sd": float(np.sqrt(np.average((mu - mu_mean) ** 2, weights=w))),
+        "mu_p95": weighted_quantile(mu, w, 0.95),
+        "area_distortion_normalized": normalized_area_distortion(s1, s2, area),
+        "sigma_ratio_max": float(sigma_ratio_excess(s1[live], s2[live]).max()),
+        "angle_error_mean": float(np.average(angle_error_per_face(diff), weights=w)),
+        "flipped_share": flipped_share(signed),
+        "angle_hist": angle_histogram(diff).tolist(),
+    }
+
+
+def _oriented_turning_numbers(uv: np.ndarray, loops: list[np.ndarray], orient: int) -> list[float]:
+    """Turning number of each loop's uv image, times the map's majority orientation (+1 or -1).
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+    loops : list of (L_i,) numpy.ndarray of int64
+    orient : int
+        :func:`majority_orientation` of the faces, so a mirrored map gives the same numbers.
+
+    Returns
+    -------
+    list of float
+        One per loop, in loop order.
+    """
+    return [float(orient * turning_number(uv[loop])) for loop in loops]

@@ -27,7 +27,7 @@ import numpy as np
 from parambench.datasets_gen.errors import NotADiskError, SolverError
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..mesh.topology import require_connected_disk_like
 from ..registry import register
 
@@ -91,8 +91,7 @@ class BffMouette(Method):
     description = "Boundary First Flattening, zero boundary scale factors (Sawhney & Crane 2017; mouette; baseline)"
     needs_faces = True
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
             if len(loops) != 1:
@@ -101,5 +100,4 @@ class BffMouette(Method):
         with timer("solve"):
             uv = bff_uv(surface.points, surface.faces)
         uv -= uv.mean(axis=0)
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings,
-                                diagnostics={"n_boundary_loops": len(loops), "boundary_scale_factor": 0.0})
+        return MethodOutput(uv, {"n_boundary_loops": len(loops), "boundary_scale_factor": 0.0})

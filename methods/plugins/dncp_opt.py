@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area, solve_with_k_rule
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
@@ -31,8 +31,7 @@ class DncpOpt(Method):
                 "uniform_at": None}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "k_search": ["line", "direct"]}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         weights, normalized = params["weights"], bool(params["normalized"])
         pins = None
 
@@ -53,4 +52,4 @@ class DncpOpt(Method):
         with timer("solve"):
             uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
         diagnostics = dict(sol.diagnostics, pins=[int(pins[0]), int(pins[1])], **info)
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diagnostics)
+        return MethodOutput(uv, diagnostics)

@@ -83,10 +83,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 
-from parambench.datasets_gen.errors import DisconnectedError, InvalidInputError, UnknownNameError
+from parambench.datasets_gen.errors import DisconnectedError, InvalidInputError
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..mesh.pins import farthest_pair
 from ..mesh.weights import laplacian
 from ..pointset.local_delaunay import drop_outside_boundary, local_delaunay_rings, one_ring_cotangent_weights
@@ -193,6 +193,7 @@ class FbcpPc(Method):
                    "weights + LSCM (Choi, Liu & Lui 2022; points only)")
     defaults = {**FRONTEND_DEFAULTS, "k_local": 16, "boundary": "detected", "free_boundary": "spectral"}
     param_grid = {"boundary": list(BOUNDARY_SOURCES)}
+    choices = {"boundary": BOUNDARY_SOURCES, "free_boundary": FREE_BOUNDARY_SOLVERS}
 
     def wants_given_boundary(self, params: dict) -> bool:
         """True when ``params`` ask for the caller's loops (``boundary="given"``).
@@ -202,18 +203,21 @@ class FbcpPc(Method):
         """
         return params.get("boundary", self.defaults["boundary"]) == "given"
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        boundary, solver = params["boundary"], params["free_boundary"]
-        if boundary not in BOUNDARY_SOURCES:
-            raise UnknownNameError(f"unknown boundary {boundary!r}; choose one of {', '.join(BOUNDARY_SOURCES)}.")
-        if solver not in FREE_BOUNDARY_SOLVERS:
-            raise UnknownNameError(f"unknown free_boundary {solver!r}; choose one of "
-                                   f"{', '.join(FREE_BOUNDARY_SOLVERS)}.")
+    def check_params(self, params: dict) -> None:
+        """Refuse a ``k_local`` that is not an integer of at least 3.
+
+        Raises
+        ------
+        InvalidInputError
+            ``k_local`` is not an integer >= 3 (booleans refused).
+        """
         k_local = params["k_local"]
         if isinstance(k_local, bool) or not isinstance(k_local, (int, np.integer)) or k_local < 3:
             raise InvalidInputError(f"k_local must be an integer >= 3, got {k_local!r}.")
+
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+        boundary, solver, k_local = params["boundary"], params["free_boundary"], params["k_local"]
         loops = given_loops(surface) if boundary == "given" else None
-        timer = StageTimer()
         front = run_frontend(surface, params, timer)
         if loops is None:
             loops = list(front.boundary_loops)
@@ -236,4 +240,4 @@ class FbcpPc(Method):
             diag["boundary_loops"] = [lp.tolist() for lp in loops]
         if solver == "two-pins":
             diag["pins"] = [int(p) for p in pins]
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import SolverError
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import smallest_nontrivial_pair
@@ -28,8 +28,7 @@ class Lem(Method):
     defaults = {**FRONTEND_DEFAULTS, "weights": "tangent"}
     param_grid = {"weights": ["tangent", "lle3d"]}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer, weights=params["weights"])
         with timer("solve"):
             w = 0.5 * (front.W + front.W.T)
@@ -41,4 +40,4 @@ class Lem(Method):
             vals, pair = smallest_nontrivial_pair((d - w).tocsc(), d.tocsc())
             uv = scale_to_spacing(pair, front)
         diag = dict(frontend_diagnostics(front), eigenvalues=vals.tolist())
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)

@@ -6,7 +6,7 @@ import scipy.sparse as sp
 
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import smallest_nontrivial_pair
@@ -25,12 +25,11 @@ class Lle(Method):
     defaults = {**FRONTEND_DEFAULTS, "weights": "tangent"}
     param_grid = {"weights": ["tangent", "lle3d"]}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer, weights=params["weights"])
         with timer("solve"):
             lap = front.L
             vals, pair = smallest_nontrivial_pair((lap.T @ lap).tocsc(), sp.identity(lap.shape[0], format="csc"))
             uv = scale_to_spacing(pair, front)
         diag = dict(frontend_diagnostics(front), eigenvalues=vals.tolist())
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)

@@ -7,7 +7,7 @@ import numpy as np
 
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..mesh.pins import farthest_pair
 from ..mesh.topology import require_connected_disk_like
 from ..registry import register
@@ -25,8 +25,7 @@ class LscmIgl(Method):
     description = "libigl LSCM, the two boundary vertices farthest apart pinned (baseline)"
     needs_faces = True
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
             i, j = farthest_pair(surface.points, np.concatenate(loops))
@@ -34,5 +33,4 @@ class LscmIgl(Method):
         with timer("solve"):
             uv, _ = igl.lscm(surface.points, surface.faces, np.array([i, j], dtype=np.int64),
                              np.array([[0.0, 0.0], [d, 0.0]]))
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings,
-                                diagnostics={"pins": [i, j], "n_boundary_loops": len(loops)})
+        return MethodOutput(uv, {"pins": [i, j], "n_boundary_loops": len(loops)})

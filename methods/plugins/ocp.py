@@ -1,4 +1,7 @@
-"""``ocp`` and ``scp-tan``: the conformal energy on W^tan, with and without the k search (Sec. 4.2).
+"""``ocp``: the conformal energy on W^tan with the k search (Sec. 4.2).
+
+``scp-tan`` (:mod:`parambench.methods.plugins.scp_tan`) is the ``"paper"`` energy below at a fixed k,
+without the search.
 
 ``ocp``'s ``energy`` option chooses the Laplacian of the conformal energy ``k L / 2 - M``:
 
@@ -23,7 +26,7 @@ import numpy as np
 from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
@@ -38,7 +41,19 @@ OCP_SOLVERS = ("direct", "multilevel")
 OCP_ENERGIES = {"paper": None, "neumann-tan": ("tangent", "tangent"), "neumann": ("quadratic", "linear")}
 
 
-def _conformal_problem(front, laplacian=None) -> ConformalProblem:
+def conformal_problem(front, laplacian=None) -> ConformalProblem:
+    """The conformal problem of a front end: its boundary loops, B the boundary indicator.
+
+    Parameters
+    ----------
+    front : parambench.methods.pointset.frontend.FrontEnd
+    laplacian : (N, N) scipy.sparse matrix, optional
+        The Laplacian L; ``front.L`` (``I - W^tan``) when omitted.
+
+    Returns
+    -------
+    parambench.methods.spectral.ConformalProblem
+    """
     lap = front.L if laplacian is None else laplacian
     return ConformalProblem(lap, front.boundary_loops, b_matrix="boundary", points=front.points)
 
@@ -98,15 +113,22 @@ class Ocp(Method):
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
                 "solver": "direct"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
+    choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES)}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        solver = params["solver"]
-        if solver not in OCP_SOLVERS:
-            raise UnknownNameError(f"unknown solver {solver!r}; choose one of {', '.join(OCP_SOLVERS)}.")
-        if solver == "multilevel" and params["k_search"] != "line":
+    def check_params(self, params: dict) -> None:
+        """Refuse ``solver="multilevel"`` with a k search other than the line search.
+
+        Raises
+        ------
+        InvalidInputError
+            ``solver="multilevel"`` and ``k_search`` is not ``"line"``.
+        """
+        if params["solver"] == "multilevel" and params["k_search"] != "line":
             raise InvalidInputError(f"solver='multilevel' searches k along a line; use k_search='line', "
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
-        timer = StageTimer()
+
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+        solver = params["solver"]
         front = run_frontend(surface, params, timer)
         with timer("laplacian"):
             lap = ocp_laplacian(front, params["energy"], params["area_factor"])
@@ -115,14 +137,14 @@ class Ocp(Method):
             sol, counts, extra = _multilevel_solve(front, lap, timer)
         else:
             with timer("solve"):
-                problem = _conformal_problem(front, lap)
+                problem = conformal_problem(front, lap)
                 sol = problem.solve("scp", params["k_search"])
             counts, extra = problem.counts, {}
         with timer("solve"):
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, **extra, "energy": params["energy"],
                 "solver": solver, "k_opt": float(sol.k), "turning": np.asarray(sol.turning).tolist()}
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)
 
 
 def _multilevel_solve(front, lap, timer: StageTimer):
@@ -142,28 +164,3 @@ def _multilevel_solve(front, lap, timer: StageTimer):
                                settings=settings, stage=lambda name: timer("solve" if name == "fine" else name))
     counts = info.pop("fine_counts")
     return sol, counts, info
-
-
-@register
-class ScpTan(Method):
-    """Raw SCP with W^tan at a fixed k (default 1): kept to show the "spinning" of Sec. 4.2.
-
-    W^tan is row-normalised, so k = 1 is far below k_opt: the boundary image winds more
-    than once (turning number > 1). The map is returned as computed, with its turning
-    numbers in the diagnostics, so the benchmark shows the failure honestly.
-    """
-
-    name = "scp-tan"
-    description = "raw SCP on W^tan at fixed k (shows the spinning failure of Sec. 4.2; points only)"
-    defaults = {**FRONTEND_DEFAULTS, "k": 1.0}
-
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
-        front = run_frontend(surface, params, timer)
-        with timer("solve"):
-            problem = _conformal_problem(front)
-            sol = problem.scp(float(params["k"]), backend="auto", allow_negative=True)
-            uv = scale_to_spacing(sol.uv, front)
-        diag = {**frontend_diagnostics(front), **sol.diagnostics, **problem.counts, "k": float(sol.k),
-                "turning": np.asarray(sol.turning).tolist(), "energy": float(sol.energy)}
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
@@ -35,8 +35,7 @@ class Scp(Method):
                 "uniform_at": None}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "b_matrix": ["boundary", "mass"]}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         weights, normalized, b_matrix = params["weights"], bool(params["normalized"]), params["b_matrix"]
 
         def solve(problem):
@@ -53,4 +52,4 @@ class Scp(Method):
         with timer("solve"):
             uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
         diagnostics = dict(sol.diagnostics, **info)
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diagnostics)
+        return MethodOutput(uv, diagnostics)

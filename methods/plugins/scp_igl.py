@@ -8,7 +8,7 @@ import numpy as np
 from parambench.datasets_gen.errors import SolverError
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..mesh.topology import require_connected_disk_like
 from ..registry import register
 
@@ -21,8 +21,7 @@ class ScpIgl(Method):
     description = "libigl spectral conformal parameterization, igl.spectra.lscm (baseline)"
     needs_faces = True
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
         with timer("solve"):
@@ -31,5 +30,4 @@ class ScpIgl(Method):
         if not np.all(np.isfinite(uv)) or np.ptp(uv, axis=0).min() <= 0:
             raise SolverError(f"igl.spectra.lscm returned a degenerate map on {surface.name!r}; "
                               "check the mesh for degenerate or duplicated faces.")
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings,
-                                diagnostics={"n_boundary_loops": len(loops)})
+        return MethodOutput(uv, {"n_boundary_loops": len(loops)})

@@ -7,7 +7,7 @@ import scipy.sparse as sp
 
 from parambench.datasets_gen.surface import Surface
 
-from ..base import Method, Parameterization, StageTimer
+from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
@@ -31,8 +31,7 @@ class Sdp(Method):
     defaults = {**FRONTEND_DEFAULTS, "b_orthonormal": True}
     param_grid = {"b_orthonormal": [False, True]}
 
-    def run(self, surface: Surface, **params) -> Parameterization:
-        timer = StageTimer()
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         lap = front.L.tocsc()
         front = front.without_balls()  # ~1.3 GB at 1M points, not needed by the solve
@@ -44,4 +43,4 @@ class Sdp(Method):
                 pair = b_orthonormalize(pair, b_diag)
             uv = scale_to_spacing(pair, front)
         diag = dict(frontend_diagnostics(front), eigenvalues=vals.tolist())
-        return Parameterization(uv=uv, method=self.name, timings=timer.timings, diagnostics=diag)
+        return MethodOutput(uv, diag)

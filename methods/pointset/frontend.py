@@ -1,13 +1,17 @@
 """One entry point for the point-set front end: kNN graph, normals, DEM balls, weights, boundary.
 
 The point-set methods (LEM, LLE, SDP, OCP) call :func:`build_frontend` and use ``W``,
-``L`` and the boundary loops of the returned :class:`FrontEnd`.
+``L`` and the boundary loops of the returned :class:`FrontEnd`. Its options are a
+:class:`~parambench.methods.pointset.params.FrontEndParams`. Each timed stage is a function of its
+own (:func:`knn_stage`, :func:`normals_stage`, :func:`dem_stage`, :func:`weights_stage`,
+:func:`boundary_stage`) working on the points in kd-tree order; ``build_frontend``
+chains them and maps the results back to the input order.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,15 +20,16 @@ from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 from parambench.datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
 
 from ..base import StageTimer
-from .boundary import DEFAULT_MIN_LOOP_SIZE, find_boundary, no_boundary_error
+from .boundary import find_boundary, no_boundary_error
 from .boundary_rings import find_boundary_rings
-from .dem import DEFAULT_MAX_BALL, DEM_KINDS, dem_balls
+from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
-# Aliased: build_frontend has a boolean parameter of the same name.
-from .surface_neighbours import surface_knn_graph
+from .surface_neighbours import pruned_knn_graph, surface_knn_graph
 from .normals import check_user_normals, noise_adaptive_normals, orient_normals
+# Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
+from .params import FrontEndParams
 from .tangent_weights import (
     DEFAULT_REG_EPS,
     lle3d_weights,
@@ -34,7 +39,9 @@ from .tangent_weights import (
     weight_matrix,
 )
 
-__all__ = ["FrontEnd", "build_frontend", "WEIGHT_KINDS", "DEM_VARIANTS", "STAGES"]
+__all__ = ["FrontEnd", "FrontEndParams", "build_frontend", "WEIGHT_KINDS", "DEM_VARIANTS", "STAGES",
+           "Neighbourhoods", "validate_inputs", "knn_stage", "normals_stage", "dem_stage", "weights_stage",
+           "boundary_stage", "stage_diagnostics"]
 
 WEIGHT_KINDS = ("tangent", "lle3d")
 
@@ -56,7 +63,7 @@ SPACING_MODES = ("local", "global")
 BOUNDARY_METHODS = ("angle", "rings")
 
 #: ``neighbours`` settings of :func:`build_frontend`.
-NEIGHBOUR_MODES = ("surface", "euclidean")
+NEIGHBOUR_MODES = ("surface", "euclidean", "pruned")
 
 #: When no boundary loop closes, the boundary stage is retried on balls this much wider.
 _RETRY_BALL_SCALE = 1.6
@@ -138,38 +145,365 @@ class FrontEnd:
         return replace(self, ball_indices=None, tangent_coords=None, W=None, L=None)
 
 
-def _validate(points: Any, normals: Any, k_nn: int, weights: str, dem: str,
-              dem_variant: str) -> tuple[np.ndarray, np.ndarray | None]:
-    if dem_variant not in DEM_VARIANTS:
-        raise InvalidInputError(f"dem_variant must be one of {', '.join(DEM_VARIANTS)}, got {dem_variant!r}.")
-    if weights not in WEIGHT_KINDS:
-        raise InvalidInputError(f"weights must be one of {', '.join(WEIGHT_KINDS)}, got {weights!r}.")
-    if dem not in DEM_KINDS:
-        raise InvalidInputError(f"dem must be one of {', '.join(DEM_KINDS)}, got {dem!r}.")
+def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[np.ndarray, np.ndarray | None]:
+    """Check the options and the arrays of :func:`build_frontend` (its first step, not timed).
+
+    Parameters
+    ----------
+    points : (N, 3) array_like of float
+    normals : (N, 3) array_like of float or None
+    params : FrontEndParams
+
+    Returns
+    -------
+    points : (N, 3) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64 or None
+        The given normals, checked for shape and finiteness (their orientation is
+        checked by :func:`normals_stage`).
+
+    Raises
+    ------
+    InvalidInputError
+        An option outside its allowed values, or bad arrays.
+    TooFewPointsError
+        Fewer than ``k_nn + 1`` points.
+    DuplicatePointsError
+        Coincident points.
+    """
+    k_nn = params.k_nn
+    if params.dem_variant not in DEM_VARIANTS:
+        raise InvalidInputError(f"dem_variant must be one of {', '.join(DEM_VARIANTS)}, got {params.dem_variant!r}.")
+    if params.weights not in WEIGHT_KINDS:
+        raise InvalidInputError(f"weights must be one of {', '.join(WEIGHT_KINDS)}, got {params.weights!r}.")
+    if params.dem not in DEM_KINDS:
+        raise InvalidInputError(f"dem must be one of {', '.join(DEM_KINDS)}, got {params.dem!r}.")
     if int(k_nn) != k_nn or k_nn < 2:
         raise InvalidInputError(f"k_nn must be an integer >= 2, got {k_nn}.")
     pts = validate_points(points, min_points=max(MIN_POINTS, int(k_nn) + 1))
     require_unique_points(pts)
     nrm = None if normals is None else validate_normals(normals, pts.shape[0])
+    # Checked after the arrays, as before the stages were split (the first error reported stays the same).
+    if params.spacing not in SPACING_MODES:
+        raise InvalidInputError(f"spacing must be one of {', '.join(SPACING_MODES)}, got {params.spacing!r}.")
+    if params.boundary_method not in BOUNDARY_METHODS:
+        raise InvalidInputError(f"boundary_method must be one of {', '.join(BOUNDARY_METHODS)}, "
+                                f"got {params.boundary_method!r}.")
+    if params.neighbours not in NEIGHBOUR_MODES:
+        raise InvalidInputError(f"neighbours must be one of {', '.join(NEIGHBOUR_MODES)}, "
+                                f"got {params.neighbours!r}.")
     return pts, nrm
 
 
-def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: int = 6,
-                   ball_eps_factor: float = 2.5, dem: str = "upwind", smooth_normals: bool = True,
-                   reg_eps: float = DEFAULT_REG_EPS, boundary_angle_deg: float = 120.0,
-                   boundary_decimate: int = 1, weights: str = "tangent", max_ball: int = DEFAULT_MAX_BALL,
-                   min_loop_size: int = DEFAULT_MIN_LOOP_SIZE, dem_variant: str = "robust",
-                   spacing: str = "local", neighbours: str = "euclidean",
-                   boundary_method: str = "angle") -> FrontEnd:
+class Neighbourhoods(NamedTuple):
+    """What :func:`knn_stage` computes; every array is in kd-tree order (``points``).
+
+    Attributes
+    ----------
+    order : (N,) numpy.ndarray of int64
+        ``points = input_points[order]``.
+    inv : (N,) numpy.ndarray of int64
+        The inverse permutation: ``input_points = points[inv]``.
+    points : (N, 3) numpy.ndarray of float64
+        The points in kd-tree order.
+    graph : parambench.methods.pointset.neighbourhoods.KnnGraph
+        K nearest neighbours (indices into ``points``).
+    neighbour_diagnostics : dict
+        Facts of the surface neighbour search (empty for "euclidean").
+    adjacency : (N, N) scipy.sparse.csr_matrix or None
+        The symmetrised kNN graph (None once dropped by :func:`build_frontend`).
+    spacing : float
+        ``l``, the mean kNN edge length.
+    h_around : (N,) numpy.ndarray of float64
+        Spacing around each point, one average (the boundary's loop-spacing rule).
+    h_local : (N,) numpy.ndarray of float64
+        Spacing field of balls and area terms: ten averages for ``spacing="local"``,
+        ``l`` everywhere for "global".
+    """
+
+    order: np.ndarray
+    inv: np.ndarray
+    points: np.ndarray
+    graph: Any
+    neighbour_diagnostics: dict
+    adjacency: sp.csr_matrix | None
+    spacing: float
+    h_around: np.ndarray
+    h_local: np.ndarray
+
+
+def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing_mode: str = "local") -> Neighbourhoods:
+    """Stage ``knn``: kd-tree order, the kNN graph, its connectedness, and the spacing fields.
+
+    Parameters
+    ----------
+    pts : (N, 3) numpy.ndarray of float64
+        Checked points, input order.
+    k_nn : int
+    neighbours : {"euclidean", "surface", "pruned"}
+    spacing_mode : {"local", "global"}
+
+    Returns
+    -------
+    Neighbourhoods
+
+    Raises
+    ------
+    DisconnectedError
+        The kNN graph has several components.
+    """
+    n = pts.shape[0]
+    # Every stage runs on the points in kd-tree order (memory locality of the graph
+    # searches; see spatial_order) and the results are mapped back to the input order.
+    order = spatial_order(pts)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(n, dtype=np.int64)
+    p = pts[order]
+    if neighbours == "surface":
+        graph, nbr_diag = surface_knn_graph(p, k_nn)
+    elif neighbours == "pruned":
+        graph, nbr_diag = pruned_knn_graph(p, k_nn)
+    else:
+        graph, nbr_diag = knn_graph(p, k_nn), {}
+    adjacency = symmetric_adjacency(graph)
+    require_connected(adjacency, k_nn)
+    spacing = graph.mean_spacing
+    # The loop-spacing rule of the boundary needs the spacing right at the loop (one
+    # average); balls and area terms need a smooth field (ten: noise-free on uniform
+    # random samples, still following a graded sampling's density).
+    h_around = local_spacing(graph, passes=1)
+    h_local = local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local" else np.full(n, spacing)
+    return Neighbourhoods(order=order, inv=inv, points=p, graph=graph, neighbour_diagnostics=nbr_diag,
+                          adjacency=adjacency, spacing=spacing, h_around=h_around, h_local=h_local)
+
+
+def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spacing: float, *,
+                  smooth: bool = True, smoothing: str = "linear") -> tuple[np.ndarray, np.ndarray, dict]:
+    """Stage ``normals``: oriented unit normals, the (smoothed) normals of the DEM frames, fit facts.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    given : (N, 3) numpy.ndarray of float64 or None
+        The caller's normals, same order as ``points``; PCA normals oriented along a
+        minimum spanning tree when None.
+    graph : parambench.methods.pointset.neighbourhoods.KnnGraph
+        kNN graph of ``points``.
+    spacing : float
+        Mean spacing ``l``.
+    smooth : bool
+        Smooth the frame normals (``smooth_normals``).
+    smoothing : {"linear", "average"}
+        How (the DEM variant's rule, :func:`parambench.methods.pointset.normals.smooth_normals`).
+
+    Returns
+    -------
+    oriented : (N, 3) numpy.ndarray of float64
+        Consistently oriented unit normals (the given ones when given).
+    frame_normals : (N, 3) numpy.ndarray of float64
+        ``oriented`` smoothed, or ``oriented`` itself when ``smooth`` is False.
+    normal_fit : dict
+        Facts of :func:`~parambench.methods.pointset.normals.noise_adaptive_normals` (how
+        many points were refitted on larger neighbourhoods, the predicted fit error).
+
+    Raises
+    ------
+    InconsistentNormalsError
+        Given normals are inconsistently oriented or not normal to the points.
+    """
+    # PCA on the kNN, refitted on more points where the fit residual says noise.
+    fitted, normal_fit = noise_adaptive_normals(points, graph.indices)
+    if given is not None:
+        oriented = given
+        check_user_normals(points, oriented, fitted, graph.indices)
+    else:
+        oriented = orient_normals(points, fitted, graph.indices)
+    frame_normals = (neighbourhood_smoothed(points, oriented, graph.indices, graph.distances, spacing,
+                                            method=smoothing)
+                     if smooth else oriented)
+    return oriented, frame_normals, normal_fit
+
+
+def dem_stage(points: np.ndarray, frame_normals: np.ndarray, adjacency: sp.csr_matrix, spacing: float,
+              h_local: np.ndarray, *, ball_k: int, ball_eps_factor: float, dem: str, max_ball: int,
+              dem_variant: str = "robust"):
+    """Stage ``dem``: geodesic K-eps balls with DEM tangent coordinates.
+
+    Also the wider balls of the boundary stage's retry. Radii are
+    ``ball_eps_factor * max(h_local, spacing)``.
+
+    Parameters
+    ----------
+    points, frame_normals : (N, 3) numpy.ndarray of float64
+    adjacency : (N, N) scipy.sparse.csr_matrix
+        Symmetrised kNN graph.
+    spacing : float
+        Mean spacing ``l``.
+    h_local : (N,) numpy.ndarray of float64
+        Spacing field (see :class:`Neighbourhoods`).
+    ball_k, ball_eps_factor, dem, max_ball
+        As in :class:`~parambench.methods.pointset.params.FrontEndParams`.
+    dem_variant : {"robust", "paper"}
+        Selects projection and upwind weighting (:data:`DEM_VARIANTS`).
+
+    Returns
+    -------
+    parambench.methods.pointset.dem.GeodesicBalls
+    """
+    variant = DEM_VARIANTS[dem_variant]
+    return dem_balls(points, frame_normals, adjacency, spacing, ball_k=int(ball_k),
+                     ball_eps_factor=ball_eps_factor, dem=dem, max_ball=max_ball,
+                     projection=variant["projection"], front_weight=variant["front_weight"],
+                     local_spacing=np.maximum(h_local, spacing))
+
+
+def weights_stage(points: np.ndarray, balls, weights: str = "tangent",
+                  reg_eps: float = DEFAULT_REG_EPS) -> tuple[np.ndarray, np.ndarray]:
+    """Stage ``weights`` (first part): reconstruction weights per ball and their errors ``R_x``.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    balls : parambench.methods.pointset.dem.GeodesicBalls
+    weights : {"tangent", "lle3d"}
+        W^tan on the tangent coordinates (Eq. 13) or 3D LLE weights (Eqs. 10-12).
+    reg_eps : float
+
+    Returns
+    -------
+    w : (N, B) numpy.ndarray of float64
+        Row i's weights of ``balls.indices[i]`` (zero at padding); rows sum to 1.
+    r_x : (N,) numpy.ndarray of float64
+        Reconstruction error per point (tangent plane for W^tan, 3D for LLE).
+    """
+    mask = balls.mask
+    n = points.shape[0]
+    if weights == "tangent":
+        w = tangent_weights(balls.coords, mask, float(reg_eps))
+        r_x = reconstruction_error(balls.coords, w)
+    else:
+        w = lle3d_weights(points, balls.indices, float(reg_eps))
+        r_x = np.empty(n)
+        for lo in range(0, n, 65536):  # 3D offsets chunked: (chunk, B, 3) at a time
+            sl = slice(lo, min(lo + 65536, n))
+            offsets = points[np.where(mask[sl], balls.indices[sl], 0)] - points[sl, None, :]
+            r_x[sl] = reconstruction_error(offsets, w[sl])
+    return w, r_x
+
+
+def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params: FrontEndParams):
+    """Stage ``boundary``: the boundary loops, in kd-tree order.
+
+    With ``boundary_method="angle"``, when at least ``4 * min_loop_size`` points pass the
+    angle criterion but no loop closes (a ragged, sparsely sampled boundary), the stage
+    is run once more on balls 1.6x wider (W keeps the normal balls).
+
+    Parameters
+    ----------
+    nb : Neighbourhoods
+        From :func:`knn_stage` (adjacency still held).
+    frame_normals : (N, 3) numpy.ndarray of float64
+    balls : parambench.methods.pointset.dem.GeodesicBalls
+        From :func:`dem_stage`.
+    params : FrontEndParams
+
+    Returns
+    -------
+    boundary : parambench.methods.pointset.boundary.BoundaryLoops
+        Loops as indices into ``nb.points``.
+    retried : bool
+        The wider balls were tried.
+
+    Raises
+    ------
+    NoBoundaryError
+        No loop closed.
+    """
+    p, spacing = nb.points, nb.spacing
+    min_loop_size = int(params.min_loop_size)
+    bnd_args = dict(angle_deg=float(params.boundary_angle_deg), decimate=int(params.boundary_decimate),
+                    min_loop_size=min_loop_size, require_loop=False, local_spacing=nb.h_around)
+    retried = False
+    if params.boundary_method == "rings":
+        bnd = find_boundary_rings(p, frame_normals, nb.h_around, decimate=int(params.boundary_decimate),
+                                  min_loop_size=min_loop_size)
+    else:
+        bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
+    if params.boundary_method == "angle" and not bnd.loops and bnd.candidates.sum() >= 4 * params.min_loop_size:
+        # Many boundary candidates but no closed loop: a ragged, sparsely sampled
+        # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
+        wide = dem_stage(p, frame_normals, nb.adjacency, spacing, nb.h_local, ball_k=params.ball_k,
+                         ball_eps_factor=_RETRY_BALL_SCALE * float(params.ball_eps_factor), dem=params.dem,
+                         max_ball=int(_RETRY_BALL_SCALE**2 * params.max_ball) + 1, dem_variant=params.dem_variant)
+        wide_bnd = find_boundary(p, frame_normals, wide.indices, wide.coords, **bnd_args)
+        del wide
+        retried = True
+        if wide_bnd.loops:
+            bnd = wide_bnd
+    if not bnd.loops and params.boundary_method == "rings":
+        raise NoBoundaryError(
+            f"boundary_method='rings' found no boundary loop ({int(bnd.candidates.sum())} points border an "
+            "empty triangle): a closed surface (cut it open before flattening), or a noisy sampling; "
+            "try boundary_method='angle'.")
+    if not bnd.loops:
+        raise no_boundary_error(int(bnd.candidates.sum()), float(params.boundary_angle_deg), min_loop_size)
+    return bnd, retried
+
+
+def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray, bnd, retried: bool, *,
+                      k_nn: int, normals_given: bool, neighbours: str, normal_fit: dict | None = None) -> dict:
+    """The JSON-serialisable ``FrontEnd.diagnostics`` from the stages' outputs (see :func:`build_frontend`).
+
+    Parameters
+    ----------
+    nb : Neighbourhoods
+    balls : parambench.methods.pointset.dem.GeodesicBalls
+    w : (N, B) numpy.ndarray of float64
+        Ball weights (kd-tree order, as ``balls``).
+    r_x : (N,) numpy.ndarray of float64
+    bnd : parambench.methods.pointset.boundary.BoundaryLoops
+    retried : bool
+    k_nn : int
+    normals_given : bool
+    neighbours : str
+    normal_fit : dict, optional
+        The normals stage's fit facts (stored as ``normal_fit``).
+
+    Returns
+    -------
+    dict
+    """
+    spacing = nb.spacing
+    rel = r_x / spacing**2
+    return {
+        "n_points": int(nb.points.shape[0]),
+        "k_nn": k_nn,
+        "mean_spacing": float(spacing),
+        "normals_source": "given" if normals_given else "pca",
+        "normal_fit": normal_fit or {},
+        "neighbours": dict(nb.neighbour_diagnostics, mode=neighbours),
+        "ball_size": {"min": int(balls.sizes.min()), "mean": float(balls.sizes.mean()),
+                      "max": int(balls.sizes.max())},
+        "n_truncated_balls": int(balls.n_truncated),
+        "negative_weights": negative_weight_stats(w, balls.mask, bnd.candidates),
+        "reconstruction_error": {"mean": float(rel.mean()), "max": float(rel.max()), "unit": "l^2"},
+        "boundary": dict(bnd.diagnostics, retried_with_wider_balls=retried),
+    }
+
+
+def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | None = None,
+                   **options: Any) -> FrontEnd:
     """Run the point-set front end of Schmidt & Singh on a point set.
 
-    Stages: Euclidean kNN graph and mean spacing ``l`` (``knn``); PCA normals oriented
-    along a minimum spanning tree, or the given ones checked (``normals``); DEM geodesic
-    balls with tangent coordinates (``dem``); W^tan or 3D LLE weights and ``L = I - W``
-    (``weights``); boundary loops by the angle criterion (``boundary``). All stages run
-    on the points in kd-tree order (cache locality) and results come back in input order.
-    When many points pass the angle criterion but no loop closes (a ragged, sparsely
-    sampled boundary), the boundary stage alone is retried once on balls 1.6x wider
+    Stages, each a function of this module: checks (:func:`validate_inputs`); Euclidean
+    kNN graph and mean spacing ``l`` (``knn``, :func:`knn_stage`); PCA normals oriented
+    along a minimum spanning tree, or the given ones checked (``normals``,
+    :func:`normals_stage`); DEM geodesic balls with tangent coordinates (``dem``,
+    :func:`dem_stage`); W^tan or 3D LLE weights (``weights``, :func:`weights_stage`);
+    boundary loops by the angle criterion (``boundary``, :func:`boundary_stage`); then
+    ``L = I - W`` (``weights`` again). All stages run on the points in kd-tree order
+    (cache locality) and results come back in input order. When many points pass the
+    angle criterion but no loop closes (a ragged, sparsely sampled boundary), the
+    boundary stage alone is retried once on balls 1.6x wider
     (``diagnostics["boundary"]["retried_with_wider_balls"]``).
 
     Parameters
@@ -177,53 +511,10 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
     points : (N, 3) array_like of float
     normals : (N, 3) array_like of float, optional
         Consistently oriented normals; estimated when omitted.
-    k_nn : int
-        K of the Euclidean neighbourhood graph (paper: 8).
-    ball_k : int
-        Minimum members of a geodesic ball (paper: 6).
-    ball_eps_factor : float
-        Geodesic ball radius in units of ``l`` (paper: 2.5).
-    dem : {"upwind", "plain"}
-        Upwind-average DEM (Eq. 9) or plain DEM (Eq. 8).
-    smooth_normals : bool
-        Use distance-weighted neighbourhood-averaged normals in the DEM (Sec. 3.1).
-    reg_eps : float
-        Regularisation eps of Eq. 12 (default 1e-2).
-    boundary_angle_deg : float
-        Angle-criterion threshold (degrees).
-    boundary_decimate : int
-        Keep every m-th point of each boundary loop.
-    weights : {"tangent", "lle3d"}
-        W^tan (Eq. 13) or 3D LLE weights (Eqs. 10-12) on the same balls.
-    max_ball : int
-        Cap on geodesic ball size.
-    min_loop_size : int
-        Boundary cycles with fewer points are dropped as sampling gaps.
-    spacing : {"local", "global"}
-        "local" (default): ocp's area terms follow the spacing around each point, and
-        ball radii grow with it where the sampling is sparser than average (never below
-        the paper's ``ball_eps_factor * l``: radii smaller than that made ocp fail on a
-        400-point random cap), so sparse regions of adaptively sampled surfaces get full
-        balls; "global": the paper's single ``eps = ball_eps_factor * l`` everywhere and
-        one area per point.
-    neighbours : {"euclidean", "surface"}
-        "euclidean" (default): the paper's plain K nearest; "surface": K neighbours kept
-        along the surface, not across narrow gaps
-        (:func:`parambench.methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
-        does not separate the touching sheets of the camelhead scan and with noise of 0.5
-        spacings it loses the outer loop of "holes" at 2k points, so it is not the default.
-    boundary_method : {"angle", "rings"}
-        "angle" (default): the paper's angle criterion on the geodesic balls, candidates
-        chained into loops (:mod:`parambench.methods.pointset.boundary`); "rings": loops of the
-        boundary edges of the points' tangent-plane Delaunay one-rings with an alpha-shape
-        test (:mod:`parambench.methods.pointset.boundary_rings`): finds slits of regular samplings
-        narrower than the balls; otherwise measured on par with "angle".
-    dem_variant : {"robust", "paper"}
-        "paper": T_q p by length-preserving projection, upwind weights
-        ``(|p-q|^2 + eps)^-1``, normals smoothed by weighted averaging, all as in the
-        paper. "robust" (default): midpoint projection, front-aligned upwind weights,
-        local-linear normal smoothing; at least as accurate on clean samplings and
-        2-4x more accurate under noise (see :mod:`parambench.methods.pointset.dem`).
+    params : FrontEndParams, optional
+        The options (see its fields); the defaults when omitted.
+    **options
+        Fields of :class:`FrontEndParams` to change in ``params``, e.g. ``k_nn=12``.
 
     Returns
     -------
@@ -237,6 +528,8 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
 
     Raises
     ------
+    TypeError
+        A keyword in ``options`` that is not a field of :class:`FrontEndParams`.
     InvalidInputError
         Bad arrays (shape, NaN/inf) or option values.
     TooFewPointsError
@@ -251,122 +544,40 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         No boundary loop: a closed surface, or (worded differently) a boundary too
         ragged to close even on the wider balls.
     """
-    pts, given = _validate(points, normals, k_nn, weights, dem, dem_variant)
-    if spacing not in SPACING_MODES:
-        raise InvalidInputError(f"spacing must be one of {', '.join(SPACING_MODES)}, got {spacing!r}.")
-    spacing_mode = spacing
-    if boundary_method not in BOUNDARY_METHODS:
-        raise InvalidInputError(f"boundary_method must be one of {', '.join(BOUNDARY_METHODS)}, "
-                                f"got {boundary_method!r}.")
-    if neighbours not in NEIGHBOUR_MODES:
-        raise InvalidInputError(f"neighbours must be one of {', '.join(NEIGHBOUR_MODES)}, got {neighbours!r}.")
-    variant = DEM_VARIANTS[dem_variant]
-    k_nn = int(k_nn)
-    n = pts.shape[0]
+    params = replace(FrontEndParams() if params is None else params, **options)
+    pts, given = validate_inputs(points, normals, params)
+    variant = DEM_VARIANTS[params.dem_variant]
+    k_nn = int(params.k_nn)
     timer = StageTimer()
 
-    # Every stage runs on the points in kd-tree order (memory locality of the graph
-    # searches; see spatial_order) and the results are mapped back to the input order.
     with timer("knn"):
-        order = spatial_order(pts)
-        inv = np.empty_like(order)
-        inv[order] = np.arange(n, dtype=np.int64)
-        p = pts[order]
-        if neighbours == "surface":
-            graph, nbr_diag = surface_knn_graph(p, k_nn)
-        else:
-            graph, nbr_diag = knn_graph(p, k_nn), {}
-        adjacency = symmetric_adjacency(graph)
-        require_connected(adjacency, k_nn)
-        spacing = graph.mean_spacing
-        # The loop-spacing rule of the boundary needs the spacing right at the loop (one
-        # average); balls and area terms need a smooth field (ten: noise-free on uniform
-        # random samples, still following a graded sampling's density).
-        h_around = local_spacing(graph, passes=1)
-        h_local = local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local" else np.full(n, spacing)
+        nb = knn_stage(pts, k_nn, params.neighbours, params.spacing)
+    order, inv = nb.order, nb.inv
 
     with timer("normals"):
-        # PCA on the kNN, refitted on more points where the fit residual says noise.
-        fitted, normal_fit = noise_adaptive_normals(p, graph.indices)
-        if given is not None:
-            oriented = given[order]
-            check_user_normals(p, oriented, fitted, graph.indices)
-        else:
-            oriented = orient_normals(p, fitted, graph.indices)
-        frame_normals = (neighbourhood_smoothed(p, oriented, graph.indices, graph.distances, spacing,
-                                                method=variant["smoothing"])
-                         if smooth_normals else oriented)
-        del fitted
+        oriented, frame_normals, normal_fit = normals_stage(nb.points, None if given is None else given[order], nb.graph,
+                                                nb.spacing, smooth=params.smooth_normals,
+                                                smoothing=variant["smoothing"])
 
     with timer("dem"):
-        balls = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
-                          ball_eps_factor=float(ball_eps_factor), dem=dem, max_ball=int(max_ball),
-                          projection=variant["projection"], front_weight=variant["front_weight"],
-                          local_spacing=np.maximum(h_local, spacing))
-    mask = balls.mask
+        balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=params.ball_k,
+                          ball_eps_factor=float(params.ball_eps_factor), dem=params.dem,
+                          max_ball=int(params.max_ball), dem_variant=params.dem_variant)
 
     with timer("weights"):
-        if weights == "tangent":
-            w = tangent_weights(balls.coords, mask, float(reg_eps))
-            r_x = reconstruction_error(balls.coords, w)
-        else:
-            w = lle3d_weights(p, balls.indices, float(reg_eps))
-            r_x = np.empty(n)
-            for lo in range(0, n, 65536):  # 3D offsets chunked: (chunk, B, 3) at a time
-                sl = slice(lo, min(lo + 65536, n))
-                offsets = p[np.where(mask[sl], balls.indices[sl], 0)] - p[sl, None, :]
-                r_x[sl] = reconstruction_error(offsets, w[sl])
+        w, r_x = weights_stage(nb.points, balls, params.weights, params.reg_eps)
 
     with timer("boundary"):
-        bnd_args = dict(angle_deg=float(boundary_angle_deg), decimate=int(boundary_decimate),
-                        min_loop_size=int(min_loop_size), require_loop=False, local_spacing=h_around)
-        retried = False
-        if boundary_method == "rings":
-            bnd = find_boundary_rings(p, frame_normals, h_around, decimate=int(boundary_decimate),
-                                      min_loop_size=int(min_loop_size))
-        else:
-            bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
-        if boundary_method == "angle" and not bnd.loops and bnd.candidates.sum() >= 4 * min_loop_size:
-            # Many boundary candidates but no closed loop: a ragged, sparsely sampled
-            # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
-            wide = dem_balls(p, frame_normals, adjacency, spacing, ball_k=int(ball_k),
-                             ball_eps_factor=_RETRY_BALL_SCALE * float(ball_eps_factor), dem=dem,
-                             max_ball=int(_RETRY_BALL_SCALE**2 * max_ball) + 1,
-                             projection=variant["projection"], front_weight=variant["front_weight"],
-                             local_spacing=np.maximum(h_local, spacing))
-            wide_bnd = find_boundary(p, frame_normals, wide.indices, wide.coords, **bnd_args)
-            del wide
-            retried = True
-            if wide_bnd.loops:
-                bnd = wide_bnd
-        if not bnd.loops and boundary_method == "rings":
-            raise NoBoundaryError(
-                f"boundary_method='rings' found no boundary loop ({int(bnd.candidates.sum())} points border an "
-                "empty triangle): a closed surface (cut it open before flattening), or a noisy sampling; "
-                "try boundary_method='angle'.")
-        if not bnd.loops:
-            raise no_boundary_error(int(bnd.candidates.sum()), float(boundary_angle_deg), int(min_loop_size))
-        del adjacency
+        bnd, retried = boundary_stage(nb, frame_normals, balls, params)
+        nb = nb._replace(adjacency=None)  # not needed any more; large at 1M points
         loops = [_from_sorted(loop, order) for loop in bnd.loops]
         loops = [np.roll(loop, -int(np.argmin(loop))) for loop in loops]  # deterministic start
 
-    rel = r_x / spacing**2
-    diagnostics = {
-        "n_points": int(n),
-        "k_nn": k_nn,
-        "mean_spacing": float(spacing),
-        "normals_source": "given" if given is not None else "pca",
-        "normal_fit": normal_fit,
-        "neighbours": dict(nbr_diag, mode=neighbours),
-        "ball_size": {"min": int(balls.sizes.min()), "mean": float(balls.sizes.mean()),
-                      "max": int(balls.sizes.max())},
-        "n_truncated_balls": int(balls.n_truncated),
-        "negative_weights": negative_weight_stats(w, mask, bnd.candidates),
-        "reconstruction_error": {"mean": float(rel.mean()), "max": float(rel.max()), "unit": "l^2"},
-        "boundary": dict(bnd.diagnostics, retried_with_wider_balls=retried),
-    }
-    del mask
+    diagnostics = stage_diagnostics(nb, balls, w, r_x, bnd, retried, k_nn=k_nn, normals_given=given is not None,
+                                    neighbours=params.neighbours, normal_fit=normal_fit)
 
+    # Kept inline (not a stage function) so each big array is released as soon as its
+    # input-order copy exists: at 1M points the balls and weights are ~1 GB.
     with timer("weights"):  # back to the input order, then the sparse matrices
         ball_indices = _from_sorted(balls.indices[inv], order)
         coords = balls.coords[inv]
@@ -376,16 +587,19 @@ def build_frontend(points: Any, normals: Any = None, *, k_nn: int = 8, ball_k: i
         del w
         lap = graph_laplacian(w_mat)
 
-    params = {"k_nn": k_nn, "ball_k": int(ball_k), "ball_eps_factor": float(ball_eps_factor), "dem": dem,
-              "smooth_normals": bool(smooth_normals), "reg_eps": float(reg_eps),
-              "boundary_angle_deg": float(boundary_angle_deg), "boundary_decimate": int(boundary_decimate),
-              "weights": weights, "max_ball": int(max_ball), "min_loop_size": int(min_loop_size),
-              "dem_variant": dem_variant, "spacing": spacing_mode, "neighbours": neighbours,
-              "boundary_method": boundary_method}
-    return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(graph.indices[inv], order),
-                    mean_spacing=float(spacing), local_spacing=_interior_spacing(h_local, graph.indices, bnd.mask)[inv], ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
+    recorded = {"k_nn": k_nn, "ball_k": int(params.ball_k), "ball_eps_factor": float(params.ball_eps_factor),
+                "dem": params.dem, "smooth_normals": bool(params.smooth_normals), "reg_eps": float(params.reg_eps),
+                "boundary_angle_deg": float(params.boundary_angle_deg),
+                "boundary_decimate": int(params.boundary_decimate), "weights": params.weights,
+                "max_ball": int(params.max_ball), "min_loop_size": int(params.min_loop_size),
+                "dem_variant": params.dem_variant, "spacing": params.spacing, "neighbours": params.neighbours,
+                "boundary_method": params.boundary_method}
+    return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(nb.graph.indices[inv], order),
+                    mean_spacing=float(nb.spacing),
+                    local_spacing=_interior_spacing(nb.h_local, nb.graph.indices, bnd.mask)[inv],
+                    ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
                     boundary_mask=bnd.mask[inv], boundary_loops=loops, reconstruction_error=r_x[inv],
-                    diagnostics=diagnostics, timings=dict(timer.timings), params=params)
+                    diagnostics=diagnostics, timings=dict(timer.timings), params=recorded)
 
 
 def _interior_spacing(h: np.ndarray, knn: np.ndarray, boundary: np.ndarray) -> np.ndarray:

@@ -46,6 +46,86 @@ def _cross(ox, oy, ax, ay, bx, by):
     return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
 
 
+@numba.njit(cache=_CACHE, nogil=True, inline="always")
+def _inverted_sorted(coords, valid, i, xs, ys, ids):
+    """Point i's inverted candidates ``d / |d|^2`` plus the origin (id -1), sorted by (x, y).
+
+    Fills ``xs``, ``ys`` and ``ids`` (the candidate's column) and returns how many there
+    are; candidates at the point itself are skipped. Insertion sort: m is small.
+    """
+    m = valid.shape[1]
+    cnt = 0
+    for j in range(m + 1):
+        if j == m:
+            x, y, ident = 0.0, 0.0, -1
+        else:
+            if not valid[i, j]:
+                continue
+            dx, dy = coords[i, j, 0], coords[i, j, 1]
+            r2 = dx * dx + dy * dy
+            if not r2 > 0.0:
+                continue
+            x, y, ident = dx / r2, dy / r2, j
+        pos = cnt
+        while pos > 0 and (xs[pos - 1] > x or (xs[pos - 1] == x and ys[pos - 1] > y)):
+            xs[pos] = xs[pos - 1]
+            ys[pos] = ys[pos - 1]
+            ids[pos] = ids[pos - 1]
+            pos -= 1
+        xs[pos] = x
+        ys[pos] = y
+        ids[pos] = ident
+        cnt += 1
+    return cnt
+
+
+@numba.njit(cache=_CACHE, nogil=True, inline="always")
+def _monotone_hull(xs, ys, cnt, hull):
+    """Andrew's monotone chain over the first ``cnt`` (x, y)-sorted points; returns the vertex count.
+
+    ``hull[:h]`` holds the positions of the hull vertices, counter-clockwise; collinear
+    points are dropped (strict turns only).
+    """
+    h = 0
+    for s in range(cnt):
+        while h >= 2 and _cross(xs[hull[h - 2]], ys[hull[h - 2]], xs[hull[h - 1]], ys[hull[h - 1]],
+                                xs[s], ys[s]) <= 0.0:
+            h -= 1
+        hull[h] = s
+        h += 1
+    lower = h + 1
+    for s in range(cnt - 2, -1, -1):
+        while h >= lower and _cross(xs[hull[h - 2]], ys[hull[h - 2]], xs[hull[h - 1]], ys[hull[h - 1]],
+                                    xs[s], ys[s]) <= 0.0:
+            h -= 1
+        hull[h] = s
+        h += 1
+    return h - 1  # the last vertex repeats the first
+
+
+@numba.njit(cache=_CACHE, nogil=True, inline="always")
+def _emit_ring(xs, ys, ids, hull, h, out, i):
+    """``out[i, t] = (a, b)`` for consecutive hull vertices a, b: the one-ring triangles, CCW.
+
+    Edges through the origin and (nearly) flat triangles are left out.
+    """
+    t = 0
+    for s in range(h):
+        a = hull[s]
+        b = hull[(s + 1) % h]
+        if ids[a] < 0 or ids[b] < 0:
+            continue  # an edge through the origin: the open side of a point on its local hull
+        ax, ay, bx, by = xs[a], ys[a], xs[b], ys[b]
+        # Same turn in the inverted plane as in the original one (directions are kept).
+        if ax * by - ay * bx <= _FLAT * (ax * ax + ay * ay + bx * bx + by * by):
+            continue
+        out[i, t, 0] = ids[a]
+        out[i, t, 1] = ids[b]
+        t += 1
+
+
+# The three stages above are inlined into the kernel (inline="always"): as separate
+# compiled calls per point the kernel measured about 4% slower (bump, 20k points, 12-NN).
 @numba.njit(cache=_CACHE, nogil=True)
 def _rings_kernel(coords, valid, out):
     """``out[i, t] = (a, b)``: columns of the one-ring triangles of point i, CCW; -1 padding."""
@@ -55,60 +135,11 @@ def _rings_kernel(coords, valid, out):
     ids = np.empty(m + 1, dtype=np.int64)
     hull = np.empty(2 * (m + 1) + 2, dtype=np.int64)
     for i in range(n):
-        # Inverted candidates plus the origin (id -1), sorted by (x, y) by insertion (m is small).
-        cnt = 0
-        for j in range(m + 1):
-            if j == m:
-                x, y, ident = 0.0, 0.0, -1
-            else:
-                if not valid[i, j]:
-                    continue
-                dx, dy = coords[i, j, 0], coords[i, j, 1]
-                r2 = dx * dx + dy * dy
-                if not r2 > 0.0:
-                    continue
-                x, y, ident = dx / r2, dy / r2, j
-            pos = cnt
-            while pos > 0 and (xs[pos - 1] > x or (xs[pos - 1] == x and ys[pos - 1] > y)):
-                xs[pos] = xs[pos - 1]
-                ys[pos] = ys[pos - 1]
-                ids[pos] = ids[pos - 1]
-                pos -= 1
-            xs[pos] = x
-            ys[pos] = y
-            ids[pos] = ident
-            cnt += 1
+        cnt = _inverted_sorted(coords, valid, i, xs, ys, ids)
         if cnt < 3:
             continue
-        # Andrew's monotone chain; collinear points are dropped (strict turns only).
-        h = 0
-        for s in range(cnt):
-            while h >= 2 and _cross(xs[hull[h - 2]], ys[hull[h - 2]], xs[hull[h - 1]], ys[hull[h - 1]],
-                                    xs[s], ys[s]) <= 0.0:
-                h -= 1
-            hull[h] = s
-            h += 1
-        lower = h + 1
-        for s in range(cnt - 2, -1, -1):
-            while h >= lower and _cross(xs[hull[h - 2]], ys[hull[h - 2]], xs[hull[h - 1]], ys[hull[h - 1]],
-                                        xs[s], ys[s]) <= 0.0:
-                h -= 1
-            hull[h] = s
-            h += 1
-        h -= 1  # the last vertex repeats the first
-        t = 0
-        for s in range(h):
-            a = hull[s]
-            b = hull[(s + 1) % h]
-            if ids[a] < 0 or ids[b] < 0:
-                continue  # an edge through the origin: the open side of a point on its local hull
-            ax, ay, bx, by = xs[a], ys[a], xs[b], ys[b]
-            # Same turn in the inverted plane as in the original one (directions are kept).
-            if ax * by - ay * bx <= _FLAT * (ax * ax + ay * ay + bx * bx + by * by):
-                continue
-            out[i, t, 0] = ids[a]
-            out[i, t, 1] = ids[b]
-            t += 1
+        h = _monotone_hull(xs, ys, cnt, hull)
+        _emit_ring(xs, ys, ids, hull, h, out, i)
 
 
 def local_delaunay_rings(points: np.ndarray, normals: np.ndarray, candidates: np.ndarray) -> np.ndarray:

@@ -14,27 +14,32 @@ from parambench.datasets_gen.surface import Surface
 
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
+from .params import frontend_params, method_defaults
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
            "frontend_candidates", "selfcheck_result"]
 
-#: Front-end parameters every point-set method accepts (paper Sec. 6 defaults).
-FRONTEND_DEFAULTS: dict[str, Any] = {
-    "k_nn": 8,
-    "ball_k": 6,
-    "ball_eps_factor": 2.5,
-    "dem": "upwind",
-    "reg_eps": 1e-2,
-    "boundary_angle_deg": 120.0,
-    "boundary_decimate": 1,
-    "spacing": "local",
-    "neighbours": "euclidean",
-    "boundary_method": "angle",
-}
+#: Front-end parameters every point-set method accepts, with the front end's defaults
+#: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
+FRONTEND_DEFAULTS: dict[str, Any] = method_defaults()
 
 
 def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: str = "tangent") -> FrontEnd:
     """Run the front end with the front-end keys of ``params``; its stage timings go to ``timer``.
+
+    Parameters
+    ----------
+    surface : Surface
+    params : dict
+        The method's parameters; the keys of :data:`FRONTEND_DEFAULTS` among them are
+        passed on (see :func:`~parambench.methods.pointset.params.frontend_params`).
+    timer : StageTimer
+    weights : {"tangent", "lle3d"}
+        The front end's weights.
+
+    Returns
+    -------
+    FrontEnd
 
     Raises
     ------
@@ -43,9 +48,9 @@ def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: 
     ParambenchError
         Whatever :func:`~parambench.methods.pointset.frontend.build_frontend` raises.
     """
-    kwargs = {k: params[k] for k in FRONTEND_DEFAULTS if k in params}
-    require_neighbours(surface.n_points, kwargs.get("k_nn", FRONTEND_DEFAULTS["k_nn"]), "k_nn")
-    front = build_frontend(surface.points, surface.normals, weights=weights, **kwargs)
+    options = frontend_params(params, weights=weights)
+    require_neighbours(surface.n_points, options.k_nn, "k_nn")
+    front = build_frontend(surface.points, surface.normals, options)
     for stage in STAGES:
         timer.timings[stage] = timer.timings.get(stage, 0.0) + front.timings.get(stage, 0.0)
     _CHECK_INPUTS[surface] = _check_inputs(front)

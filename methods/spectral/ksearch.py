@@ -142,67 +142,98 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
     """
     if not k0 > 0 or not growth > 1:
         raise InvalidInputError(f"the k search needs k0 > 0 and growth > 1, got k0={k0}, growth={growth}.")
-    landscape: dict[str, list] = {"k": [], "E": [], "q": [], "t": []}
-    cache: dict[float, KPoint] = {}
+    ev = _Landscape(evaluate, r)
+    lo, hi = _check_bracket(ev, bracket) if bracket is not None else _find_bracket(ev, k0, growth, max_steps)
+    lo, hi = _narrow_bracket(ev, lo, hi, refine_rtol, refine_steps)
+    _minimise(ev, lo, hi, r, xatol, maxiter)
+    best = _best_regular(ev, lo, hi, r)
+    return KSearchResult(k_opt=best.k, best=best, bracket=(lo, hi), landscape=ev.record,
+                         n_evaluations=len(ev.points))
 
-    def ev(k: float) -> KPoint:
+
+class _Landscape:
+    """``evaluate`` memoised per distinct k, recording k, E, q and t in evaluation order.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(k) -> KPoint``.
+    r : float
+        Turning-number penalty weight of the recorded E.
+    """
+
+    def __init__(self, evaluate: Callable[[float], KPoint], r: float) -> None:
+        self._evaluate = evaluate
+        self._r = r
+        #: Evaluations by k, in evaluation order (ties in E go to the earliest).
+        self.points: dict[float, KPoint] = {}
+        self.record: dict[str, list] = {"k": [], "E": [], "q": [], "t": []}
+
+    def __call__(self, k: float) -> KPoint:
         k = float(k)
-        if k not in cache:
-            p = evaluate(k)
-            cache[k] = p
-            landscape["k"].append(k)
-            landscape["E"].append(float(penalized_energy(p, r)))
-            landscape["q"].append(float(p.energy))
-            landscape["t"].append([int(v) for v in p.turning])
-        return cache[k]
+        if k not in self.points:
+            p = self._evaluate(k)
+            self.points[k] = p
+            self.record["k"].append(k)
+            self.record["E"].append(float(penalized_energy(p, self._r)))
+            self.record["q"].append(float(p.energy))
+            self.record["t"].append([int(v) for v in p.turning])
+        return self.points[k]
 
-    if bracket is not None:
-        lo, hi = (float(v) for v in bracket)
-        if not 0 < lo < hi:
-            raise InvalidInputError(f"a k bracket must satisfy 0 < lower < upper, got {bracket}.")
-        p_hi = ev(hi)
-        if not p_hi.good:
-            raise hinted(
-                ConvergenceError,
-                f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: at k = {hi:g} the boundary turning numbers are "
-                f"{p_hi.turning.tolist()} and the energy {p_hi.energy:.3g}",
-                Hint("widen the bracket upwards or let the search bracket by itself", "bracket"), Hint("use k_search='direct'", "k_search", "direct"),
-            )
-        if ev(lo).good:
-            raise hinted(
-                ConvergenceError,
-                f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: the map is already regular with positive "
-                "energy at the lower end, so k_opt lies below it",
-                Hint("lower the bracket", "bracket"), Hint("use k_search='direct'", "k_search", "direct"),
-            )
-    else:
-        k = float(k0)
-        p = ev(k)
-        step = 1.0 / growth if p.good else growth
-        for _ in range(max_steps):
-            k_next = k * step
-            p_next = ev(k_next)
-            if p_next.good != p.good:
-                lo, hi = sorted((k, k_next))
-                break
-            if step > 1 and p.regular and not p_next.regular:
-                # A regular map with q < 0 turned into a spinning one within one step:
-                # the good region may be narrower than the step (DNCP pinned on a hole).
-                found = _good_between(ev, k, k_next)
-                if found is not None:
-                    lo, hi = found
-                    break
-            k, p = k_next, p_next
-        else:
-            direction = "down" if step < 1 else "up"
-            raise hinted(
-                ConvergenceError,
-                f"no t = 1 crossing found stepping {direction} from k = {k0:g} to k = {k:g} in {max_steps} steps "
-                f"(last turning numbers {p.turning.tolist()}, energy {p.energy:.3g}); the weights' scale is far "
-                "from the conformal one",
-                Hint("try normalized=False", "normalized", False), Hint("use k_search='direct'", "k_search", "direct"),
-            )
 
+def _check_bracket(ev: Callable[[float], KPoint], bracket: tuple[float, float]) -> tuple[float, float]:
+    """A given bracket as floats, after checking its upper end is good and its lower end not."""
+    lo, hi = (float(v) for v in bracket)
+    if not 0 < lo < hi:
+        raise InvalidInputError(f"a k bracket must satisfy 0 < lower < upper, got {bracket}.")
+    p_hi = ev(hi)
+    if not p_hi.good:
+        raise hinted(
+            ConvergenceError,
+            f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: at k = {hi:g} the boundary turning numbers are "
+            f"{p_hi.turning.tolist()} and the energy {p_hi.energy:.3g}",
+            Hint("widen the bracket upwards or let the search bracket by itself", "bracket"), Hint("use k_search='direct'", "k_search", "direct"),
+        )
+    if ev(lo).good:
+        raise hinted(
+            ConvergenceError,
+            f"no t = 1 crossing in the k bracket [{lo:g}, {hi:g}]: the map is already regular with positive "
+            "energy at the lower end, so k_opt lies below it",
+            Hint("lower the bracket", "bracket"), Hint("use k_search='direct'", "k_search", "direct"),
+        )
+    return lo, hi
+
+
+def _find_bracket(ev: Callable[[float], KPoint], k0: float, growth: float, max_steps: int) -> tuple[float, float]:
+    """Step 1: (not-good k, good k) from geometric steps from k0, down if k0 is good, else up."""
+    k = float(k0)
+    p = ev(k)
+    step = 1.0 / growth if p.good else growth
+    for _ in range(max_steps):
+        k_next = k * step
+        p_next = ev(k_next)
+        if p_next.good != p.good:
+            return tuple(sorted((k, k_next)))
+        if step > 1 and p.regular and not p_next.regular:
+            # A regular map with q < 0 turned into a spinning one within one step:
+            # the good region may be narrower than the step (DNCP pinned on a hole).
+            found = _good_between(ev, k, k_next)
+            if found is not None:
+                return found
+        k, p = k_next, p_next
+    direction = "down" if step < 1 else "up"
+    raise hinted(
+        ConvergenceError,
+        f"no t = 1 crossing found stepping {direction} from k = {k0:g} to k = {k:g} in {max_steps} steps "
+        f"(last turning numbers {p.turning.tolist()}, energy {p.energy:.3g}); the weights' scale is far "
+        "from the conformal one",
+        Hint("try normalized=False", "normalized", False), Hint("use k_search='direct'", "k_search", "direct"),
+    )
+
+
+def _narrow_bracket(ev: Callable[[float], KPoint], lo: float, hi: float, refine_rtol: float,
+                    refine_steps: int) -> tuple[float, float]:
+    """Step 2: geometric bisection on "good" until ``hi / lo - 1 <= refine_rtol`` (or ``refine_steps``)."""
     # The t = 1 bowl can be a tiny part of the bracket (cotangent DNCP: about 3e-5 of a
     # bracket [0.8, 1]) and Brent's golden-section steps would keep landing on spinning
     # maps; bisect on "good" first so the bracket hugs the transition.
@@ -214,6 +245,11 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
             hi = mid
         else:
             lo = mid
+    return lo, hi
+
+
+def _minimise(ev: Callable[[float], KPoint], lo: float, hi: float, r: float, xatol: float, maxiter: int) -> None:
+    """Step 3: bounded Brent on E over [lo, hi]; its evaluations land in ``ev``, where step 4 picks the best."""
     # scipy.optimize costs ~0.09 s to import; only k searches need it, not every command.
     from scipy.optimize import minimize_scalar
 
@@ -223,13 +259,16 @@ def line_search(evaluate: Callable[[float], KPoint], *, k0: float = 1.0, growth:
         raise hinted(ConvergenceError,
                      f"the bounded k minimisation in [{lo:g}, {hi:g}] did not converge ({res.message})",
                      Hint("raise maxiter", "maxiter"), Hint("use k_search='direct'", "k_search", "direct"))
-    regular = [p for p in cache.values() if p.regular]
+
+
+def _best_regular(ev: _Landscape, lo: float, hi: float, r: float) -> KPoint:
+    """Step 4: the regular evaluation of least E so far, polished to the zero of q when one is straddled."""
+    regular = [p for p in ev.points.values() if p.regular]
     if not regular:
         raise hinted(ConvergenceError, f"every map evaluated in [{lo:g}, {hi:g}] spins (turning numbers != 1)",
                      Hint("use k_search='direct'", "k_search", "direct"))
     best = min(regular, key=lambda p: penalized_energy(p, r))
-    best = _polish_root(ev, regular + [best], best) if best.energy != 0.0 else best
-    return KSearchResult(k_opt=best.k, best=best, bracket=(lo, hi), landscape=landscape, n_evaluations=len(cache))
+    return _polish_root(ev, regular + [best], best) if best.energy != 0.0 else best
 
 
 def _good_between(ev: Callable[[float], KPoint], lo: float, hi: float, max_halvings: int = 60

@@ -18,8 +18,9 @@ boundary loops and B, and picks a back end per call:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.linalg as la
@@ -457,7 +458,7 @@ class ConformalProblem:
         local = self._local_loops(red.keep)
         n_cand = mus.size if max_candidates is None else min(mus.size, max_candidates)
         for i in range(n_cand):
-            if self.hermitian or extra:
+            if self.hermitian or len(extra):
                 z_k = vecs[:, i]
             else:
                 z_k = self._scp_reduced(float(mus[i])).state[0]
@@ -553,55 +554,90 @@ class ConformalProblem:
             The k search found no t = 1 crossing or did not converge.
         """
         with single_threaded_blas():  # many small dense calls; see parambench.methods.spectral.threads
-            return self._solve(mode, k_search, k=k, pins=pins, pin_values=pin_values, backend=backend, r=r,
-                               growth=growth, bracket=bracket, xatol=xatol)
+            mode, k_search = _checked_names(mode, k_search)
+            pins_a, vals = self._dncp_pins(mode, pins, pin_values)
+            diag: dict = {"k_search": k_search}
+            if k_search == "none":
+                sol = self._solve_fixed(mode, k, pins_a, vals, backend)
+            elif k_search == "direct":
+                sol = self._solve_direct(mode, pins_a, vals, backend)
+            else:
+                sol, extra = self._solve_line(mode, pins_a, vals, backend,
+                                              dict(growth=growth, r=r, bracket=bracket, xatol=xatol))
+                diag.update(extra)
+            return self._finish(sol, mode, k_search, diag)
 
-    def _solve(self, mode: str, k_search: str, *, k: float, pins: Sequence[int] | None,
-               pin_values: Sequence[complex], backend: str, r: float, growth: float,
-               bracket: tuple[float, float] | None, xatol: float) -> ConformalSolution:
-        if mode not in ("scp", "dncp"):
-            raise UnknownNameError(f"unknown mode {mode!r}; choose 'scp' or 'dncp'.")
-        if k_search not in K_SEARCH_MODES:
-            raise UnknownNameError(f"unknown k_search {k_search!r}; choose one of {', '.join(K_SEARCH_MODES)}.")
+    # ------------------------------------------------------- stages of solve()
+    def _dncp_pins(self, mode: str, pins: Sequence[int] | None,
+                   pin_values: Sequence[complex]) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The checked DNCP pins and their positions; (None, None) for SCP, whose pins are ignored."""
+        if mode != "dncp":
+            return None, None
+        if pins is None:
+            raise InvalidInputError("DNCP needs two pinned vertices.")
+        return self._pins(pins, pin_values)
+
+    def _solve_fixed(self, mode: str, k: float, pins: np.ndarray | None, pin_values: np.ndarray | None,
+                     backend: str) -> ConformalSolution:
+        """``k_search="none"``: the map at the given k.
+
+        SCP at a single k is fastest on the sparse back end, so ``"auto"`` means sparse here.
+        """
+        if mode == "scp":
+            return self.scp(k, backend="sparse" if backend == "auto" else backend)
+        return self.dncp(k, pins, pin_values, backend=backend)
+
+    def _solve_direct(self, mode: str, pins: np.ndarray | None, pin_values: np.ndarray | None,
+                      backend: str) -> ConformalSolution:
+        """``k_search="direct"``: k_opt from the generalised eigenproblem, then the map there.
+
+        SCP takes the pencil's own map (eigenvalue 0 at k_opt); DNCP solves its pinned
+        system at k_opt, since its map is not the pencil's eigenvector.
+        """
+        k_opt, z_star = self.k_direct(pins if mode == "dncp" else ())
         if mode == "dncp":
-            if pins is None:
-                raise InvalidInputError("DNCP needs two pinned vertices.")
-            pins_a, vals = self._pins(pins, pin_values)
-        diag: dict = {"k_search": k_search}
-        if k_search == "none":
-            sol = self.scp(k, backend="sparse" if backend == "auto" else backend) if mode == "scp" \
-                else self.dncp(k, pins_a, vals, backend=backend)
-        elif k_search == "direct":
-            k_opt, z_star = self.k_direct(pins_a if mode == "dncp" else ())
-            if mode == "scp":
-                op = self.operator(k_opt)
-                sol = ConformalSolution(z=z_star, k=k_opt, energy=rayleigh_energy(z_star, op, self.b),
-                                        turning=loop_turning_numbers(z_star, self.loops), eigenvalue=0.0,
-                                        diagnostics={"backend": "boundary"})
-            else:
-                sol = self.dncp(k_opt, pins_a, vals, backend=backend)
-        elif mode == "scp" and self._use_subspace(backend):
-            sol, extra = self._scp_subspace_search(dict(growth=growth, r=r, bracket=bracket, xatol=xatol))
-            diag.update(extra)
-        else:
-            use_b = self._use_boundary(backend)
-            if mode == "scp":
-                evaluate = (lambda kk: self._scp_reduced(kk)) if use_b and self.b_on_boundary \
-                    else (lambda kk: self._scp_sparse(kk, True))
-            else:
-                evaluate = (lambda kk: self._dncp_reduced(kk, pins_a, vals)) if use_b \
-                    else (lambda kk: self._dncp_sparse(kk, pins_a, vals))
-            result = line_search(evaluate, growth=growth, r=r, bracket=bracket, xatol=xatol)
-            best = result.best
-            reduced = use_b and (mode == "dncp" or self.b_on_boundary)
-            if reduced:
-                red = self._reduction(pins_a if mode == "dncp" else ())
-                z = red.extend(best.state[0])
-            else:
-                z = best.state[0]
-            sol = ConformalSolution(z=z, k=best.k, energy=best.energy, turning=best.turning,
-                                    eigenvalue=best.state[1], diagnostics={"backend": "boundary" if reduced else "sparse"})
-            diag.update(landscape=result.landscape, bracket=list(result.bracket), n_k_evaluations=result.n_evaluations)
+            return self.dncp(k_opt, pins, pin_values, backend=backend)
+        op = self.operator(k_opt)
+        return ConformalSolution(z=z_star, k=k_opt, energy=rayleigh_energy(z_star, op, self.b),
+                                 turning=loop_turning_numbers(z_star, self.loops), eigenvalue=0.0,
+                                 diagnostics={"backend": "boundary"})
+
+    def _solve_line(self, mode: str, pins: np.ndarray | None, pin_values: np.ndarray | None, backend: str,
+                    line_kwargs: dict) -> tuple[ConformalSolution, dict]:
+        """``k_search="line"``: the line search (Eq. 16) for k_opt and the map there.
+
+        Returns the solution and the search's diagnostics (landscape, bracket, evaluations).
+        """
+        if mode == "scp" and self._use_subspace(backend):
+            return self._scp_subspace_search(line_kwargs)
+        evaluate, reduced = self._line_evaluator(mode, backend, pins, pin_values)
+        result = line_search(evaluate, **line_kwargs)
+        best = result.best
+        z = self._reduction(pins if mode == "dncp" else ()).extend(best.state[0]) if reduced else best.state[0]
+        sol = ConformalSolution(z=z, k=best.k, energy=best.energy, turning=best.turning,
+                                eigenvalue=best.state[1], diagnostics={"backend": "boundary" if reduced else "sparse"})
+        return sol, {"landscape": result.landscape, "bracket": list(result.bracket),
+                     "n_k_evaluations": result.n_evaluations}
+
+    def _line_evaluator(self, mode: str, backend: str, pins: np.ndarray | None = None,
+                        pin_values: np.ndarray | None = None) -> tuple[Callable[[float], KPoint], bool]:
+        """The function k -> KPoint the line search evaluates, and whether it works on the boundary reduction.
+
+        The reduced SCP needs B on the boundary (it is B's support); DNCP's reduction keeps
+        the pins, so any B works there. SCP is evaluated with ``allow_negative`` because
+        the search has to cross the region where the energy is negative.
+        """
+        use_b = self._use_boundary(backend)
+        if mode == "scp":
+            if use_b and self.b_on_boundary:
+                return self._scp_reduced, True
+            return partial(self._scp_sparse, allow_negative=True), False
+        if use_b:
+            return partial(self._dncp_reduced, pins=pins, pin_values=pin_values), True
+        return partial(self._dncp_sparse, pins=pins, pin_values=pin_values), False
+
+    def _finish(self, sol: ConformalSolution, mode: str, k_search: str, diag: dict) -> ConformalSolution:
+        """Refuse an irregular searched map or non-finite coordinates; fill in the diagnostics."""
         regular = is_regular_turning(sol.turning)
         if not regular and k_search != "none":
             raise hinted(
@@ -622,3 +658,18 @@ class ConformalProblem:
         if sol.eigenvalue is not None:
             sol.diagnostics["eigenvalue"] = float(np.real(sol.eigenvalue))
         return sol
+
+
+def _checked_names(mode: str, k_search: str) -> tuple[str, str]:
+    """``(mode, k_search)`` unchanged when both are known.
+
+    Raises
+    ------
+    UnknownNameError
+        Unknown mode or k_search (mode is checked first).
+    """
+    if mode not in ("scp", "dncp"):
+        raise UnknownNameError(f"unknown mode {mode!r}; choose 'scp' or 'dncp'.")
+    if k_search not in K_SEARCH_MODES:
+        raise UnknownNameError(f"unknown k_search {k_search!r}; choose one of {', '.join(K_SEARCH_MODES)}.")
+    return mode, k_search

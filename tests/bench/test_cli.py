@@ -131,6 +131,20 @@ def test_inspect_writes_frontend_json(real_dir, tmp_path):
     assert report["reconstruction_error"]["max"] >= report["reconstruction_error"]["mean"] >= 0
 
 
+def test_inspect_takes_every_frontend_option(real_dir, tmp_path, capsys):
+    """``inspect --param`` accepts the fields of FrontEndParams, also those that are no method's parameter."""
+    import json
+
+    out = tmp_path / "lilium.json"
+    assert main(["inspect", str(real_dir / "lilium.obj"), "--points-only", "-o", str(out),
+                 "--param", "smooth_normals=False", "min_loop_size=10", "k_nn=9"]) == 0
+    params = json.loads(out.read_text())["params"]
+    assert params["smooth_normals"] is False and params["min_loop_size"] == 10 and params["k_nn"] == 9
+    assert main(["inspect", str(real_dir / "lilium.obj"), "-o", str(out), "--param", "k_search=line"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown front-end parameter(s) k_search" in err and "smooth_normals" in err
+
+
 def test_flatten_point_cloud_with_ocp(tmp_path, write_obj):
     from parambench.datasets_gen.registry import make_surface
 

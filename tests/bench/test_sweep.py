@@ -39,6 +39,22 @@ def test_quick_suite_covers_every_registered_method():
     assert {c.method for c in cells} == set(method_names())
 
 
+def test_full_suite_has_at_least_five_real_meshes():
+    from parambench.datasets_gen.real import REAL_DATASETS
+
+    full = get_suite("full").datasets
+    real_meshes = [name for name in full if name in REAL_DATASETS and not REAL_DATASETS[name].points_only]
+    assert len(real_meshes) >= 5
+    # Every shipped mesh is in the full suite, and the quick one keeps two real meshes.
+    shipped = [name for name, spec in REAL_DATASETS.items() if spec.location == "package"]
+    assert set(shipped) <= set(full) and {"real/meg-helmet", "real/spot-top", "real/cortex-lh"} <= set(shipped)
+    quick = get_suite("quick").datasets
+    assert [name for name in quick if name in REAL_DATASETS] == ["real/lilium", "real/spot-top"]
+    # Each real cell runs once, at the file's own size.
+    real_cells = [c for c in expand_cells(get_suite("full")) if c.dataset in REAL_DATASETS]
+    assert real_cells and {c.size for c in real_cells} == {0}
+
+
 def test_sweep_rows_metrics_and_resume(tmp_path):
     table = run_sweep(TINY, str(tmp_path), progress=False)
     assert len(table) == 4 and set(table["status"]) == {"ok"}

@@ -25,10 +25,11 @@ UNWRITABLE = Path("/proc/nonexistent")  # /proc refuses new entries, even to roo
 
 
 def _blocked_copy(dest: Path) -> Path:
-    """The project's packages in ``dest``, with numba's in-tree cache impossible to create."""
+    """The project's packages in ``dest/parambench`` (the installed layout), with numba's
+    in-tree cache impossible to create."""
     for package in ("methods", "datasets_gen", "bench", "reports"):
-        shutil.copytree(ROOT / package, dest / package, ignore=shutil.ignore_patterns("__pycache__"))
-    (dest / "methods" / "pointset" / "__pycache__").write_text("not a folder\n")
+        shutil.copytree(ROOT / package, dest / "parambench" / package, ignore=shutil.ignore_patterns("__pycache__"))
+    (dest / "parambench" / "methods" / "pointset" / "__pycache__").write_text("not a folder\n")
     return dest
 
 
@@ -39,6 +40,13 @@ def _run_cli(tree: Path, tmpdir: Path, *argv: str) -> subprocess.CompletedProces
     code = f"import sys; from parambench.bench.cli import main; sys.exit(main({list(argv)!r}))"
     return subprocess.run([sys.executable, "-c", code], cwd=tmpdir, env=env, capture_output=True, text=True,
                           timeout=300)
+
+
+def _run_python(tree: Path, tmpdir: Path, code: str) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.update(PYTHONPATH=str(tree))
+    return subprocess.run([sys.executable, "-c", code], cwd=tmpdir, env=env, capture_output=True, text=True,
+                          timeout=120)
 
 
 @pytest.fixture(scope="module")
@@ -55,6 +63,9 @@ def test_list_runs_without_a_writable_home(blocked):
     assert not can_write(UNWRITABLE / ".cache" / "numba")
     done = _run_cli(tree, tmpdir, "list")
     assert done.returncode == 0, done.stderr
+    # The copy ran, not an installed parambench (its numba kernels are what the test blocks).
+    where = _run_python(tree, tmpdir, "import parambench.methods as m; print(m.__file__)")
+    assert Path(where.stdout.strip()).is_relative_to(tree), where.stderr
     assert "ocp" in done.stdout and "real/camelhead" in done.stdout
 
 

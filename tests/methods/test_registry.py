@@ -1,7 +1,11 @@
 """The plugin contract: registry lookups, parameter checking, mesh-only methods."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
+
+import parambench.methods.plugins
 
 from parambench.datasets_gen.errors import MissingFacesError, UnknownNameError
 from parambench.datasets_gen.surface import Surface
@@ -14,6 +18,21 @@ def test_baselines_registered():
     names = method_names()
     assert "lscm-igl" in names and "scp-igl" in names
     assert all(cls.name == name for name, cls in all_methods().items())
+
+
+BUILTIN = {"bff-mouette", "dncp-opt", "fbcp-pc", "hlle-sklearn", "isomap-sklearn", "lem", "lle", "lscm-igl",
+           "ltsa-sklearn", "ocp", "scp", "scp-igl", "scp-rl", "scp-tan", "sdp", "sdp-rl"}
+
+
+def test_every_builtin_plugin_lives_in_a_module_named_after_it():
+    plugins = Path(parambench.methods.plugins.__file__).parent
+    modules = {p.stem for p in plugins.glob("*.py") if not p.stem.startswith("_")}
+    builtin = {name: cls for name, cls in all_methods().items() if cls.__module__.startswith("parambench.methods.plugins.")}
+    assert set(builtin) == BUILTIN
+    for name, cls in builtin.items():
+        assert cls.__module__ == f"parambench.methods.plugins.{name.replace('-', '_')}", name
+    # and no plugin module holds something else (or nothing)
+    assert modules == {name.replace("-", "_") for name in BUILTIN}
 
 
 def test_unknown_method_lists_available():

@@ -140,3 +140,16 @@ def test_bad_arguments(saddle):
         prob.solve("scp", "golden")
     with pytest.raises(InvalidInputError, match="two distinct"):
         prob.solve("dncp", "none", pins=(3, 3))
+
+
+def test_dncp_direct_with_non_symmetric_weights(saddle):
+    # k_direct with pins on a non-symmetric Laplacian once tested the pins array for truth
+    # ("truth value of an array ... is ambiguous"); it must take the pencil's own vectors.
+    lap = saddle.weights_laplacian("cotangent", normalized=True)
+    pins = (saddle.loops[0][0], saddle.loops[0][40])
+    prob = ConformalProblem(lap, saddle.loops, points=saddle.points)
+    assert not prob.hermitian
+    direct = prob.solve("dncp", "direct", pins=pins)
+    line = ConformalProblem(lap, saddle.loops, points=saddle.points).solve("dncp", "line", pins=pins)
+    assert direct.diagnostics["regular_boundary"]
+    assert np.isclose(direct.k, line.k, rtol=1e-9)

@@ -1,0 +1,38 @@
+"""``scp-rl``: SCP on robust-laplacian's point-cloud Laplacian (Sharp & Crane 2020), a peer row.
+
+Same points, same detected boundary as ``ocp``; only the Laplacian differs, so the row
+isolates what W^tan contributes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from parambench.datasets_gen.surface import Surface
+
+from ..base import Method, MethodOutput, StageTimer
+from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..registry import register
+from ..spectral import ConformalProblem
+from ._robust_laplacian import robust_point_cloud_laplacian
+
+
+@register
+class ScpRobustLaplacian(Method):
+    """SCP with robust-laplacian's point-cloud (tufted intrinsic Delaunay) Laplacian."""
+
+    name = "scp-rl"
+    description = "SCP on robust-laplacian's point-cloud Laplacian, boundary by angle criterion (peer; points only)"
+    defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30, "k_search": "line"}
+    param_grid = {"k_search": ["none", "line"]}
+
+    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+        front = run_frontend(surface, params, timer)
+        lap = robust_point_cloud_laplacian(surface.points, int(params["rl_neighbors"]), timer)
+        with timer("solve"):
+            problem = ConformalProblem(lap, front.boundary_loops, b_matrix="boundary", points=surface.points)
+            sol = problem.solve("scp", params["k_search"])
+            uv = scale_to_spacing(sol.uv, front)
+        diag = {**frontend_diagnostics(front), **sol.diagnostics,
+                "k_opt": float(sol.k), "turning": np.asarray(sol.turning).tolist()}
+        return MethodOutput(uv, diag)

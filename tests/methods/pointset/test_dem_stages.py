@@ -1,0 +1,124 @@
+"""The stages of dem_balls on their own: option and centre checks, kernel inputs, the kernel, blocks, assembly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.methods.pointset import dem
+from parambench.methods.pointset.dem import (_assemble, _BallBlock, _BallRule, _centre_ids, _check_options, _dem_range,
+                                  _graph_cloud, _heap_capacity, _scratch, dem_balls)
+from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
+from parambench.methods.pointset.normals import orient_normals, pca_normals
+
+
+def test_check_options():
+    _check_options("plain", "length", 1, 1, 0.0)
+    for args, match in [(("exact", "midpoint", 6, 64, 2.5), "dem must be"),
+                        (("upwind", "normal", 6, 64, 2.5), "projection must be"),
+                        (("upwind", "midpoint", 0, 64, 2.5), "ball_k"),
+                        (("upwind", "midpoint", 6, 5, 2.5), "ball_k"),
+                        (("upwind", "midpoint", 6, 64, -1.0), "ball_eps_factor")]:
+        with pytest.raises(InvalidInputError, match=match):
+            _check_options(*args)
+
+
+def test_centre_ids():
+    np.testing.assert_array_equal(_centre_ids(None, 4), np.arange(4))
+    ids = _centre_ids(np.array([[3], [0], [3]], dtype=np.int32), 4)
+    assert ids.dtype == np.int64 and ids.flags.c_contiguous and ids.tolist() == [3, 0, 3]
+    assert _centre_ids([], 4).size == 0
+    for bad in ([4], [-1]):
+        with pytest.raises(InvalidInputError, match=r"\[0, 3\]"):
+            _centre_ids(bad, 4)
+
+
+def _path(n=6, step=1.0):
+    """n points on the x axis, spaced ``step``, normals +z, joined in a path graph."""
+    points = np.c_[step * np.arange(n), np.zeros(n), np.zeros(n)]
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    i = np.arange(n - 1)
+    adj = sp.coo_matrix((np.full(n - 1, step), (i, i + 1)), shape=(n, n))
+    return points, normals, (adj + adj.T).tocsr()
+
+
+def test_graph_cloud_gives_kernel_types():
+    points, normals, adj = _path()
+    cloud = _graph_cloud(points, normals.astype(np.float32), adj.tocoo())
+    assert cloud.indptr.dtype == cloud.nbrs.dtype == np.int64 and cloud.normals.dtype == np.float64
+    np.testing.assert_array_equal(cloud.lens, adj.data)
+    assert np.allclose(np.einsum("ij,ij->i", cloud.e1, cloud.normals), 0)
+    assert np.allclose(np.einsum("ij,ij->i", cloud.e2, cloud.normals), 0)
+    assert np.allclose(np.einsum("ij,ij->i", cloud.e1, cloud.e2), 0)
+
+
+def test_heap_capacity_follows_the_largest_degree():
+    _, _, adj = _path()  # degrees 1 and 2
+    star = sp.csr_matrix(np.r_[[np.r_[0, np.ones(5)]], np.c_[np.ones(5), np.zeros((5, 5))]])  # degree 5
+    assert _heap_capacity(adj.indptr, 4) == 6 * 2 + 1
+    assert _heap_capacity(star.indptr, 4) == 6 * 5 + 1
+
+
+@pytest.mark.parametrize("upwind", [True, False])
+def test_kernel_on_a_straight_path_gives_signed_arc_length(upwind):
+    points, normals, adj = _path(step=0.5)
+    cloud = _graph_cloud(points, normals, adj)
+    n = len(points)
+    rule = _BallRule(ball_k=1, radii=np.full(n, 1.1), max_ball=4, upwind=upwind, w_eps=1e-6 * 0.25,
+                     midpoint=True, front_weight=True)
+    centres = np.array([2, 0, 2], dtype=np.int64)  # a repeated centre: stamps must still separate rows
+    out = _BallBlock(idx=np.full((3, 4), -1, dtype=np.int64), uv=np.zeros((3, 4, 2)),
+                     dist=np.full((3, 4), np.inf), size=np.zeros(3, dtype=np.int64))
+    work = _scratch(1, n, _heap_capacity(cloud.indptr, rule.max_ball))[0]
+    assert _dem_range(centres, 0, 3, 0, cloud, rule, out, work) == 0
+    assert out.size.tolist() == [4, 2, 4]
+    # Ties in distance pop in either order; compare as sets keyed by the member.
+    for row, c in enumerate(centres):
+        members = out.idx[row, : out.size[row]]
+        assert sorted(members.tolist()) == sorted(v for v in range(n) if 0 < abs(v - c) * 0.5 <= 1.1)
+        np.testing.assert_allclose(out.dist[row, : out.size[row]], 0.5 * np.abs(members - c))
+        # a straight line is its own tangent plane: T_s p = (p - s) in the frame of s
+        offset = points[members] - points[c]
+        want = np.c_[offset @ cloud.e1[c], offset @ cloud.e2[c]]
+        np.testing.assert_allclose(out.uv[row, : out.size[row]], want, atol=1e-12)
+    np.testing.assert_array_equal(out.uv[0], out.uv[2])
+
+
+def test_kernel_counts_truncated_balls():
+    points, normals, adj = _path()
+    cloud = _graph_cloud(points, normals, adj)
+    rule = _BallRule(ball_k=1, radii=np.full(6, 10.0), max_ball=2, upwind=True, w_eps=1e-6, midpoint=True,
+                     front_weight=True)
+    out = _BallBlock(idx=np.full((2, 2), -1, dtype=np.int64), uv=np.zeros((2, 2, 2)), dist=np.full((2, 2), np.inf),
+                     size=np.zeros(2, dtype=np.int64))
+    work = _scratch(1, 6, _heap_capacity(cloud.indptr, 2))[0]
+    # centre 0 reaches 5 points within the radius, centre 5 also: both cut at 2
+    assert _dem_range(np.array([0, 5]), 0, 2, 0, cloud, rule, out, work) == 2
+    assert out.idx.tolist() == [[1, 2], [4, 3]]
+
+
+def test_assemble_pads_blocks_to_the_widest_ball():
+    parts = [(np.array([[4, 7]]), np.ones((1, 2, 2)), np.array([[1.0, 2.0]])),
+             (np.array([[5], [6]]), 2 * np.ones((2, 1, 2)), np.array([[3.0], [4.0]]))]
+    idx, coords, gdist = _assemble(parts, np.array([2, 1, 0]))
+    assert idx.tolist() == [[4, 7], [5, -1], [6, -1]]
+    assert coords[:, :, 0].tolist() == [[1, 1], [2, 0], [2, 0]]
+    assert gdist.tolist() == [[1, 2], [3, np.inf], [4, np.inf]]
+    empty = _assemble([], np.zeros(0, dtype=np.int64))
+    assert [a.shape for a in empty] == [(0, 0), (0, 0, 2), (0, 0)]
+
+
+def test_small_blocks_give_the_same_balls(make_cap, monkeypatch):
+    """Many blocks of different widths (run_blocks + assemble) match one block bit for bit."""
+    patch = make_cap(1.0, 1.0, 20, "jittered")
+    graph = knn_graph(patch.points, 8)
+    adj = symmetric_adjacency(graph)
+    normals = orient_normals(patch.points, pca_normals(patch.points, graph.indices), graph.indices)
+    one = dem_balls(patch.points, normals, adj, graph.mean_spacing, ball_eps_factor=2.0)
+    monkeypatch.setattr(dem, "_BLOCK", 7)
+    many = dem_balls(patch.points, normals, adj, graph.mean_spacing, ball_eps_factor=2.0)
+    assert one.n_truncated == many.n_truncated
+    for f in ("indices", "coords", "sizes", "graph_dist"):
+        np.testing.assert_array_equal(getattr(one, f), getattr(many, f))
