@@ -263,3 +263,55 @@ def test_no_module_imports_a_bare_top_level_folder():
     offenders = [str(f.relative_to(ROOT)) for folder in (*TOP_FOLDERS, "tests") for f in (ROOT / folder).rglob("*.py")
                  if bare.search(f.read_text(encoding="utf-8"))]
     assert offenders == []
+
+
+# A third-party plugin: a module and the dist-info that declares it in the entry-point group.
+THIRD_PARTY_PLUGIN = '''
+import numpy as np
+from parambench.methods import Method, MethodOutput
+
+class ProjectXY(Method):
+    """Drops z: exact on a plane."""
+    name = "project-xy"
+    description = "orthogonal projection to the xy plane"
+    needs_faces = False
+    defaults = {}
+    param_grid = {}
+
+    def solve(self, surface, params, timer):
+        with timer("solve"):
+            return MethodOutput(np.asarray(surface.points)[:, :2].copy())
+'''
+
+USE_PLUGIN_SCRIPT = """
+import numpy as np
+from parambench.methods import get_method, method_names
+from parambench.datasets_gen.surface import Surface
+assert "project-xy" in method_names(), method_names()
+u, v = np.meshgrid(np.linspace(0, 1, 12), np.linspace(0, 2, 12))
+pts = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)])
+result = get_method("project-xy")(Surface(pts))
+from scipy.spatial.distance import pdist
+# uv comes back in input units, up to a rigid motion of the plane (the unit-pose round trip).
+print(result.method, result.uv.shape[0], float(np.abs(pdist(result.uv) - pdist(pts[:, :2])).max()), sorted(result.timings))
+"""
+
+
+def test_a_third_party_method_registers_through_the_entry_point_group(tmp_path):
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "xy_plugin.py").write_text(THIRD_PARTY_PLUGIN)
+    dist = site / "xy_plugin-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: xy-plugin\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[parambench.methods]\nproject-xy = xy_plugin:ProjectXY\n")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(site), env.get("PYTHONPATH", "")])
+    done = subprocess.run([sys.executable, "-c", USE_PLUGIN_SCRIPT], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    name, n, err, stages = done.stdout.split(" ", 3)
+    assert name == "project-xy" and int(n) == 144
+    # An isometry of the plane: same distances in the same row order.
+    assert float(err) < 1e-9
+    assert "'solve'" in stages and "'total'" in stages
