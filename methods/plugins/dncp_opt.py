@@ -6,6 +6,7 @@ from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area, solve_with_k_rule
+from ..mesh.holes import HOLES_MODES, surface_for_solve
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
 from ..registry import register
@@ -28,7 +29,8 @@ class DncpOpt(Method):
     description = "optimized DNCP: two pins, k line search (Eq. 16), any weights (Sec. 5)"
     needs_faces = True
     defaults = {"weights": "cotangent", "normalized": False, "pins": "farthest", "k_search": "line",
-                "uniform_at": None}
+                "uniform_at": None, "holes": "auto"}
+    choices = {"holes": HOLES_MODES}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "k_search": ["line", "direct"]}
 
     def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
@@ -42,6 +44,8 @@ class DncpOpt(Method):
                 return solve_with_k_rule(problem, "dncp", params["k_search"], weights=weights, normalized=normalized,
                                          pins=pins)
 
+        n_points = surface.n_points
+        surface, n_filled = surface_for_solve(surface, params["holes"], weights, normalized)
         if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
             problem, sol, loops, info = fold_driven_hybrid(surface, timer, solve, normalized=normalized,
                                                            b_matrix="boundary")
@@ -50,6 +54,6 @@ class DncpOpt(Method):
                                                       uniform_at=params["uniform_at"], b_matrix="boundary")
             sol = solve(problem)
         with timer("solve"):
-            uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
-        diagnostics = dict(sol.diagnostics, pins=[int(pins[0]), int(pins[1])], **info)
+            uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)[:n_points]
+        diagnostics = dict(sol.diagnostics, holes_filled=n_filled, pins=[int(pins[0]), int(pins[1])], **info)
         return MethodOutput(uv, diagnostics)

@@ -6,6 +6,7 @@ from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
+from ..mesh.holes import HOLES_MODES, surface_for_solve
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
 from ..registry import register
@@ -32,7 +33,8 @@ class Scp(Method):
     description = "spectral conformal parameterization, any weights, optional k search (Mullen et al. 2008; Sec. 5)"
     needs_faces = True
     defaults = {"weights": "cotangent", "normalized": False, "b_matrix": "boundary", "k_search": "auto",
-                "uniform_at": None}
+                "uniform_at": None, "holes": "auto"}
+    choices = {"holes": HOLES_MODES}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "b_matrix": ["boundary", "mass"]}
 
     def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
@@ -42,6 +44,8 @@ class Scp(Method):
             with timer("solve"):
                 return solve_with_k_rule(problem, "scp", params["k_search"], weights=weights, normalized=normalized)
 
+        n_points = surface.n_points
+        surface, n_filled = surface_for_solve(surface, params["holes"], weights, normalized)
         if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
             problem, sol, loops, info = fold_driven_hybrid(surface, timer, solve, normalized=normalized,
                                                            b_matrix=b_matrix)
@@ -50,6 +54,6 @@ class Scp(Method):
                                                       uniform_at=params["uniform_at"], b_matrix=b_matrix)
             sol = solve(problem)
         with timer("solve"):
-            uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
-        diagnostics = dict(sol.diagnostics, **info)
+            uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)[:n_points]
+        diagnostics = dict(sol.diagnostics, holes_filled=n_filled, **info)
         return MethodOutput(uv, diagnostics)
