@@ -34,8 +34,12 @@ def default_k_search(weights: str, normalized: bool) -> str:
     return "none" if weights in ("cotangent", "uniform", "hybrid") and not normalized else "line"
 
 
+#: :func:`k_start_estimate` keeps k = 1 unless the estimate is below 1 / K_START_FACTOR.
+K_START_FACTOR = 2.0
+
+
 def k_start_estimate(points: np.ndarray, faces: np.ndarray, lap) -> float:
-    """Where the k line search starts: ``min(1, A / E_L(x))``.
+    """Where the k line search starts: ``A / E_L(x)`` where that is below 1/2, else 1.
 
     ``A`` is the surface area and ``E_L(x) = 1/2 tr(X^T L X)`` the energy of the 3D
     embedding X under the Laplacian L. For cotangent weights ``E_L(x) = A`` exactly (the
@@ -58,13 +62,18 @@ def k_start_estimate(points: np.ndarray, faces: np.ndarray, lap) -> float:
     Returns
     -------
     float
-        In (0, 1]; 1 when the embedding energy is not positive (indefinite L).
+        In (0, 1/2) or exactly 1 (also when the embedding energy is not positive).
     """
     area = float(np.sum(igl.doublearea(points, faces)) / 2.0)
     energy = 0.5 * float(np.einsum("ij,ij->", points, lap @ points))
     if not (energy > 0 and area > 0):
         return 1.0
-    return float(min(1.0, area / energy))
+    ratio = area / energy
+    # Within a factor K_START_FACTOR of the cotangent scale (uniform: 0.70-0.98 on the real
+    # meshes; hybrid) the paper's start k = 1 is kept: the landscape can have several
+    # good windows near 1, and a different start picks a different one (hybrid
+    # "negative" on a spiked saddle: k_opt 1.0169 with 1 foldover instead of 1.0226 with 0).
+    return float(ratio) if ratio < 1.0 / K_START_FACTOR else 1.0
 
 
 def _line_then_direct(problem: ConformalProblem, mode: str, pins):
@@ -81,11 +90,26 @@ def _line_then_direct(problem: ConformalProblem, mode: str, pins):
         line_error = err
     try:
         sol = problem.solve(mode, "direct", pins=pins)
-    except (SolverError, ConvergenceError):
-        raise line_error from None
+    except (SolverError, ConvergenceError) as direct_error:
+        # Both searches failed: say so (the line search's own hint, k_search='direct', was
+        # just tried) and point at what does change the landscape.
+        hints = [Hint("try normalized=False", "normalized", False)]
+        if mode == "dncp":
+            # measured: authalic normalized DNCP on real/bump-domain curls (turning 3) at every k
+            # with the farthest pins and is regular with two adjacent boundary pins
+            hints.append(Hint("try pins on two adjacent boundary vertices ('i,j')", "pins"))
+        hints.append(Hint("try other weights", "weights"))
+        raise hinted(ConvergenceError,
+                     f"no regular {mode} map at any k: the line search failed ({_first_clause(line_error)}) and "
+                     f"k_search='direct' too ({_first_clause(direct_error)})", *hints) from None
     sol.diagnostics["k_search_fallback"] = "direct"
     sol.diagnostics["line_search_error"] = str(line_error)
     return sol
+
+
+def _first_clause(err: Exception) -> str:
+    """An error's message without its trailing hints (they follow the first '; ')."""
+    return str(err).split("; ")[0].rstrip(".")
 
 
 def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, weights: str, normalized: bool,
