@@ -46,11 +46,12 @@ def k_start_estimate(points: np.ndarray, faces: np.ndarray, lap) -> float:
     Dirichlet energy of the identity on each triangle is its area), so the ratio is 1;
     for weights at another scale it is the k at which ``k E_L`` matches the conformal
     scale, a rough estimate of k_opt (measured: 0.00096 vs k_opt 0.00096-0.0015 for
-    authalic weights on ``real/bump-domain``; 80x low on ``real/camelhead``). It is capped
-    at 1 because the searches step *up* from a map that is not regular, and above k_opt
-    a pinned (DNCP) map degenerates rather than settling (authalic DNCP on
-    ``real/bump-domain`` stepped up from k = 1 to 7523 without finding k_opt = 0.001):
-    starting below k_opt is safe, starting far above it is not.
+    authalic weights on ``real/bump-domain``; 80x low on ``real/camelhead``). It is only
+    used below 1 (the search steps *up* from a map that is not regular, and above k_opt
+    a pinned (DNCP) map degenerates rather than settling: authalic DNCP on
+    ``real/bump-domain`` stepped up from k = 1 to 7523 without finding k_opt = 0.001, so
+    starting below k_opt is safe, far above it is not), and only below 1/2: see the comment
+    in the code.
 
     Parameters
     ----------
