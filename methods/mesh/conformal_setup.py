@@ -18,7 +18,7 @@ from .topology import require_connected_disk_like
 from .weights import laplacian, mesh_weights, uniform_vertex_mask
 
 __all__ = ["B_MATRICES", "build_mesh_problem", "resolve_pins", "scale_to_surface_area", "default_k_search",
-           "solve_with_k_rule"]
+           "solve_with_k_rule", "k_start_estimate"]
 
 B_MATRICES = ("boundary", "mass")
 
@@ -34,6 +34,86 @@ def default_k_search(weights: str, normalized: bool) -> str:
     return "none" if weights in ("cotangent", "uniform", "hybrid") and not normalized else "line"
 
 
+#: :func:`k_start_estimate` keeps k = 1 unless the estimate is below 1 / K_START_FACTOR.
+K_START_FACTOR = 2.0
+
+
+def k_start_estimate(points: np.ndarray, faces: np.ndarray, lap) -> float:
+    """Where the k line search starts: ``A / E_L(x)`` where that is below 1/2, else 1.
+
+    ``A`` is the surface area and ``E_L(x) = 1/2 tr(X^T L X)`` the energy of the 3D
+    embedding X under the Laplacian L. For cotangent weights ``E_L(x) = A`` exactly (the
+    Dirichlet energy of the identity on each triangle is its area), so the ratio is 1;
+    for weights at another scale it is the k at which ``k E_L`` matches the conformal
+    scale, a rough estimate of k_opt (measured: 0.00096 vs k_opt 0.00096-0.0015 for
+    authalic weights on ``real/bump-domain``; 80x low on ``real/camelhead``). It is only
+    used below 1 (the search steps *up* from a map that is not regular, and above k_opt
+    a pinned (DNCP) map degenerates rather than settling: authalic DNCP on
+    ``real/bump-domain`` stepped up from k = 1 to 7523 without finding k_opt = 0.001, so
+    starting below k_opt is safe, far above it is not), and only below 1/2: see the comment
+    in the code.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64
+    lap : (N, N) scipy.sparse matrix of float64
+        L = D - W.
+
+    Returns
+    -------
+    float
+        In (0, 1/2) or exactly 1 (also when the embedding energy is not positive).
+    """
+    area = float(np.sum(igl.doublearea(points, faces)) / 2.0)
+    energy = 0.5 * float(np.einsum("ij,ij->", points, lap @ points))
+    if not (energy > 0 and area > 0):
+        return 1.0
+    ratio = area / energy
+    # Within a factor K_START_FACTOR of the cotangent scale (uniform: 0.70-0.98 on the real
+    # meshes; hybrid) the paper's start k = 1 is kept: the landscape can have several
+    # good windows near 1, and a different start picks a different one (hybrid
+    # "negative" on a spiked saddle: k_opt 1.0169 with 1 foldover instead of 1.0226 with 0).
+    return float(ratio) if ratio < 1.0 / K_START_FACTOR else 1.0
+
+
+def _line_then_direct(problem: ConformalProblem, mode: str, pins):
+    """The line search; where it finds no bracket, k_opt from the generalised eigenproblem.
+
+    The good region (regular and q >= 0) can be far narrower than a geometric step: DNCP
+    on ``real/bunny10k`` (cotangent, 5 boundary loops) is regular only within about 1e-3
+    of k_opt = 0.97456, and the small holes turn inside out on either side, so stepping
+    up from k = 1 never found it. ``k_search="direct"`` computes that k without stepping.
+    """
+    try:
+        return problem.solve(mode, "line", pins=pins)
+    except ConvergenceError as err:
+        line_error = err
+    try:
+        sol = problem.solve(mode, "direct", pins=pins)
+    except (SolverError, ConvergenceError) as direct_error:
+        # Both searches failed: say so (the line search's own hint, k_search='direct', was
+        # just tried) and point at what does change the landscape.
+        hints = [Hint("try normalized=False", "normalized", False)]
+        if mode == "dncp":
+            # With non-symmetric weights no map has zero energy, so DNCP's answer depends on
+            # the pins: authalic normalized DNCP on real/bump-domain curls (turning 3) at every
+            # k with the farthest pins, and is regular for 7 of 10 other boundary pairs tried.
+            hints.append(Hint("try other pins ('i,j', two boundary vertices)", "pins"))
+        hints.append(Hint("try other weights", "weights"))
+        raise hinted(ConvergenceError,
+                     f"no regular {mode} map at any k: the line search failed ({_first_clause(line_error)}) and "
+                     f"k_search='direct' too ({_first_clause(direct_error)})", *hints) from None
+    sol.diagnostics["k_search_fallback"] = "direct"
+    sol.diagnostics["line_search_error"] = str(line_error)
+    return sol
+
+
+def _first_clause(err: Exception) -> str:
+    """An error's message without its trailing hints (they follow the first '; ')."""
+    return str(err).split("; ")[0].rstrip(".")
+
+
 def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, weights: str, normalized: bool,
                       pins: tuple[int, int] | None = None):
     """Solve with the given ``k_search``, or for ``"auto"`` with k = 1 and the line search as fallback.
@@ -45,7 +125,9 @@ def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, we
     k_search : {"auto", "none", "line", "direct"}
         ``"auto"``: :func:`default_k_search`; when that is k = 1 and the solve fails (the
         energy is indefinite at k = 1, so the map would spin) or the boundary spins, the
-        line search (Eq. 16).
+        line search (Eq. 16). ``"line"`` (and the line search of ``"auto"``) falls back to
+        ``"direct"`` where the search finds no t = 1 crossing (a good region narrower than
+        its steps); ``diagnostics["k_search_fallback"]`` is then ``"direct"``.
     weights, normalized
         The weights the problem was built with.
     pins : (int, int), optional
@@ -62,17 +144,19 @@ def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, we
     SolverError, ConvergenceError
         From :meth:`ConformalProblem.solve` (for ``"auto"``, the search's error).
     """
+    if k_search == "line":
+        return _line_then_direct(problem, mode, pins)
     if k_search != "auto":
         return problem.solve(mode, k_search, pins=pins)
     k_search = default_k_search(weights, normalized)
     if k_search != "none":
-        return problem.solve(mode, k_search, pins=pins)
+        return _line_then_direct(problem, mode, pins)
     try:
         sol = problem.solve(mode, "none", pins=pins)
     except SolverError:
         # k = 1 is only guaranteed positive semi-definite for cotangent weights; where it
         # is not, the search finds the k at which the map stops spinning instead of refusing.
-        sol = problem.solve(mode, "line", pins=pins)
+        sol = _line_then_direct(problem, mode, pins)
         sol.diagnostics["k_fallback"] = True
         return sol
     if sol.diagnostics.get("regular_boundary", True):
@@ -81,7 +165,7 @@ def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, we
     # energy) is what the search of Eq. 16 is for; if it finds nothing, the k = 1 map is
     # the answer, reported with regular_boundary = False as before.
     try:
-        searched = problem.solve(mode, "line", pins=pins)
+        searched = _line_then_direct(problem, mode, pins)
     except (SolverError, ConvergenceError):
         return sol
     searched.diagnostics["k_fallback"] = True
@@ -137,7 +221,9 @@ def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, nor
         # Cotangent weights give the exact Dirichlet energy of the piecewise-linear map,
         # which bounds the image area on every triangle: the energy is PSD for k >= 1.
         psd = 1.0 if weights == "cotangent" and not normalized else None
-        problem = ConformalProblem(laplacian(w), loops, b_matrix=b, points=pts, psd_from_k=psd)
+        lap = laplacian(w)
+        problem = ConformalProblem(lap, loops, b_matrix=b, points=pts, psd_from_k=psd,
+                                   k_start=k_start_estimate(pts, faces, lap))
     return problem, loops, info
 
 

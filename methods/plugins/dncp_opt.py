@@ -6,6 +6,7 @@ from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area, solve_with_k_rule
+from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
 from ..registry import register
@@ -22,34 +23,47 @@ class DncpOpt(Method):
     DNCP at k = 1). The output is scaled so that its boundary encloses the 3D area.
     ``weights="hybrid"`` with ``uniform_at="auto"`` (the default) is uniform only around
     the folds of the cotangent map (:mod:`parambench.methods.mesh.hybrid`, Fig. 12).
+    ``holes``: ``"auto"`` (default) solves with the holes free and, where that fails or
+    turns a hole inside out, again with each hole filled by a fan
+    (:mod:`parambench.methods.mesh.holes`); ``"free"`` or ``"filled"`` forces one.
+    Where the line search finds no bracket, k_opt is computed directly
+    (``diagnostics["k_search_fallback"] = "direct"``).
     """
 
     name = "dncp-opt"
     description = "optimized DNCP: two pins, k line search (Eq. 16), any weights (Sec. 5)"
     needs_faces = True
     defaults = {"weights": "cotangent", "normalized": False, "pins": "farthest", "k_search": "line",
-                "uniform_at": None}
+                "uniform_at": None, "holes": "auto"}
+    choices = {"holes": HOLES_MODES}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "k_search": ["line", "direct"]}
 
     def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
         weights, normalized = params["weights"], bool(params["normalized"])
-        pins = None
 
-        def solve(problem):
-            nonlocal pins
-            pins = resolve_pins(params["pins"], surface.points, problem.loops) if pins is None else pins
-            with timer("solve"):
-                return solve_with_k_rule(problem, "dncp", params["k_search"], weights=weights, normalized=normalized,
-                                         pins=pins)
+        def attempt(surf):
+            # pins are chosen once per surface (the hybrid rounds share them); with the holes
+            # filled, "farthest" picks them on the outer loop
+            pins = None
 
-        if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
-            problem, sol, loops, info = fold_driven_hybrid(surface, timer, solve, normalized=normalized,
-                                                           b_matrix="boundary")
-        else:
-            problem, loops, info = build_mesh_problem(surface, timer, weights=weights, normalized=normalized,
-                                                      uniform_at=params["uniform_at"], b_matrix="boundary")
-            sol = solve(problem)
+            def solve(problem):
+                nonlocal pins
+                pins = resolve_pins(params["pins"], surf.points, problem.loops) if pins is None else pins
+                with timer("solve"):
+                    return solve_with_k_rule(problem, "dncp", params["k_search"], weights=weights,
+                                             normalized=normalized, pins=pins)
+
+            if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
+                problem, sol, loops, info = fold_driven_hybrid(surf, timer, solve, normalized=normalized,
+                                                               b_matrix="boundary")
+            else:
+                problem, loops, info = build_mesh_problem(surf, timer, weights=weights, normalized=normalized,
+                                                          uniform_at=params["uniform_at"], b_matrix="boundary")
+                sol = solve(problem)
+            return problem, sol, loops, dict(info, pins=[int(pins[0]), int(pins[1])])
+
+        (problem, sol, loops, info), work, n_filled = solve_with_holes(surface, params["holes"], attempt)
         with timer("solve"):
-            uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
-        diagnostics = dict(sol.diagnostics, pins=[int(pins[0]), int(pins[1])], **info)
+            uv = scale_to_surface_area(sol.z, problem, work.points, work.faces)[: surface.n_points]
+        diagnostics = dict(sol.diagnostics, holes_filled=n_filled, **info)
         return MethodOutput(uv, diagnostics)

@@ -6,6 +6,7 @@ from parambench.datasets_gen.surface import Surface
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
+from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
 from ..registry import register
@@ -23,7 +24,10 @@ class Scp(Method):
     indefinite) and the line search otherwise. ``weights="hybrid"`` with
     ``uniform_at="auto"`` (the default) is uniform only around the folds of the cotangent
     map (:mod:`parambench.methods.mesh.hybrid`, Fig. 12); ``uniform_at="negative"`` or a vertex list
-    fixes the uniform vertices instead.
+    fixes the uniform vertices instead. ``holes``: ``"auto"`` (default) solves with the
+    holes free and, where that fails or turns a hole inside out, again with each hole
+    filled by a fan (:mod:`parambench.methods.mesh.holes`); ``"free"`` or ``"filled"``
+    forces one.
 
     The output is scaled so that its boundary encloses the 3D surface area.
     """
@@ -32,7 +36,8 @@ class Scp(Method):
     description = "spectral conformal parameterization, any weights, optional k search (Mullen et al. 2008; Sec. 5)"
     needs_faces = True
     defaults = {"weights": "cotangent", "normalized": False, "b_matrix": "boundary", "k_search": "auto",
-                "uniform_at": None}
+                "uniform_at": None, "holes": "auto"}
+    choices = {"holes": HOLES_MODES}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "b_matrix": ["boundary", "mass"]}
 
     def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
@@ -42,14 +47,15 @@ class Scp(Method):
             with timer("solve"):
                 return solve_with_k_rule(problem, "scp", params["k_search"], weights=weights, normalized=normalized)
 
-        if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
-            problem, sol, loops, info = fold_driven_hybrid(surface, timer, solve, normalized=normalized,
-                                                           b_matrix=b_matrix)
-        else:
-            problem, loops, info = build_mesh_problem(surface, timer, weights=weights, normalized=normalized,
+        def attempt(surf):
+            if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
+                return fold_driven_hybrid(surf, timer, solve, normalized=normalized, b_matrix=b_matrix)
+            problem, loops, info = build_mesh_problem(surf, timer, weights=weights, normalized=normalized,
                                                       uniform_at=params["uniform_at"], b_matrix=b_matrix)
-            sol = solve(problem)
+            return problem, solve(problem), loops, info
+
+        (problem, sol, loops, info), work, n_filled = solve_with_holes(surface, params["holes"], attempt)
         with timer("solve"):
-            uv = scale_to_surface_area(sol.z, problem, surface.points, surface.faces)
-        diagnostics = dict(sol.diagnostics, **info)
+            uv = scale_to_surface_area(sol.z, problem, work.points, work.faces)[: surface.n_points]
+        diagnostics = dict(sol.diagnostics, holes_filled=n_filled, **info)
         return MethodOutput(uv, diagnostics)

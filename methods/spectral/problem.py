@@ -110,6 +110,11 @@ class ConformalProblem:
         Most k searches on the subspace, each after a refinement grew it (1: search once).
     subspace_ktol : float
         Stop repeating the search once k_opt moves by less than this, relative.
+    k_start : float
+        Where the line search starts (its ``k0``) unless :meth:`solve` is given one: 1 for
+        weights at the cotangent scale; a caller that knows the weights' scale differs
+        (authalic, mean-value) passes an estimate of k_opt (see
+        :func:`parambench.methods.mesh.conformal_setup.k_start_estimate`).
 
     Raises
     ------
@@ -123,7 +128,7 @@ class ConformalProblem:
                  points: np.ndarray | None = None, max_boundary_dense: int = 4000,
                  psd_from_k: float | None = None, subspace_from: int = 300,
                  subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None,
-                 subspace_rounds: int = 4, subspace_ktol: float = 1e-6) -> None:
+                 subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -159,6 +164,9 @@ class ConformalProblem:
         self.subspace_modes = int(subspace_modes)
         self.subspace_rounds = int(subspace_rounds)
         self.subspace_ktol = float(subspace_ktol)
+        if not k_start > 0:
+            raise InvalidInputError(f"k_start must be positive, got {k_start}.")
+        self.k_start = float(k_start)
         self.subspace_extra = None if subspace_extra is None else np.asarray(subspace_extra, dtype=np.float64)
         if self.subspace_extra is not None and self.subspace_extra.shape[0] != self.boundary.size:
             raise InvalidInputError(f"subspace_extra must have one row per boundary vertex ({self.boundary.size}), "
@@ -520,8 +528,8 @@ class ConformalProblem:
 
     def solve(self, mode: str, k_search: str = "none", *, k: float = 1.0, pins: Sequence[int] | None = None,
               pin_values: Sequence[complex] = (0.0, 1.0), backend: str = "auto", r: float = DEFAULT_R,
-              growth: float = 1.25, bracket: tuple[float, float] | None = None, xatol: float = 1e-9
-              ) -> ConformalSolution:
+              growth: float = 1.25, bracket: tuple[float, float] | None = None, xatol: float = 1e-9,
+              k0: float | None = None) -> ConformalSolution:
         """SCP or DNCP with k fixed, searched along a line (Eq. 16) or computed directly.
 
         Parameters
@@ -533,8 +541,9 @@ class ConformalProblem:
         pins, pin_values
             DNCP's pinned vertices and their positions (complex).
         backend : {"auto", "sparse", "boundary", "subspace"}
-        r, growth, bracket, xatol
-            See :func:`parambench.methods.spectral.ksearch.line_search`.
+        r, growth, bracket, xatol, k0
+            See :func:`parambench.methods.spectral.ksearch.line_search` (``k0``: where the
+            line search starts stepping; default ``k_start``).
 
         Returns
         -------
@@ -563,7 +572,8 @@ class ConformalProblem:
                 sol = self._solve_direct(mode, pins_a, vals, backend)
             else:
                 sol, extra = self._solve_line(mode, pins_a, vals, backend,
-                                              dict(growth=growth, r=r, bracket=bracket, xatol=xatol))
+                                              dict(growth=growth, r=r, bracket=bracket, xatol=xatol,
+                                                   k0=self.k_start if k0 is None else float(k0)))
                 diag.update(extra)
             return self._finish(sol, mode, k_search, diag)
 
@@ -609,7 +619,20 @@ class ConformalProblem:
         Returns the solution and the search's diagnostics (landscape, bracket, evaluations).
         """
         if mode == "scp" and self._use_subspace(backend):
-            return self._scp_subspace_search(line_kwargs)
+            try:
+                return self._scp_subspace_search(line_kwargs)
+            except SolverError as err:
+                # The subspace's k_opt is an estimate; where the exact map there still spins
+                # and the nudges of _scp_sparse_regular do not reach the exact k_opt
+                # (normalized cotangent on real/cortex-lh, 451 boundary vertices: subspace
+                # 3.20485, exact 3.25935), the exact search on the boundary reduction decides.
+                if backend != "auto" or not self._use_boundary("auto"):
+                    raise
+                subspace_error = str(err)
+            backend = "boundary"
+            sol, diag = self._solve_line(mode, pins, pin_values, backend, line_kwargs)
+            diag["subspace_fallback"] = subspace_error
+            return sol, diag
         evaluate, reduced = self._line_evaluator(mode, backend, pins, pin_values)
         result = line_search(evaluate, **line_kwargs)
         best = result.best

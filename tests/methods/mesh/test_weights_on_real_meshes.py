@@ -1,0 +1,161 @@
+"""Every weight option on the real meshes: the fixes behind issue #13 item 5, one test each, and the matrix."""
+
+from __future__ import annotations
+
+import igl
+import numpy as np
+import pytest
+
+from parambench.bench.metrics import evaluate, mesh_boundary_loops, turning_number
+from parambench.datasets_gen.errors import ConvergenceError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.base import StageTimer
+from parambench.methods.mesh.conformal_setup import build_mesh_problem, k_start_estimate, resolve_pins
+from parambench.methods.mesh.holes import fill_holes
+from parambench.methods.mesh.weights import WEIGHT_KINDS, laplacian, mesh_weights
+from parambench.methods.registry import get_method
+
+SCP = get_method("scp")
+DNCP = get_method("dncp-opt")
+REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k", "real/meg-helmet", "real/spot-top",
+        "real/cortex-lh"]
+
+
+@pytest.fixture(scope="module")
+def real_meshes():
+    return {name: make_surface(name, seed=0) for name in REAL}
+
+
+def test_normalized_authalic_rows_with_nonpositive_sum_use_the_absolute_sum(real_meshes):
+    # Before: InvalidInputError "5 row(s) of the authalic weights sum to <= 0" on camelhead.
+    s = real_meshes["real/camelhead"]
+    raw = mesh_weights(s.points, s.faces, "authalic")
+    sums = np.asarray(raw.sum(axis=1)).ravel()
+    bad = sums <= 0
+    assert bad.sum() == 5
+    w = mesh_weights(s.points, s.faces, "authalic", normalized=True)
+    row = np.asarray(w.sum(axis=1)).ravel()
+    assert np.allclose(row[~bad], 1.0, atol=1e-12)
+    abs_sums = np.asarray(abs(raw).sum(axis=1)).ravel()
+    assert np.allclose(row[bad], sums[bad] / abs_sums[bad], atol=1e-12)
+    assert np.abs(np.asarray(laplacian(w).sum(axis=1))).max() < 1e-12
+    res = SCP(s, weights="authalic", normalized=True)
+    assert res.diagnostics["regular_boundary"] and np.isfinite(res.uv).all()
+
+
+def test_k_start_is_one_for_cotangent_and_near_k_opt_for_authalic(real_meshes):
+    s = real_meshes["real/bump-domain"]
+    # the cotangent Dirichlet energy of the embedding is exactly the surface area
+    cot = laplacian(mesh_weights(s.points, s.faces, "cotangent"))
+    area = igl.doublearea(s.points, s.faces).sum() / 2
+    assert abs(0.5 * np.einsum("ij,ij->", s.points, cot @ s.points) / area - 1) < 1e-10
+    assert k_start_estimate(s.points, s.faces, cot) == 1.0
+    # authalic weights scale like 1 / edge^2: k_opt is ~1e-3, three orders below 1
+    res = DNCP(s, weights="authalic")  # before: no t = 1 crossing stepping up from k = 1 to 7523
+    assert res.diagnostics["turning_numbers"] == [1]
+    k0 = k_start_estimate(s.points, s.faces, laplacian(mesh_weights(s.points, s.faces, "authalic")))
+    assert 0.2 < k0 / res.diagnostics["k_opt"] < 5
+
+
+def test_dncp_falls_back_to_the_direct_k_where_the_good_region_is_too_narrow(real_meshes):
+    s = real_meshes["real/bunny10k"]
+    prob, loops, _ = build_mesh_problem(s, StageTimer(), weights="cotangent", normalized=False, uniform_at=None,
+                                        b_matrix="boundary")
+    pins = resolve_pins("farthest", s.points, loops)
+    with pytest.raises(ConvergenceError, match="no t = 1 crossing"):
+        prob.solve("dncp", "line", pins=pins)
+    res = DNCP(s)
+    assert res.diagnostics["k_search_fallback"] == "direct"
+    assert res.diagnostics["turning_numbers"] == [1, -1, -1, -1, -1]
+    assert abs(res.diagnostics["k_opt"] - prob.k_direct(pins)[0]) < 1e-12
+    m = evaluate(s.points, s.faces, res.uv)
+    assert m["foldovers"] == 0
+    assert abs(m["qc_mean"] / evaluate(s.points, s.faces, SCP(s).uv)["qc_mean"] - 1) < 0.01
+
+
+@pytest.mark.slow
+def test_scp_falls_back_to_the_exact_search_where_the_subspace_k_opt_spins(real_meshes):
+    # before: SolverError "the exact SCP map near the subspace k_opt = 3.20485 is not regular"
+    s = real_meshes["real/cortex-lh"]
+    res = SCP(s, weights="cotangent", normalized=True)
+    assert "not regular" in res.diagnostics["subspace_fallback"]
+    assert res.diagnostics["backend"] == "boundary" and res.diagnostics["turning_numbers"] == [1]
+    # the exact k_opt is where the energy crosses zero: +-0.1 % gives a negative energy or a spin
+    prob, _, _ = build_mesh_problem(s, StageTimer(), weights="cotangent", normalized=True, uniform_at=None,
+                                    b_matrix="boundary")
+    k = res.diagnostics["k_opt"]
+    below, above = prob._scp_reduced(0.999 * k), prob._scp_reduced(1.001 * k)
+    assert not below.good and above.good
+
+
+def test_fill_holes_makes_a_consistently_oriented_disk(real_meshes):
+    s = real_meshes["real/bunny10k"]
+    filled, n = fill_holes(s)
+    assert n == 4 and filled.n_points == s.n_points + 4
+    assert np.array_equal(filled.points[: s.n_points], s.points)
+    assert len(igl.boundary_loop_all(filled.faces)) == 1
+    v, e, f = filled.n_points, len(igl.edges(filled.faces)), len(filled.faces)
+    assert v - e + f == 1
+    # consistently oriented: every directed edge occurs once
+    he = np.concatenate([filled.faces[:, [0, 1]], filled.faces[:, [1, 2]], filled.faces[:, [2, 0]]])
+    assert len(np.unique(he, axis=0)) == len(he)
+
+
+def test_uniform_weights_keep_bunny_holes_open_once_filled(real_meshes):
+    s = real_meshes["real/bunny10k"]
+    free = SCP(s, weights="uniform", holes="free")
+    assert free.diagnostics["regular_boundary"] is False  # holes inside out at every k
+    res = SCP(s, weights="uniform")
+    assert res.diagnostics["holes_filled"] == 4
+    m = evaluate(s.points, s.faces, res.uv)
+    assert m["foldovers"] == 0
+    loops = mesh_boundary_loops(s.faces)
+    assert sorted(round(turning_number(res.uv[loop])) for loop in loops) == [-1, -1, -1, -1, 1]
+    # plain cotangent keeps its holes free and its map unchanged
+    assert SCP(s).diagnostics["holes_filled"] == 0
+
+
+#: Combinations with no regular map at any k. bump-domain: turning numbers 3 to 110 from
+#: k = 0.5 to 7523 with the farthest pins (regular with 7 of 10 other pin pairs). cortex-lh:
+#: the authalic maps keep one extra turn (turning number 2) up to k = 18 (raw) or 7523
+#: (normalized), and no near-real k of the pencil gives a regular map.
+NO_MAP = {("real/bump-domain", "dncp-opt", "authalic", True), ("real/cortex-lh", "scp", "authalic", False),
+          ("real/cortex-lh", "scp", "authalic", True), ("real/cortex-lh", "dncp-opt", "authalic", False)}
+#: More than 10 s each (measured 12 to 32 s): the failing searches above on cortex-lh's
+#: 451 boundary vertices, and the exact boundary search after the subspace one.
+SLOW = {("real/cortex-lh", "scp", "authalic", False), ("real/cortex-lh", "scp", "authalic", True),
+        ("real/cortex-lh", "scp", "cotangent", True), ("real/cortex-lh", "scp", "hybrid", True)}
+#: Regular outer boundary, but one of bunny10k's filled holes collapses (turning number 0;
+#: 64 foldovers, 0.6 % of the faces): normalized authalic weights are the paper's "not
+#: particularly desirable" kind, and 17 of their rows here sum to <= 0.
+COLLAPSED_HOLE = {("real/bunny10k", "scp", "authalic", True)}
+
+
+CASES = [pytest.param(name, method, weights, normalized, id=f"{name[5:]}-{method}-{weights}-{'norm' if normalized else 'raw'}",
+                      marks=[pytest.mark.slow] if (name, method, weights, normalized) in SLOW else [])
+         for name in REAL for method in ("scp", "dncp-opt") for weights in WEIGHT_KINDS for normalized in (False, True)]
+
+
+@pytest.mark.parametrize("name,method,weights,normalized", CASES)
+def test_every_weight_option_works_on_every_real_mesh(real_meshes, name, method, weights, normalized):
+    s = real_meshes[name]
+    case = (name, method, weights, normalized)
+    if case in NO_MAP:
+        # a specific error naming parameters the method has, not "use k_search='direct'" (tried)
+        mode = "dncp" if method == "dncp-opt" else "scp"
+        with pytest.raises(ConvergenceError, match=rf"no regular {mode} map at any k.*other weights") as info:
+            get_method(method)(s, weights=weights, normalized=normalized)
+        assert ("normalized=False" in str(info.value)) == normalized
+        assert ("other pins" in str(info.value)) == (mode == "dncp")
+        return
+    res = get_method(method)(s, weights=weights, normalized=normalized)
+    assert np.isfinite(res.uv).all()
+    assert res.diagnostics["regular_boundary"]
+    loops = mesh_boundary_loops(s.faces)
+    turning = sorted(round(turning_number(res.uv[loop])) for loop in loops)
+    m = evaluate(s.points, s.faces, res.uv)
+    assert np.isfinite(m["qc_mean"]) and m["foldover_fraction"] < 0.01
+    if case in COLLAPSED_HOLE:
+        assert turning == [-1, -1, -1, 0, 1]
+        return
+    assert turning == [-1] * (len(loops) - 1) + [1]
