@@ -17,7 +17,8 @@ pieces replaced by ground truth:
 Each run reports QC mean and foldovers on the true mesh and where the flipped faces lie:
 within 2 / 5 mesh rings of a *bridge* (an Euclidean kNN edge spanning more than
 ``bridge_rings`` mesh rings), within 2 rings of the true boundary, or elsewhere.
-Found with it on ``real/camelhead`` (the lips): see the README's Measured table.
+Found with it on ``real/camelhead`` (the lips): see the README's Measured table. Run
+``python -m parambench.bench.frontend_isolation real/camelhead`` for the standard cases.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from parambench.methods.pointset.plugin_support import scale_to_spacing
 from parambench.methods.plugins.ocp import conformal_problem, ocp_laplacian
 
 __all__ = ["mesh_adjacency", "vertex_normals", "ring_distance", "mesh_ring_knn", "bridges", "oriented_loops",
-           "flipped_faces", "isolate"]
+           "flipped_faces", "isolate", "pruned_with_true_normals", "STANDARD_CASES", "main"]
 
 
 def mesh_adjacency(n: int, faces: np.ndarray) -> sp.csr_matrix:
@@ -163,7 +164,7 @@ def _front_end_patched(points: np.ndarray, graph: KnnGraph | None, skip_normal_c
 
 
 def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_loops: bool = False,
-            mesh_neighbours: bool = False, rings: int = 3, energy: str = "neumann",
+            mesh_neighbours: bool = False, rings: int = 3, graph: KnnGraph | None = None, energy: str = "neumann",
             params: FrontEndParams | None = None, bridge_rings: int = 10, context: dict | None = None) -> dict:
     """Run ``ocp``'s pipeline on ``surface.points`` with ground-truth pieces substituted.
 
@@ -180,6 +181,9 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
     mesh_neighbours : bool
         Replace the kNN graph by :func:`mesh_ring_knn` with ``rings``.
     rings : int
+    graph : KnnGraph, optional
+        Any neighbour graph (input order) to use instead of the kNN graph, e.g.
+        :func:`pruned_with_true_normals`; overrides ``mesh_neighbours``.
     energy : str
         ``ocp``'s ``energy`` option.
     params : FrontEndParams, optional
@@ -211,7 +215,8 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
                            if len(ctx["bridges"]) else np.full(n, np.inf))
         ctx["d_boundary"] = dijkstra(adj, indices=loops_all, unweighted=True, min_only=True)
     opts = replace(params or FrontEndParams(), smooth_normals=bool(smooth))
-    graph = mesh_ring_knn(pts, ctx["adjacency"], int(opts.k_nn), rings) if mesh_neighbours else None
+    if graph is None and mesh_neighbours:
+        graph = mesh_ring_knn(pts, ctx["adjacency"], int(opts.k_nn), rings)
     with _front_end_patched(pts, graph, skip_normal_check=true_normals):
         front = _frontend.build_frontend(pts, ctx["normals"] if true_normals else None, opts)
     detected = front.boundary_loops
@@ -241,3 +246,62 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
                        "elsewhere": int(((near_b > 5) & (near_l > 2)).sum())},
         "uv": uv,
     }
+
+
+def pruned_with_true_normals(surface, k: int = 8) -> KnnGraph:
+    """``neighbours="pruned"``'s graph with the mesh's normals in its plane tests and orientation.
+
+    What the pruning would cut if its normal estimates (PCA on the nearest few, oriented
+    along the pruned graph) were exact: separates a bad test from bad normals.
+    """
+    from parambench.methods.pointset import surface_neighbours as sn
+
+    truth = vertex_normals(surface.points, surface.faces)
+    saved = sn.pca_normals, sn.consistent_signs
+    sn.pca_normals = lambda points, indices: truth
+    sn.consistent_signs = lambda points, normals, indices: np.where(
+        np.einsum("ij,ij->i", normals, truth) < 0, -1.0, 1.0)
+    try:
+        return sn.pruned_knn_graph(surface.points, k)[0]
+    finally:
+        sn.pca_normals, sn.consistent_signs = saved
+
+
+#: The substitutions of :func:`main`: label -> keyword arguments of :func:`isolate`.
+STANDARD_CASES = {
+    "estimated (ocp as is)": {},
+    "true normals": {"true_normals": True},
+    "true normals, unsmoothed": {"true_normals": True, "smooth": False},
+    "true loops": {"true_loops": True},
+    "mesh neighbours": {"mesh_neighbours": True},
+    "mesh neighbours + true normals": {"mesh_neighbours": True, "true_normals": True},
+    "mesh neighbours + true normals + true loops": {"mesh_neighbours": True, "true_normals": True, "true_loops": True},
+    "neighbours=pruned": {"params": FrontEndParams(neighbours="pruned")},
+    "neighbours=pruned + true normals": {"params": FrontEndParams(neighbours="pruned"), "true_normals": True},
+}
+
+
+def main(argv=None) -> int:
+    """Print one JSON line per case of :data:`STANDARD_CASES` for a dataset name (default ``real/camelhead``)."""
+    import json
+    import sys
+
+    from parambench.datasets_gen.registry import make_surface
+
+    args = sys.argv[1:] if argv is None else list(argv)
+    surface = make_surface(args[0] if args else "real/camelhead")
+    ctx: dict = {}
+    cases = dict(STANDARD_CASES)
+    pruned_true = pruned_with_true_normals(surface)
+    cases["pruned graph cut with true normals"] = {"graph": pruned_true}
+    cases["pruned graph cut with true normals + true normals"] = {"graph": pruned_true, "true_normals": True}
+    for label, kwargs in cases.items():
+        out = isolate(surface, context=ctx, **kwargs)
+        out.pop("uv")
+        print(json.dumps({"case": label, **out}), flush=True)
+    print(json.dumps({"bridge_ends": int(len(ctx["bridges"]))}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

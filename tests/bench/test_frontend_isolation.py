@@ -41,3 +41,18 @@ def test_isolation_on_a_clean_surface_has_no_bridges_or_folds_and_restores_the_f
         assert sum(r["folds_near"].values()) == 0
     assert truth["normal_error_deg"]["all"] < 1e-6 and truth["normal_sign_flips"] == 0
     assert plain["qc_mean"] < 1.1 and truth["qc_mean"] < 1.1
+
+
+def test_a_given_graph_is_the_same_as_the_mesh_neighbours_option_and_pruning_patches_are_undone():
+    from parambench.methods.pointset import surface_neighbours as sn
+
+    s = _surface()
+    ctx = {}
+    by_option = iso.isolate(s, mesh_neighbours=True, context=ctx)
+    graph = iso.mesh_ring_knn(s.points, ctx["adjacency"], 8, rings=3)
+    by_graph = iso.isolate(s, graph=graph, context=ctx)
+    assert np.array_equal(by_option["uv"], by_graph["uv"])
+    saved = sn.pca_normals, sn.consistent_signs
+    pruned = iso.pruned_with_true_normals(s)
+    assert (sn.pca_normals, sn.consistent_signs) == saved
+    assert pruned.indices.shape == (s.n_points, 8)
