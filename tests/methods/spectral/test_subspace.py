@@ -155,3 +155,21 @@ def test_inverse_iteration_gives_the_eigenvector_of_the_smallest_real_part():
     assert abs(abs(np.vdot(ref, x)) - 1) < 1e-10
     # A value that is no eigenvalue: no convergence is reported, not a wrong vector.
     assert _inverse_iteration(op, complex(vals[i]) + 0.5) is None
+
+
+@pytest.mark.parametrize("case", ["bump_ocp", "holes_ocp"])
+def test_first_search_from_the_pencil_estimate_equals_the_line_search(case, request):
+    from parambench.methods.spectral.ksearch import line_search
+
+    problem = request.getfixturevalue(case)
+    sub = BoundarySubspace(problem._reduction(), problem.area, problem.loops, problem.points)
+    full = line_search(sub.evaluate)
+    estimates = sub.k_estimates()
+    # The pencil's largest near-real k is the zero of the Ritz energy to a few digits ...
+    assert estimates.size and abs(estimates[0] / full.k_opt - 1) < 1e-4
+    assert np.all(np.diff(estimates) <= 0)
+    # ... so the root find from it gives the line search's k_opt in a few evaluations.
+    first = ConformalProblem._search_first(sub, {})
+    assert abs(first.k_opt / full.k_opt - 1) < 1e-12 and first.best.regular
+    assert first.n_evaluations <= 6 < full.n_evaluations
+    problem._release_reductions()
