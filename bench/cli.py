@@ -132,8 +132,10 @@ def _selfcheck_summary(check: dict | None) -> str:
         return f"; self-check {'ok' if check.get('passed') else 'FAILED'}"
     turning = check.get("turning_numbers")
     cov = check.get("coverage")
-    return (f"; self-check {'ok' if check['passed'] else 'FAILED'}: {check.get('n_flipped', 0)} flipped, "
-            f"{check.get('n_degenerate', 0)} degenerate of {check['n_triangles']} triangles"
+    uncertain = check.get("n_flipped_uncertain", 0)
+    return (f"; self-check {'ok' if check['passed'] else 'FAILED'}: {check.get('n_flipped', 0)} flipped"
+            + (f" (+{uncertain} within the normals' error of {check.get('normal_tol_deg', 0):g} deg)" if uncertain else "")
+            + f", {check.get('n_degenerate', 0)} degenerate of {check['n_triangles']} triangles"
             + (f", loop turning {turning}" if turning else "")
             + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops" if cov else ""))
 

@@ -24,7 +24,7 @@ from .dataset_diagnostics import store_missing_diagnostics
 from .folder_lock import hold_folder
 from .run_cell import compute_cell, store_cell
 from .runmeta import run_metadata
-from .schema import STATUS_FAILED, STATUS_OK
+from .schema import STATUS_FAILED, STATUS_OK, STATUS_SUSPECT
 from .storage import ResultStore, StoredCells, check_output_dir
 from .suites import Suite, check_workers, expand_cells
 
@@ -256,12 +256,34 @@ def _run_cells(store: ResultStore, todo: list[Cell], labels: dict[str, str], nam
             bar.update(1)
 
 
+#: Appended to a summary figure whose mean includes a ``suspect`` cell.
+SUSPECT_MARK = "*"
+
+
+def _qc_pivot(mapped: pd.DataFrame) -> pd.DataFrame:
+    """Mean QC per variant and dataset as text, ``SUSPECT_MARK`` where a suspect cell is in
+    the mean, ``-`` where no cell has a map."""
+    qc = mapped.pivot_table(index="variant", columns="dataset", values="qc_mean", aggfunc="mean", dropna=False)
+    flag = (mapped.assign(_suspect=mapped["status"] == STATUS_SUSPECT)
+            .pivot_table(index="variant", columns="dataset", values="_suspect", aggfunc="any", dropna=False)
+            .reindex(index=qc.index, columns=qc.columns))
+    text = qc.copy().astype(object)
+    for i in range(qc.shape[0]):
+        for j in range(qc.shape[1]):
+            v = qc.iat[i, j]
+            marked = bool(flag.iat[i, j]) if pd.notna(flag.iat[i, j]) else False
+            text.iat[i, j] = "-" if pd.isna(v) else f"{v:.3f}" + (SUSPECT_MARK if marked else "")
+    return text
+
+
 def summary_table(table: pd.DataFrame) -> str:
     """A compact text table for the terminal: per method variant, mean QC per dataset plus failures.
 
     Variants are labelled as in the report (``"ocp [energy=paper]"``, see
-    :func:`parambench.reports.labels.variant_labels`). Means cover ``ok`` cells; ``suspect`` cells (maps
-    that failed their self-check) and ``failed`` cells are counted and listed.
+    :func:`parambench.reports.labels.variant_labels`). Means cover ``ok`` and ``suspect`` cells (maps
+    that failed their self-check still have metrics); a figure that includes a suspect
+    cell is marked ``SUSPECT_MARK`` and the suspect cells are counted per variant and
+    listed; ``failed`` cells are counted and listed.
 
     Parameters
     ----------
@@ -276,15 +298,19 @@ def summary_table(table: pd.DataFrame) -> str:
         return "no results"
     table = table.assign(variant=variant_labels(table))
     ok = table[table["status"] == STATUS_OK]
+    # Suspect cells have a map and metrics: shown, marked, never mixed in silently.
+    mapped = table[table["status"].isin([STATUS_OK, STATUS_SUSPECT])]
     lines = []
-    if not ok.empty:
-        pivot = ok.pivot_table(index="variant", columns="dataset", values="qc_mean", aggfunc="mean")
-        lines.append("QC distortion (area-weighted mean; 1 is conformal):")
-        lines.append(pivot.to_string(float_format=lambda v: f"{v:.3f}"))
-        folds = ok.groupby("variant")["foldovers"].sum().astype(int)
-        times = ok.groupby("variant")["time_total"].median()
+    if not mapped.empty:
+        lines.append("QC distortion (area-weighted mean; 1 is conformal; "
+                     f"{SUSPECT_MARK} includes suspect cells, maps that failed their self-check):")
+        lines.append(_qc_pivot(mapped).to_string())
+        folds = mapped.groupby("variant")["foldovers"].sum().astype(int)
+        times = mapped.groupby("variant")["time_total"].median()
+        suspect = (mapped["status"] == STATUS_SUSPECT).groupby(mapped["variant"]).sum().astype(int)
         lines.append("")
-        lines.append(pd.DataFrame({"foldovers (sum)": folds, "median time (s)": times.round(3)})
+        lines.append(pd.DataFrame({"foldovers (sum)": folds, "median time (s)": times.round(3),
+                                   "suspect cells": suspect})
                      .rename_axis("variant").to_string())
     failed = table[table["status"] == STATUS_FAILED]
     others = table[~table["status"].isin([STATUS_OK, STATUS_FAILED])]

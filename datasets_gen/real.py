@@ -1,9 +1,13 @@
 """Real meshes and point sets.
 
 - ``real/camelhead``, ``real/lilium``, ``real/bump-domain``: disk-topology meshes from the
-  libigl tutorial data, shipped as package data in ``datasets_gen/data/real/`` (sources and
-  attribution in ``SOURCES.md`` there), so a clone anywhere and an installed wheel both find
-  them; the environment variable ``PARAMBENCH_REAL_DATA`` points the loader at another folder.
+  libigl tutorial data; ``real/meg-helmet``: a MEG helmet surface, an example mesh of the
+  bfieldtools package (BSD-3-Clause); ``real/spot-top``: Keenan Crane's Spot (public domain)
+  cut open by a plane; ``real/cortex-lh``: pycortex's demo cortex (BSD-2-Clause) cut to its
+  flat map and decimated. All are shipped as package data in ``datasets_gen/data/real/`` (sources,
+  licences and the cut in ``SOURCES.md`` there), so a clone anywhere and an installed wheel
+  both find them; the environment variable ``PARAMBENCH_REAL_DATA`` points the loader at
+  another folder.
 - ``real/bunny10k``, ``real/chameleon``: files shipped in the pymeshlab wheel
   (``tests/sample_meshes/``), found from ``pymeshlab.__file__``.
 """
@@ -75,6 +79,13 @@ REAL_DATASETS = {d.name: d for d in (
     RealDataset("real/lilium", "lilium.obj", "package", "lilium petal, disk mesh, 3389 vertices (libigl tutorial data)"),
     RealDataset("real/bump-domain", "bump-domain.obj", "package",
                 "bumpy domain, disk mesh, 4172 vertices (libigl tutorial data)"),
+    RealDataset("real/meg-helmet", "meg-helmet.obj", "package",
+                "MEG helmet surface, deep dome, disk mesh, 2044 vertices (bfieldtools example mesh)"),
+    RealDataset("real/spot-top", "spot-top.obj", "package",
+                "Spot the cow cut by a plane below the back, head and ears kept, disk mesh, 2089 vertices"),
+    RealDataset("real/cortex-lh", "cortex-lh.obj", "package",
+                "folded cortex (white matter, left hemisphere) cut to its flat map, disk mesh, 12226 vertices "
+                "(pycortex demo subject S1)"),
     RealDataset("real/bunny10k", "bunny10k_textured.obj", "pymeshlab",
                 "Stanford bunny, 5051 vertices, open with 5 holes (pymeshlab sample)"),
     RealDataset("real/chameleon", "chameleon.pts", "pymeshlab",

@@ -21,6 +21,7 @@ from parambench.datasets_gen.errors import InputFileError
 from .benchmarks import load_benchmarks
 from .errors import EmptyResultsError
 from .claims import check_claims, claims_table, sdp_size_curve
+from .peers import claim_ocp_vs_fbcp, ocp_vs_fbcp_table
 from .figures import (BoundaryPanel, LandscapeCurve, LayoutPanel, benchmark_figure, boundary_figure,
                       checkerboard_figure, landscape_figure, scaling_figure, scaling_fits, sdp_curve_figure,
                       uv_layout_figure, weights_figure)
@@ -297,11 +298,15 @@ def _verdict_section(rows: pd.DataFrame, summary: pd.DataFrame) -> Section:
 
 
 def _claims_section(rows: pd.DataFrame) -> Section:
-    """The paper's claims table, with the SDP-against-N curve when the run has one."""
-    claims = Section("The paper's claims, measured", [claims_table(check_claims(rows))])
+    """The paper's claims table and the suite's goal against fbcp-pc, with the SDP-against-N
+    curve and the per-surface ocp / fbcp-pc table when the run has them."""
+    claims = Section("The paper's claims, measured", [claims_table([*check_claims(rows), claim_ocp_vs_fbcp(rows)])])
     picture = sdp_curve_figure(sdp_size_curve(rows))
     if picture is not None:
         claims.blocks.append(Section("SDP against N on surfaces with holes", [picture]))
+    peers = ocp_vs_fbcp_table(rows)
+    if peers is not None:
+        claims.blocks.append(Section("ocp against fbcp-pc, surface by surface", [peers]))
     return claims
 
 

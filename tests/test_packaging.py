@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj")
+SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj", "meg-helmet.obj", "spot-top.obj", "cortex-lh.obj")
 DATA_IN_PACKAGE = "datasets_gen/data/real"  # in the source tree
 DATA_IN_WHEEL = f"parambench/{DATA_IN_PACKAGE}"
 TOP_FOLDERS = ("methods", "datasets_gen", "bench", "reports")
@@ -31,12 +31,13 @@ from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.real import real_data_dir
 print(parambench.datasets_gen.__file__)
 print(real_data_dir())
-for name in ("real/camelhead", "real/lilium", "real/bump-domain"):
+for name in ("real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh"):
     s = make_surface(name)
     print(name, s.n_points, len(s.faces), len(s.boundary_loops))
 """
 
-EXPECTED_COUNTS = {"real/camelhead": (11381, 22704), "real/lilium": (3389, 6590), "real/bump-domain": (4172, 8058)}
+EXPECTED_COUNTS = {"real/camelhead": (11381, 22704), "real/lilium": (3389, 6590), "real/bump-domain": (4172, 8058),
+                   "real/meg-helmet": (2044, 3987), "real/spot-top": (2089, 4112), "real/cortex-lh": (12226, 23999)}
 
 
 def _clean_env(pythonpath: Path) -> dict:
@@ -127,6 +128,22 @@ def test_sources_file_credits_every_shipped_mesh():
     for filename in SHIPPED:
         assert f"`{filename}`" in text
     assert "libigl-tutorial-data" in text and "Sorkine" in text
+    # The two meshes taken from PyPI packages: package, version, licence, authors, and the cut.
+    assert "bfieldtools-0.11.3-py3-none-any.whl" in text and "BSD-3-Clause" in text
+    assert "Redistributions in binary form must reproduce the above copyright" in text  # BSD-3 asks for it
+    assert "potpourri3d-1.4.0.tar.gz" in text and "Keenan Crane" in text and "public domain" in text
+    assert "y >= -0.23" in text
+    assert "pycortex-1.4.0.tar.gz" in text and "BSD-2-Clause" in text and "targetfacenum=24000" in text
+
+
+def test_every_shipped_mesh_file_is_listed_and_small():
+    folder = ROOT / DATA_IN_PACKAGE
+    meshes = sorted(p.name for p in folder.iterdir() if p.name != "SOURCES.md")
+    assert meshes == sorted(SHIPPED)
+    assert all((folder / name).stat().st_size <= 1_500_000 for name in SHIPPED)
+    from parambench.datasets_gen.real import REAL_DATASETS
+
+    assert sorted(d.filename for d in REAL_DATASETS.values() if d.location == "package") == sorted(SHIPPED)
 
 
 def test_project_code_never_reaches_for_a_shared_folder_beside_it():

@@ -3,11 +3,13 @@
 ``pytest bench/benchmarks/bench_realdata.py --benchmark-only --benchmark-json=realdata.json``;
 ``parambench report RESULTS --benchmark-json realdata.json`` turns the figures into a
 table (:mod:`parambench.reports.boundary_benchmark`). Without ``--benchmark-only`` every case is
-skipped: the default run (53 cases) took 3 min 46 s on 2 cores shared with other jobs
-(2 min of CPU), most of it ``ocp`` at 20k points.
+skipped: the default run took 3 min 46 s on 2 cores shared with other jobs (2 min of CPU),
+most of it ``ocp`` at 20k points, with 53 cases; the three real meshes added since
+(``-k "meg-helmet or spot-top or cortex"``) took 7 s together (numba cache warm).
 
 Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
-``real/bump-domain``, ``real/bunny10k``); every generated surface with ``random`` and
+``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/cortex-lh``,
+``real/bunny10k``); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered, 2000 points). Every method gets positions only.
@@ -17,10 +19,12 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
 - the detector of the previous release (``old_*``) and of this one (``new_*``): loops
   found (``*_loops``, against ``true_loops``), recall and precision of the detected
   boundary points against the mesh's boundary vertices, and the error when the front end
-  finds no loop. "Old" is the same front end with the loop-spacing rule off
-  (``find_boundary(..., local_spacing=None)``): on the same balls it returns exactly the
-  loops of commit c0f3201's detector (checked on every case of this file at 2k and 20k
-  points, retries on wider balls included), so no frozen copy is kept;
+  finds no loop. "Old" is the same front end with the rules that need the local spacing
+  off (``find_boundary(..., local_spacing=None)``: loop spacing, empty disk inside small
+  loops): on the same balls it returned exactly the loops of commit c0f3201's detector
+  (checked on every case of this file at 2k and 20k points, retries on wider balls
+  included) until the put-back of stepped-over points and the per-point bridge reach,
+  which both columns now use, were added; no frozen copy is kept;
 - ``frontend_seconds``: the front end alone (the old detector's extra call excluded);
 - ``ocp_qc_mean`` and ``ocp_foldovers`` on the ground-truth mesh, the same for
   ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
@@ -50,7 +54,8 @@ from parambench.methods.registry import get_method
 from parambench.reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_REALDATA_SIZES", "2000,20000").split(",") if s.strip()]
-REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/bunny10k"]
+REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh",
+        "real/bunny10k"]
 GENERATED = [name for name in dataset_names() if not name.startswith("real/")]
 NOISY = ["bump", "holes", "saddle", "slit", "fold"]
 NOISE = 0.5

@@ -25,8 +25,8 @@ from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
-from .surface_neighbours import surface_knn_graph
-from .normals import check_user_normals, orient_normals, pca_normals
+from .surface_neighbours import pruned_knn_graph, surface_knn_graph
+from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
 from .params import FrontEndParams
@@ -63,7 +63,7 @@ SPACING_MODES = ("local", "global")
 BOUNDARY_METHODS = ("angle", "rings")
 
 #: ``neighbours`` settings of :func:`build_frontend`.
-NEIGHBOUR_MODES = ("surface", "euclidean")
+NEIGHBOUR_MODES = ("surface", "euclidean", "pruned")
 
 #: When no boundary loop closes, the boundary stage is retried on balls this much wider.
 _RETRY_BALL_SCALE = 1.6
@@ -239,7 +239,7 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing
     pts : (N, 3) numpy.ndarray of float64
         Checked points, input order.
     k_nn : int
-    neighbours : {"euclidean", "surface"}
+    neighbours : {"euclidean", "surface", "pruned"}
     spacing_mode : {"local", "global"}
 
     Returns
@@ -260,6 +260,8 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing
     p = pts[order]
     if neighbours == "surface":
         graph, nbr_diag = surface_knn_graph(p, k_nn)
+    elif neighbours == "pruned":
+        graph, nbr_diag = pruned_knn_graph(p, k_nn)
     else:
         graph, nbr_diag = knn_graph(p, k_nn), {}
     adjacency = symmetric_adjacency(graph)
@@ -275,8 +277,8 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing
 
 
 def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spacing: float, *,
-                  smooth: bool = True, smoothing: str = "linear") -> tuple[np.ndarray, np.ndarray]:
-    """Stage ``normals``: oriented unit normals, and the (smoothed) normals of the DEM frames.
+                  smooth: bool = True, smoothing: str = "linear") -> tuple[np.ndarray, np.ndarray, dict]:
+    """Stage ``normals``: oriented unit normals, the (smoothed) normals of the DEM frames, fit facts.
 
     Parameters
     ----------
@@ -299,13 +301,17 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
         Consistently oriented unit normals (the given ones when given).
     frame_normals : (N, 3) numpy.ndarray of float64
         ``oriented`` smoothed, or ``oriented`` itself when ``smooth`` is False.
+    normal_fit : dict
+        Facts of :func:`~parambench.methods.pointset.normals.noise_adaptive_normals` (how
+        many points were refitted on larger neighbourhoods, the predicted fit error).
 
     Raises
     ------
     InconsistentNormalsError
         Given normals are inconsistently oriented or not normal to the points.
     """
-    fitted = pca_normals(points, graph.indices)
+    # PCA on the kNN, refitted on more points where the fit residual says noise.
+    fitted, normal_fit = noise_adaptive_normals(points, graph.indices)
     if given is not None:
         oriented = given
         check_user_normals(points, oriented, fitted, graph.indices)
@@ -314,7 +320,7 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
     frame_normals = (neighbourhood_smoothed(points, oriented, graph.indices, graph.distances, spacing,
                                             method=smoothing)
                      if smooth else oriented)
-    return oriented, frame_normals
+    return oriented, frame_normals, normal_fit
 
 
 def dem_stage(points: np.ndarray, frame_normals: np.ndarray, adjacency: sp.csr_matrix, spacing: float,
@@ -444,7 +450,7 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
 
 
 def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray, bnd, retried: bool, *,
-                      k_nn: int, normals_given: bool, neighbours: str) -> dict:
+                      k_nn: int, normals_given: bool, neighbours: str, normal_fit: dict | None = None) -> dict:
     """The JSON-serialisable ``FrontEnd.diagnostics`` from the stages' outputs (see :func:`build_frontend`).
 
     Parameters
@@ -459,6 +465,8 @@ def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray,
     k_nn : int
     normals_given : bool
     neighbours : str
+    normal_fit : dict, optional
+        The normals stage's fit facts (stored as ``normal_fit``).
 
     Returns
     -------
@@ -471,6 +479,7 @@ def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray,
         "k_nn": k_nn,
         "mean_spacing": float(spacing),
         "normals_source": "given" if normals_given else "pca",
+        "normal_fit": normal_fit or {},
         "neighbours": dict(nb.neighbour_diagnostics, mode=neighbours),
         "ball_size": {"min": int(balls.sizes.min()), "mean": float(balls.sizes.mean()),
                       "max": int(balls.sizes.max())},
@@ -511,7 +520,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     -------
     FrontEnd
         ``diagnostics`` holds: ``n_points``, ``k_nn``, ``mean_spacing``, ``normals_source``
-        ("given"/"pca"), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
+        ("given"/"pca"), ``normal_fit`` (:func:`~parambench.methods.pointset.normals.noise_adaptive_normals`
+        facts), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
         ``negative_weights`` (:func:`~parambench.methods.pointset.tangent_weights.negative_weight_stats`,
         interior vs. angle-criterion boundary points), ``reconstruction_error`` {mean,
         max, unit: "l^2"} (R_x divided by l^2), ``boundary`` (loop extraction facts).
@@ -545,7 +555,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     order, inv = nb.order, nb.inv
 
     with timer("normals"):
-        oriented, frame_normals = normals_stage(nb.points, None if given is None else given[order], nb.graph,
+        oriented, frame_normals, normal_fit = normals_stage(nb.points, None if given is None else given[order], nb.graph,
                                                 nb.spacing, smooth=params.smooth_normals,
                                                 smoothing=variant["smoothing"])
 
@@ -564,7 +574,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         loops = [np.roll(loop, -int(np.argmin(loop))) for loop in loops]  # deterministic start
 
     diagnostics = stage_diagnostics(nb, balls, w, r_x, bnd, retried, k_nn=k_nn, normals_given=given is not None,
-                                    neighbours=params.neighbours)
+                                    neighbours=params.neighbours, normal_fit=normal_fit)
 
     # Kept inline (not a stage function) so each big array is released as soon as its
     # input-order copy exists: at 1M points the balls and weights are ~1 GB.

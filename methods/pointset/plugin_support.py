@@ -111,12 +111,13 @@ def _check_inputs(front: FrontEnd) -> _CheckInputs:
 def _estimated_inputs(surface: Surface, result) -> _CheckInputs:
     """Normals and neighbours for a method that ran no front end (e.g. the sklearn peers)."""
     from .neighbourhoods import knn_graph
-    from .normals import orient_normals, pca_normals
+    from .normals import noise_adaptive_normals, orient_normals
 
     graph = knn_graph(surface.points, FRONTEND_DEFAULTS["k_nn"])
     normals = surface.normals
-    if normals is None:
-        normals = orient_normals(surface.points, pca_normals(surface.points, graph.indices), graph.indices)
+    if normals is None:  # as the front end's: refitted where the residual says noise
+        fitted = noise_adaptive_normals(surface.points, graph.indices)[0]
+        normals = orient_normals(surface.points, fitted, graph.indices)
     loops = result.diagnostics.get("boundary_loops") or []
     return _CheckInputs(normals=normals, knn_indices=graph.indices, spacing=graph.mean_spacing,
                         loops=[np.asarray(lp) for lp in loops], candidates=None)

@@ -9,6 +9,11 @@ are kept only while their offset from the tangent plane, fitted on the nearest f
 neighbours (which lie on the point's own sheet), is small against the in-plane distance
 or within the noise level measured over the whole set; the K nearest kept candidates
 form the graph. Normals are refitted on the kept neighbours and the test is repeated once.
+
+:func:`pruned_knn_graph` (``neighbours="pruned"``) instead drops single edges by a test
+symmetric in their two ends: an edge is dropped when each end lies off the other's
+tangent plane on the side of facing (or back-to-back) sheets, or when the two ends'
+normals, oriented along the already pruned graph, point against each other.
 """
 
 from __future__ import annotations
@@ -17,9 +22,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .neighbourhoods import KnnGraph
-from .normals import pca_normals
+from .normals import consistent_signs, pca_normals
 
-__all__ = ["surface_knn_graph", "CANDIDATE_FACTOR", "MAX_SLOPE"]
+__all__ = ["surface_knn_graph", "pruned_knn_graph", "CANDIDATE_FACTOR", "MAX_SLOPE", "FACING_TOL"]
 
 #: Euclidean candidates examined per point, in units of K.
 CANDIDATE_FACTOR = 2
@@ -96,3 +101,153 @@ def surface_knn_graph(points: np.ndarray, k: int = 8) -> tuple[KnnGraph, dict]:
     graph = KnnGraph(indices=np.ascontiguousarray(sel), distances=np.ascontiguousarray(sel_dist),
                      mean_spacing=float(sel_dist.mean()))
     return graph, {"n_points_with_rejected": int(replaced.sum()), "noise_level": noise}
+
+
+# --------------------------------------------------------------------------------------
+# Consistency-pruned kNN graph (neighbours="pruned")
+# --------------------------------------------------------------------------------------
+
+#: Smallest |offset from the tangent plane| / |edge| of both ends for which an edge whose
+#: ends see each other on opposite sides counts as crossing a gap (see ``_crossing``).
+FACING_TOL = 0.2
+
+#: Edges whose ends' normals, oriented along the pruned graph, have a smaller cosine are
+#: dropped as joining facing sheets.
+ORIENT_COS = 0.0
+
+#: Candidate pools tried for rows left with fewer than K kept neighbours, in units of K.
+_WIDER_POOLS = (4, 8)
+
+
+def _crossing(points, normals, rows, cols, tol, noise=0.0):
+    """Edges i-j that cross a gap between two sheets (symmetric in i and j, sign-free).
+
+    With a = (p_j - p_i) . n_i / |p_j - p_i| and b = (p_i - p_j) . n_j / |p_j - p_i|,
+    the product ``a b (n_i . n_j)`` does not depend on the normals' signs. Along a smooth
+    surface, for chords shorter than the radius of curvature, a and b have the same sign
+    (both ends lie below, or both above, each other's tangent plane: convex, concave and
+    saddle chords alike) and ``n_i . n_j > 0`` for consistently oriented normals, so the
+    product is >= 0. Across a gap between two
+    sheets that face each other (or lie back to back) each end lies in front of (or
+    behind) the other's plane with opposite normals, and the product is < 0. An edge is
+    taken as crossing when the product is negative and both offsets exceed ``tol`` times
+    the edge length and ``noise`` (offsets within a flat sheet are noise).
+    """
+    d = points[cols] - points[rows]
+    length = np.sqrt(np.einsum("...i,...i->...", d, d))
+    a = np.einsum("...i,...i->...", d, normals[rows]) / length
+    b = -np.einsum("...i,...i->...", d, normals[cols]) / length
+    dot = np.einsum("...i,...i->...", normals[rows], normals[cols])
+    return (a * b * dot < 0) & (np.minimum(np.abs(a), np.abs(b)) > np.maximum(tol, noise / length))
+
+
+def _off_plane(points, normals, rows, cols):
+    # The smaller of the two ends' offsets from each other's tangent plane (length units).
+    d = points[cols] - points[rows]
+    return np.minimum(np.abs(np.einsum("...i,...i->...", d, normals[rows])),
+                      np.abs(np.einsum("...i,...i->...", d, normals[cols])))
+
+
+def _select_kept(cand, dist, keep, k):
+    # Kept candidates first, nearest first; the count of kept ones per row.
+    order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
+    return (np.take_along_axis(cand, order, axis=1), np.take_along_axis(dist, order, axis=1),
+            np.minimum(keep.sum(axis=1), k))
+
+
+def pruned_knn_graph(points: np.ndarray, k: int = 8, *, fit_k: int = 6, tol: float = FACING_TOL,
+                     passes: int = 2, orient_passes: int = 2, orient_cos: float = ORIENT_COS) -> tuple[KnnGraph, dict]:
+    """K nearest neighbours per point, leaving out edges that cross a gap between two sheets.
+
+    Each point's ``2 K`` Euclidean nearest are the candidates. Normals are first fitted
+    on the ``fit_k`` nearest (few enough to lie mostly on the point's own sheet); an
+    edge is then dropped when its two ends lie on opposite sides of each other's
+    tangent planes as facing (or back-to-back) sheets do (:func:`_crossing`, a test
+    symmetric in the two ends and free of the normals' signs, so the symmetrised graph
+    does not bring a dropped edge back). The K nearest kept candidates form the graph;
+    normals are refitted on them and the test is repeated (``passes`` in all). Then, for
+    ``orient_passes`` rounds, the normals are oriented along the pruned graph (the sign
+    rule of :func:`parambench.methods.pointset.normals.consistent_signs`) and edges whose ends'
+    oriented normals have a cosine below ``orient_cos`` are dropped too (sheets closer
+    than ``tol`` edge lengths, e.g. closed lips, pass the offset test but face each
+    other); edges within the noise level of the plane fits are kept by both tests, so
+    an orientation seam on a noisy flat sheet is not cut. A row
+    with fewer than K kept candidates looks among its 4 K, then 8 K nearest; a row still
+    short (a sampling too coarse to tell the sheets apart) is filled with its nearest
+    dropped candidates.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+        Validated, duplicate-free points, N > k.
+    k : int
+        Neighbours per point.
+    fit_k : int
+        Neighbours of the first plane fits.
+    tol : float
+        Offset tolerance of the crossing test, relative to the edge length.
+    passes : int
+        Rounds of (normal fit, offset test).
+    orient_passes : int
+        Rounds of (orientation, opposed-normal test, normal fit).
+    orient_cos : float
+        Cosine below which oriented normals count as opposed.
+
+    Returns
+    -------
+    graph : KnnGraph
+        Rows nearest first, self excluded.
+    diagnostics : dict
+        ``n_dropped_edges`` (Euclidean K-nearest edges i -> j left out),
+        ``n_points_with_dropped`` and ``n_points_filled`` (rows that kept a dropped edge
+        for want of others), ``noise_level`` (offsets below it never drop an edge).
+    """
+    n = points.shape[0]
+    tree = cKDTree(points)
+    m = min(n - 1, 2 * k)
+    dist, idx = tree.query(points, k=m + 1, workers=-1)
+    cand = np.ascontiguousarray(idx[:, 1:], dtype=np.int64)
+    dist = np.ascontiguousarray(dist[:, 1:], dtype=np.float64)
+    normals = pca_normals(points, cand[:, :min(fit_k, m)])
+    rows = np.broadcast_to(np.arange(n)[:, None], cand.shape)
+    noise = _noise_level(points, cand, normals)
+    for _ in range(max(1, int(passes))):
+        keep = ~_crossing(points, normals, rows, cand, tol, noise)
+        sel, sel_dist, count = _select_kept(cand, dist, keep, k)
+        normals = pca_normals(points, sel)
+    oriented = None
+    for _ in range(int(orient_passes)):
+        # Sheets closer than a fifth of an edge pass the offset test; their normals,
+        # oriented along the pruned graph (which goes round a lip rather than across it),
+        # face each other.
+        oriented = normals * consistent_signs(points, normals, sel)[:, None]
+        # Opposed normals with offsets within the noise are an orientation seam, not a gap.
+        opposed = ((np.einsum("nki,ni->nk", oriented[cand], oriented) < orient_cos)
+                   & (_off_plane(points, normals, rows, cand) > noise))
+        keep &= ~opposed
+        sel, sel_dist, count = _select_kept(cand, dist, keep, k)
+        normals = pca_normals(points, sel)
+    sel, sel_dist = sel.copy(), sel_dist.copy()
+    short = np.flatnonzero(count < k)
+    for factor in _WIDER_POOLS:
+        if short.size == 0 or m >= n - 1:
+            break
+        mm = min(n - 1, factor * k)
+        wd, wi = tree.query(points[short], k=mm + 1, workers=-1)
+        wi, wd = wi[:, 1:].astype(np.int64), wd[:, 1:]
+        wkeep = ~_crossing(points, normals, np.broadcast_to(short[:, None], wi.shape), wi, tol, noise)
+        if oriented is not None:
+            wkeep &= ~((np.einsum("nki,ni->nk", oriented[wi], oriented[short]) < orient_cos)
+                       & (_off_plane(points, normals, np.broadcast_to(short[:, None], wi.shape), wi) > noise))
+        s_idx, s_dist, s_count = _select_kept(wi, wd, wkeep, k)
+        better = s_count > count[short]
+        sel[short[better]], sel_dist[short[better]] = s_idx[better], s_dist[better]
+        count[short[better]] = s_count[better]
+        short = short[count[short] < k]
+    resort = np.argsort(sel_dist, axis=1, kind="stable")
+    sel = np.ascontiguousarray(np.take_along_axis(sel, resort, axis=1))
+    sel_dist = np.ascontiguousarray(np.take_along_axis(sel_dist, resort, axis=1))
+    dropped = ~keep[:, :k]
+    graph = KnnGraph(indices=sel, distances=sel_dist, mean_spacing=float(sel_dist.mean()))
+    return graph, {"n_dropped_edges": int(dropped.sum()), "n_points_with_dropped": int(dropped.any(axis=1).sum()),
+                   "n_points_filled": int(short.size), "noise_level": noise}

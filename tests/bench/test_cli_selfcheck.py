@@ -102,3 +102,12 @@ def test_inspect_writes_loop_coverage(bump_xyz, tmp_path, capsys):
     cov = json.loads(out.read_text())["selfcheck"]["coverage"]
     assert cov["passed"] and 0 < cov["n_candidates"] < len(points) and cov["n_uncovered"] < cov["n_candidates"]
     assert "loop coverage ok" in capsys.readouterr().out
+
+
+def test_flatten_summary_names_uncertain_flips_only_when_there_are_some():
+    from parambench.bench.cli import _selfcheck_summary
+
+    check = {"passed": True, "n_triangles": 3900, "n_flipped": 0, "n_degenerate": 0, "normal_tol_deg": 10.0}
+    assert _selfcheck_summary(check) == "; self-check ok: 0 flipped, 0 degenerate of 3900 triangles"
+    text = _selfcheck_summary(dict(check, n_flipped_uncertain=2))
+    assert "0 flipped (+2 within the normals' error of 10 deg), 0 degenerate" in text

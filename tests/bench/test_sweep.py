@@ -39,6 +39,22 @@ def test_quick_suite_covers_every_registered_method():
     assert {c.method for c in cells} == set(method_names())
 
 
+def test_full_suite_has_at_least_five_real_meshes():
+    from parambench.datasets_gen.real import REAL_DATASETS
+
+    full = get_suite("full").datasets
+    real_meshes = [name for name in full if name in REAL_DATASETS and not REAL_DATASETS[name].points_only]
+    assert len(real_meshes) >= 5
+    # Every shipped mesh is in the full suite, and the quick one keeps two real meshes.
+    shipped = [name for name, spec in REAL_DATASETS.items() if spec.location == "package"]
+    assert set(shipped) <= set(full) and {"real/meg-helmet", "real/spot-top", "real/cortex-lh"} <= set(shipped)
+    quick = get_suite("quick").datasets
+    assert [name for name in quick if name in REAL_DATASETS] == ["real/lilium", "real/spot-top"]
+    # Each real cell runs once, at the file's own size.
+    real_cells = [c for c in expand_cells(get_suite("full")) if c.dataset in REAL_DATASETS]
+    assert real_cells and {c.size for c in real_cells} == {0}
+
+
 def test_sweep_rows_metrics_and_resume(tmp_path):
     table = run_sweep(TINY, str(tmp_path), progress=False)
     assert len(table) == 4 and set(table["status"]) == {"ok"}
@@ -208,3 +224,38 @@ def test_progress_and_summary_label_variants_as_the_report(tmp_path, capsys):
     text = summary_table(rows)
     assert "0 ok, 1 suspect, 1 failed of 2 cells" in text
     assert "SUSPECT plane / scp" in text and "FAILED plane / scp [b_matrix=mass]: SolverError: boom" in text
+
+
+def test_summary_shows_suspect_cells_figures_marked():
+    """A suspect cell has a map and metrics: the summary shows its QC (marked), not NaN."""
+    import pandas as pd
+
+    from parambench.bench.sweep import SUSPECT_MARK, summary_table
+
+    rows = pd.DataFrame({
+        "method": ["ocp", "ocp", "scp-tan", "lem"],
+        "params": ["{}", "{}", "{}", "{}"],
+        "dataset": ["bump", "holes", "bump", "bump"],
+        "status": ["ok", "suspect", "suspect", "failed"],
+        "qc_mean": [1.0123, 1.4567, 2.25, None],
+        "foldovers": [0, 3, 17, None],
+        "time_total": [1.0, 2.0, 0.5, None],
+        "error_type": ["", "SelfCheck", "SelfCheck", "SolverError"],
+        "error": ["", "4 flipped triangle(s) of 3711", "loop 0 turns +2.00 (expected +1)", "boom"],
+    })
+    text = summary_table(rows)
+    assert "nan" not in text.lower()
+    qc_block = text.split("\n\n")[0]
+    ocp_line = next(line for line in qc_block.splitlines() if line.startswith("ocp"))
+    # ok figure unmarked, suspect figure marked; both present
+    assert "1.012" in ocp_line and f"1.012{SUSPECT_MARK}" not in ocp_line
+    assert f"1.457{SUSPECT_MARK}" in ocp_line
+    # a variant whose only cells are suspect still has a row; no map on holes: "-"
+    tan_line = next(line for line in qc_block.splitlines() if line.startswith("scp-tan"))
+    assert f"2.250{SUSPECT_MARK}" in tan_line and tan_line.split()[-1] == "-"
+    # a failed cell has no map: lem has no QC row
+    assert not any(line.startswith("lem") for line in qc_block.splitlines())
+    counts = text.split("\n\n")[1]
+    ocp_counts = next(line for line in counts.splitlines() if line.startswith("ocp")).split()
+    assert ocp_counts[1:] == ["3", "1.5", "1"]  # foldovers over ok + suspect, median time, 1 suspect cell
+    assert "1 ok, 2 suspect, 1 failed of 4 cells" in text

@@ -46,7 +46,7 @@ def grid_stages(tilted_grid):
     """knn, normals and dem stages run on the tilted grid."""
     pts = tilted_grid[0]
     nb = knn_stage(pts, 8)
-    oriented, frame = normals_stage(nb.points, None, nb.graph, nb.spacing)
+    oriented, frame, _ = normals_stage(nb.points, None, nb.graph, nb.spacing)
     balls = dem_stage(nb.points, frame, nb.adjacency, nb.spacing, nb.h_local, ball_k=6, ball_eps_factor=2.5,
                       dem="upwind", max_ball=64)
     return nb, oriented, frame, balls
@@ -98,12 +98,12 @@ def test_normals_stage_on_a_spherical_cap():
     cap = make_surface("cap", 1500, seed=0)
     nb = knn_stage(cap.points, 8)
     exact = cap.normals[nb.order]
-    oriented, frame = normals_stage(nb.points, None, nb.graph, nb.spacing)
+    oriented, frame, _ = normals_stage(nb.points, None, nb.graph, nb.spacing)
     dots = np.einsum("ij,ij->i", oriented, exact)
     assert np.all(np.sign(dots) == np.sign(dots[0])) and np.abs(dots).min() > 0.995
     assert np.abs(np.einsum("ij,ij->i", frame, exact)).min() > 0.995
     # given normals are kept as they are; without smoothing the frames are those normals
-    kept, unsmoothed = normals_stage(nb.points, exact, nb.graph, nb.spacing, smooth=False)
+    kept, unsmoothed, _ = normals_stage(nb.points, exact, nb.graph, nb.spacing, smooth=False)
     np.testing.assert_array_equal(kept, exact)
     assert unsmoothed is kept
     flipped = exact.copy()
@@ -165,7 +165,7 @@ def test_boundary_stage_refuses_a_closed_surface():
     x = rng.normal(size=(1500, 3))
     sphere = x / np.linalg.norm(x, axis=1, keepdims=True)
     nb = knn_stage(sphere, 8)
-    _, frame = normals_stage(nb.points, None, nb.graph, nb.spacing)
+    _, frame, _ = normals_stage(nb.points, None, nb.graph, nb.spacing)
     balls = dem_stage(nb.points, frame, nb.adjacency, nb.spacing, nb.h_local, ball_k=6, ball_eps_factor=2.5,
                       dem="upwind", max_ball=64)
     for method in ("angle", "rings"):

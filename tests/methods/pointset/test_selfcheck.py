@@ -233,3 +233,119 @@ def test_a_boundary_image_that_crosses_itself_fails():
     # the untouched map's loops do not cross
     clean = check_pointset_map(pts, pts[:, :2], np.tile([0.0, 0.0, 1.0], (len(pts), 1)), [outer, rim])
     assert clean["boundary_crosses"] is False and clean["passed"]
+
+
+def _noisy_grid(n=40, noise=0.5, seed=5):
+    """A jittered n x n grid of spacing 1 with normal (z) noise of ``noise`` spacings, its
+    outer loop and the true map (x, y)."""
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    xy = np.c_[x.ravel(), y.ravel()]
+    inner = ~np.isin(np.arange(n * n), _ring(n))
+    xy[inner] += rng.uniform(-0.3, 0.3, (int(inner.sum()), 2))  # boundary kept straight
+    pts = np.c_[xy, noise * rng.standard_normal(n * n)]
+    return pts, _ring(n), xy
+
+
+def _estimated_normals(pts, adaptive: bool):
+    from parambench.methods.pointset.neighbourhoods import knn_graph
+    from parambench.methods.pointset.normals import noise_adaptive_normals, orient_normals, pca_normals
+
+    graph = knn_graph(pts, 8)
+    fitted = noise_adaptive_normals(pts, graph.indices)[0] if adaptive else pca_normals(pts, graph.indices)
+    return orient_normals(pts, fitted, graph.indices)
+
+
+def test_the_true_map_of_a_noisy_sampling_passes(monkeypatch):
+    # Noise of 0.5 spacings along the normal: the exact map has no fold, but 8-point PCA
+    # normals (18 degrees mean error) without the normal tolerance made the flip test
+    # call some of its triangles flipped. Either defence alone removes that here.
+    import parambench.methods.pointset.selfcheck as selfcheck
+
+    pts, outer, xy = _noisy_grid()
+    plain, adaptive = _estimated_normals(pts, adaptive=False), _estimated_normals(pts, adaptive=True)
+    for normals in (plain, adaptive):
+        check = check_pointset_map(pts, xy, normals, [outer])
+        assert check["passed"], check["reason"]
+        assert check["n_flipped"] == 0 and check["turning_ok"]
+    monkeypatch.setattr(selfcheck, "NORMAL_TOL_DEG", 0.0)  # caps the tolerance at 0
+    assert check_pointset_map(pts, xy, plain, [outer])["n_flipped"] > 0  # the false alarm
+    assert check_pointset_map(pts, xy, adaptive, [outer])["n_flipped"] == 0
+
+
+def test_a_fold_in_a_noisy_sampling_still_fails():
+    pts, outer, xy = _noisy_grid()
+    normals = _estimated_normals(pts, adaptive=True)
+    uv = xy.copy()
+    centre = np.argmin(np.hypot(xy[:, 0] - 20.0, xy[:, 1] - 20.0))
+    uv[centre] += [1.8, 1.8]  # pushed past its diagonal neighbour: a local fold
+    check = check_pointset_map(pts, uv, normals, [outer])
+    assert not check["passed"] and "flipped" in check["failed"] and check["n_flipped"] >= 2
+
+
+def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
+    # Three points nearly collinear in the tangent plane, lifted by noise into a
+    # well-shaped 3D triangle (3D quality 0.23): the sign of its projected area, which
+    # the flip test reads, is the noise's. It is a sliver; a well-shaped one is not.
+    from parambench.methods.pointset.selfcheck import SLIVER_QUALITY, _tangent_sliver
+
+    tri = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.05, 0.9]],
+                    [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.5, 0.9]]])
+    normal3d = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    q3d = 0.5 * np.linalg.norm(normal3d, axis=1) / 4.0
+    assert q3d[0] > SLIVER_QUALITY  # the old 3D test called it well shaped
+    mean_normal = np.tile([0.0, 0.0, 3.0], (2, 1))  # three vertex normals summed
+    sliver, uncertain = _tangent_sliver(tri, normal3d, mean_normal)
+    assert sliver.tolist() == [True, False] and not uncertain.any()
+
+
+def test_a_triangle_stood_up_by_noise_is_uncertain_only_within_the_tolerance():
+    # 3D normal 81.5 degrees from the mean normal, tangent-plane quality 0.15: a tilt of
+    # the reference normal by 10 degrees could make it a sliver, by 0 it cannot.
+    from parambench.methods.pointset.selfcheck import _tangent_sliver
+
+    tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.3, 2.0]]])
+    normal3d = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    mean_normal = np.array([[0.0, 0.0, 3.0]])
+    assert [m.tolist() for m in _tangent_sliver(tri, normal3d, mean_normal, 10.0)] == [[False], [True]]
+    assert [m.tolist() for m in _tangent_sliver(tri, normal3d, mean_normal, 0.0)] == [[False], [False]]
+
+
+def test_many_uncertain_flips_fail_the_check(monkeypatch):
+    # Each uncertain flip alone is forgiven; more than MAX_UNCERTAIN_FRACTION of them is
+    # what a fold under noise looks like (random samplings at noise 0.5: 0.24-0.58 %).
+    import parambench.methods.pointset.selfcheck as selfcheck
+
+    pts, outer, xy = _noisy_grid()
+    normals = _estimated_normals(pts, adaptive=True)
+    base = check_pointset_map(pts, xy, normals, [outer])
+    assert base["passed"] and base["n_flipped_uncertain"] <= selfcheck.MAX_UNCERTAIN_FRACTION * base["n_triangles"]
+    facts = dict(base, n_flipped_uncertain=int(0.002 * base["n_triangles"]) + 1)
+    assert selfcheck._too_uncertain(facts) and "within the normals' error" in selfcheck._reason(facts)
+
+
+def test_normal_tolerance_follows_the_noise_level():
+    from parambench.methods.pointset.neighbourhoods import knn_graph
+    from parambench.methods.pointset.selfcheck import NORMAL_TOL_DEG, normal_tolerance_deg
+
+    clean, _, _ = _noisy_grid(noise=0.0)
+    clean[:, 2] = 0.01 * (clean[:, 0] - 20.0) ** 2  # curved, radius >= 50 spacings
+    noisy, outer, xy = _noisy_grid(noise=0.5)
+    assert normal_tolerance_deg(clean, knn_graph(clean, 8).indices) < 1.0
+    assert normal_tolerance_deg(noisy, knn_graph(noisy, 8).indices) == NORMAL_TOL_DEG
+    check = check_pointset_map(noisy, xy, _estimated_normals(noisy, adaptive=True), [outer])
+    assert check["normal_tol_deg"] == NORMAL_TOL_DEG
+
+
+def test_without_loops_bridging_triangles_are_dropped_and_the_rest_judged():
+    # No loops (a peer without a front end): the Delaunay triangles across the hole are
+    # dropped as outside before the flip test (which once indexed the undropped ones).
+    pts, _, _ = _grid_with_hole()
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    check = check_pointset_map(pts, pts[:, :2], normals, None)
+    assert check["passed"], check["reason"]
+    assert check["n_removed_outside"] > 0 and check["n_flipped"] == 0
+    uv = pts[:, :2].copy()
+    inner = np.flatnonzero((pts[:, 0] == 3) & (pts[:, 1] == 3))[0]
+    uv[inner] += [1.6, 1.6]
+    assert check_pointset_map(pts, uv, normals, None)["n_flipped"] > 0
