@@ -320,17 +320,56 @@ def _warning_line(message, category, filename, lineno, file=None, line=None) -> 
     print(f"parambench: warning: {category.__name__}: {message}", file=sys.stderr if file is None else file)
 
 
+#: Commands that, run from the command line, end the process as soon as they are done
+#: (:func:`_exit_now`): one-shot commands that leave no workers, locks or cluster behind.
+FAST_EXIT_COMMANDS = frozenset({"flatten", "inspect", "list"})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code.
 
     2 for bad input, with one line on stderr; 3 when ``flatten`` refuses to write a
     point-set map that fails its self-check (one line on stderr saying what to try).
     Warnings (e.g. coincident points merged) are printed as one line each on stderr.
+
+    Without ``argv`` (the process's own command line: the ``parambench`` script or
+    ``python -m parambench.bench.cli``), ``flatten``, ``inspect`` and ``list`` end the
+    process when done instead of returning (see :func:`_exit_now`); with ``argv`` it
+    always returns.
     """
     args = build_parser().parse_args(argv)
     with warnings.catch_warnings():
         warnings.showwarning = _warning_line
-        return _dispatch(args)
+        code = _dispatch(args)
+    if argv is None and args.command in FAST_EXIT_COMMANDS:
+        _exit_now(code)
+    return code
+
+
+def _exit_now(code: int) -> None:
+    """End the process with ``code`` after the exit handlers, skipping the interpreter's teardown.
+
+    Tearing down the interpreter after a point-set flatten (freeing numba's typing
+    registries and compiled kernels module by module, then a last garbage collection
+    over them) cost about 0.2 s of CPU, some 13 % of a 10k-point ``flatten`` (measured:
+    1.76 -> 1.53 s user + sys). The output files are closed by then; the standard streams
+    are flushed and the ``atexit`` handlers (logging, weakref finalizers, llvmlite's and
+    numba's shutdown flags, idle worker threads) still run; only the freeing of memory
+    the operating system reclaims anyway is skipped.
+    """
+    import atexit
+    import os
+
+    run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)  # no public name for it
+    if run_exit_handlers is None:  # a Python without it: the ordinary exit
+        sys.exit(code)
+    run_exit_handlers()  # what a normal exit runs first
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: exit as the interpreter would (120)
+            code = code or 120
+    os._exit(code)
 
 
 def _dispatch(args: argparse.Namespace) -> int:

@@ -224,3 +224,30 @@ def test_run_retries_failed_cells_and_refuses_a_busy_folder(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "0 done, 1 to run (0 new, 1 failed before and retried)" in captured.err
     assert "1 ok, 0 failed of 1 cells" in captured.out
+
+
+def test_command_line_flatten_ends_the_process_after_its_exit_handlers(tmp_path, write_obj):
+    # Run as the command line (no argv), flatten ends the process itself (cli._exit_now):
+    # same file and output as the in-process call, the exit code kept, atexit handlers run.
+    import os
+    import subprocess
+    import sys
+
+    pts, faces = _grid_mesh()
+    src = write_obj(tmp_path / "in.obj", pts, faces)
+    assert main(["flatten", str(src), "--method", "lscm-igl", "-o", str(tmp_path / "ref.obj")]) == 0
+
+    def command_line(*argv):
+        code = ("import atexit, sys; atexit.register(lambda: print('exit handler ran', flush=True)); "
+                f"sys.argv = ['parambench', *{list(argv)!r}]; "
+                "from parambench.bench.cli import main; main(); print('not reached')")
+        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                              env=dict(os.environ), cwd=tmp_path)
+
+    done = command_line("flatten", str(src), "--method", "lscm-igl", "-o", str(tmp_path / "cli.obj"))
+    assert done.returncode == 0, done.stderr
+    assert "points flattened" in done.stdout and "exit handler ran" in done.stdout
+    assert "not reached" not in done.stdout
+    assert (tmp_path / "cli.obj").read_text() == (tmp_path / "ref.obj").read_text()
+    bad = command_line("flatten", str(tmp_path / "missing.obj"), "-o", str(tmp_path / "o.obj"))
+    assert bad.returncode == 2 and "InputFileError" in bad.stderr and "exit handler ran" in bad.stdout

@@ -84,3 +84,35 @@ def test_good_region_narrower_than_a_step_above_a_regular_start():
     res = line_search(evaluate)
     assert abs(res.k_opt - 1.0002) < 1e-12
     assert res.best.turning.tolist() == [1, -1]
+
+
+def test_root_search_near_finds_the_zero_of_line_search_in_few_evaluations():
+    from parambench.methods.spectral.ksearch import root_search_near
+
+    # q slightly curved, k_opt moved by 3e-5 relative from the estimate: the answer is
+    # line_search's to its polish tolerance, in a handful of evaluations instead of ~20.
+    def evaluate(k):
+        return KPoint(k=k, energy=8e-3 * (k - 1.00003) + 0.05 * (k - 1.00003) ** 2, turning=np.array([1]))
+
+    full = line_search(evaluate)
+    for start in (1.0, 1.0001, 1.00003):
+        near = root_search_near(evaluate, start)
+        assert near is not None and near.best.regular
+        assert abs(near.k_opt / full.k_opt - 1) < 1e-12
+        assert near.n_evaluations <= 7 < full.n_evaluations
+        assert near.bracket[0] <= near.k_opt <= near.bracket[1]
+        assert len(near.landscape["k"]) == near.n_evaluations
+
+
+def test_root_search_near_hands_back_what_it_cannot_settle():
+    from parambench.methods.spectral.ksearch import root_search_near
+
+    # Spinning at the estimate, spinning before q changes sign, no sign change within
+    # the width: None, so the caller runs the full line search.
+    assert root_search_near(staircase(1.0, width=0.01), 0.95) is None
+    assert root_search_near(staircase(1.0, width=1e-6), 1.0 + 1e-6, width=1e-3) is not None
+    assert root_search_near(staircase(1.0, width=1e-7), 1.0 + 1e-6, first_step=1e-4) is None
+    assert root_search_near(staircase(1.1), 1.0, width=1e-3) is None
+    # An exact zero at the estimate is the answer.
+    res = root_search_near(staircase(1.0), 1.0)
+    assert res.k_opt == 1.0 and res.n_evaluations == 1

@@ -68,6 +68,7 @@ def test_subspace_search_matches_the_exact_dense_search(case, request, uv_rms):
     problem = request.getfixturevalue(case)
     exact = problem.solve("scp", "line", backend="boundary")
     problem._reductions.clear()
+    before = problem.counts["eigen_solves"]  # the counts accumulate over the problem's solves
     fast = problem.solve("scp", "line", backend="subspace")
     assert fast.diagnostics["backend"] == "subspace"
     assert abs(fast.k / exact.k - 1) < 1e-4
@@ -76,6 +77,9 @@ def test_subspace_search_matches_the_exact_dense_search(case, request, uv_rms):
     # The subspace stays small: a few dozen functions, not one per boundary vertex.
     assert fast.diagnostics["subspace_size"] < problem.boundary.size / 3
     assert fast.diagnostics["boundary_residual"] < 1e-6
+    # Root finds from the pencil estimate and from each previous k_opt (measured 13 and 8
+    # eigen-solves in all), not a 20-30-evaluation line search per round.
+    assert fast.diagnostics["n_eigen_solves"] - before <= 20
 
 
 def test_refine_reaches_the_exact_boundary_eigenvector(bump_ocp):
@@ -155,3 +159,21 @@ def test_inverse_iteration_gives_the_eigenvector_of_the_smallest_real_part():
     assert abs(abs(np.vdot(ref, x)) - 1) < 1e-10
     # A value that is no eigenvalue: no convergence is reported, not a wrong vector.
     assert _inverse_iteration(op, complex(vals[i]) + 0.5) is None
+
+
+@pytest.mark.parametrize("case", ["bump_ocp", "holes_ocp"])
+def test_first_search_from_the_pencil_estimate_equals_the_line_search(case, request):
+    from parambench.methods.spectral.ksearch import line_search
+
+    problem = request.getfixturevalue(case)
+    sub = BoundarySubspace(problem._reduction(), problem.area, problem.loops, problem.points)
+    full = line_search(sub.evaluate)
+    estimates = sub.k_estimates()
+    # The pencil's largest near-real k is the zero of the Ritz energy to a few digits ...
+    assert estimates.size and abs(estimates[0] / full.k_opt - 1) < 1e-4
+    assert np.all(np.diff(estimates) <= 0)
+    # ... so the root find from it gives the line search's k_opt in a few evaluations.
+    first = ConformalProblem._search_first(sub, {})
+    assert abs(first.k_opt / full.k_opt - 1) < 1e-12 and first.best.regular
+    assert first.n_evaluations <= 6 < full.n_evaluations
+    problem._release_reductions()
