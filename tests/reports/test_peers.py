@@ -81,3 +81,12 @@ def test_the_claim_line_counts_pairs_and_names_where_the_goal_fails():
     assert "holds on bump" in claim.where and "fails on cap" in claim.where and "|mu| +50.0%" in claim.where
     assert claim_ocp_vs_fbcp(_rows([_row("ocp", mu_mean=0.02, foldovers=0)])).status == "not measured in this run"
     assert ocp_vs_fbcp_table(_rows([_row("ocp", mu_mean=0.02, foldovers=0)])) is None
+
+
+def test_two_exact_maps_tie_at_rounding_level():
+    rows = _rows([_row("ocp", "plane", mu_mean=1.2e-8, foldovers=0), _row("fbcp-pc", "plane", mu_mean=6e-14, foldovers=0),
+                  _row("ocp", mu_mean=0.02, foldovers=0), _row("fbcp-pc", mu_mean=0.01, foldovers=0)])
+    pairs = ocp_vs_fbcp(rows).set_index("config")["holds"]
+    assert [bool(pairs[c]) for c in sorted(pairs.index)] == [False, True]  # bump loses, plane ties
+    claim = claim_ocp_vs_fbcp(rows)
+    assert "median 2" in claim.measured  # the plane's 2e5 ratio of rounding errors is left out
