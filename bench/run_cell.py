@@ -14,7 +14,7 @@ import numpy as np
 
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.registry import make_surface
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput, Surface
 from parambench.methods import get_method
 
 from .cells import Cell
@@ -37,8 +37,8 @@ def surface_for(dataset: str, size: int, sampling: str, noise: float, seed: int)
     return make_surface(dataset, size, sampling=sampling, seed=seed, noise=noise)
 
 
-def _method_input(surface: Surface, needs_faces: bool, wants_loops: bool = False) -> Surface:
-    """What a cell's method is given: no ground truth (see :meth:`Surface.method_input`).
+def _method_input(surface: Surface, needs_faces: bool, wants_loops: bool = False) -> MethodInput:
+    """What a cell's method is given: a :class:`MethodInput`, no ground truth (see :meth:`Surface.method_input`).
 
     A file's own normals are data (``flatten`` passes them too), kept for point-set methods
     while the positions are the file's; a generator's normals, or a file's once noise has

@@ -8,8 +8,11 @@ Coincident points are accepted where they are data: in a bare point set (point-s
 merge them, :mod:`parambench.methods.pointset.coincident`) and in a mesh whose faces keep them apart
 (the cut seams of textured exports). A mesh edge joining two coincident vertices is refused.
 
-Ground truth (exact map, true boundary, the generator's normals) travels on the same object
-for evaluation; :meth:`Surface.method_input` is what a method may see.
+Ground truth (exact map, true boundary, the generator's normals) travels on the
+``Surface`` for evaluation. What a method may see is a :class:`MethodInput`: what a user's
+file would hold (points, faces, normals that are data, a name, loops the caller supplies)
+and no ground-truth attribute at all; :meth:`Surface.method_input` builds one for a sweep,
+and :meth:`parambench.methods.base.Method.__call__` converts any ``Surface`` it is given.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from .errors import (
     TooFewPointsError,
 )
 
-__all__ = ["Surface", "validate_points", "validate_faces", "validate_normals", "find_duplicate_points",
+__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "validate_normals", "find_duplicate_points",
            "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "MIN_POINTS"]
 
 #: Fewer points than this cannot define a surface patch with an interior.
@@ -255,8 +258,52 @@ def validate_normals(normals: Any, n_points: int) -> np.ndarray:
     return arr / length[:, None]
 
 
+def _validate_loops(loops: Any) -> list | None:
+    """Boundary loops as a list of int64 arrays (None stays None)."""
+    if loops is None:
+        return None
+    return [np.asarray(loop, dtype=np.int64) for loop in loops]
+
+
+class _PointData:
+    """What :class:`Surface` and :class:`MethodInput` share: the data fields' validation and views.
+
+    Subclasses are frozen dataclasses with the fields ``points``, ``faces``, ``normals``,
+    ``name`` and ``boundary_loops``.
+    """
+
+    def _validate_data(self) -> None:
+        """Validate and convert the data fields in place (frozen: via ``object.__setattr__``).
+
+        Raises
+        ------
+        InvalidInputError, TooFewPointsError, DegenerateFacesError
+            See :func:`validate_points`, :func:`validate_faces`, :func:`validate_normals`
+            and :func:`require_no_collapsed_edges`.
+        """
+        pts = validate_points(self.points)
+        object.__setattr__(self, "points", pts)
+        n = pts.shape[0]
+        if self.faces is not None:
+            faces = validate_faces(self.faces, n, pts)
+            require_no_collapsed_edges(pts, faces, self.name)
+            object.__setattr__(self, "faces", faces)
+        if self.normals is not None:
+            object.__setattr__(self, "normals", validate_normals(self.normals, n))
+
+    @property
+    def n_points(self) -> int:
+        """Number of points N."""
+        return int(self.points.shape[0])
+
+    @property
+    def has_faces(self) -> bool:
+        """True when the surface carries a triangle mesh."""
+        return self.faces is not None
+
+
 @dataclass(frozen=True, eq=False)
-class Surface:
+class Surface(_PointData):
     """A sampled surface, with ground truth where it is known.
 
     Parameters
@@ -305,38 +352,19 @@ class Surface:
     exact_map_kind: str | None = None
 
     def __post_init__(self) -> None:
-        pts = validate_points(self.points)
-        object.__setattr__(self, "points", pts)
-        n = pts.shape[0]
-        if self.faces is not None:
-            faces = validate_faces(self.faces, n, pts)
-            require_no_collapsed_edges(pts, faces, self.name)
-            object.__setattr__(self, "faces", faces)
-        if self.normals is not None:
-            object.__setattr__(self, "normals", validate_normals(self.normals, n))
+        self._validate_data()
+        n = self.n_points
         if self.boundary_mask is not None:
             mask = np.asarray(self.boundary_mask, dtype=bool)
             if mask.shape != (n,):
                 raise InvalidInputError(f"boundary_mask must have shape ({n},), got {mask.shape}.")
             object.__setattr__(self, "boundary_mask", mask)
-        if self.boundary_loops is not None:
-            loops = [np.asarray(loop, dtype=np.int64) for loop in self.boundary_loops]
-            object.__setattr__(self, "boundary_loops", loops)
+        object.__setattr__(self, "boundary_loops", _validate_loops(self.boundary_loops))
         if self.exact_uv is not None:
             uv = np.asarray(self.exact_uv, dtype=np.float64)
             if uv.shape != (n, 2):
                 raise InvalidInputError(f"exact_uv must have shape ({n}, 2), got {uv.shape}.")
             object.__setattr__(self, "exact_uv", uv)
-
-    @property
-    def n_points(self) -> int:
-        """Number of points N."""
-        return int(self.points.shape[0])
-
-    @property
-    def has_faces(self) -> bool:
-        """True when the surface carries a triangle mesh."""
-        return self.faces is not None
 
     @property
     def diameter(self) -> float:
@@ -351,7 +379,7 @@ class Surface:
         """
         return replace(self, faces=None)
 
-    def method_input(self, needs_faces: bool, *, keep_normals: bool = False) -> "Surface":
+    def method_input(self, needs_faces: bool, *, keep_normals: bool = False) -> "MethodInput":
         """What a method may see: what a user's file would hold, no ground truth.
 
         Parameters
@@ -366,14 +394,29 @@ class Surface:
 
         Returns
         -------
-        Surface
+        MethodInput
             Same ``points`` and ``name``; ``faces`` only if ``needs_faces`` (None on a point
-            set: the method then reports the missing faces itself); no exact map, boundary
-            loops or mask, generator parameters or seed.
+            set: the method then reports the missing faces itself); no boundary loops (a
+            sweep adds the true ones only for cells that ask for them). A ``MethodInput``
+            has no exact map, mask, generator parameters or seed.
         """
         normals = self.normals if (keep_normals and not needs_faces) else None
-        return replace(self, faces=self.faces if needs_faces else None, normals=normals, params={}, seed=None,
-                       boundary_mask=None, boundary_loops=None, exact_uv=None, exact_map_kind=None)
+        return MethodInput(self.points, self.faces if needs_faces else None, normals, self.name)
+
+    def as_method_input(self) -> "MethodInput":
+        """What the caller gave, as a :class:`MethodInput`: points, faces, normals, loops, name.
+
+        :meth:`parambench.methods.base.Method.__call__` uses this when called with a
+        ``Surface``. The arrays are shared, not copied or validated again (this surface
+        validated them); the exact map, mask, generator parameters and seed are left
+        behind. Unlike :meth:`method_input` nothing the caller gave is withheld.
+
+        Returns
+        -------
+        MethodInput
+        """
+        loops = None if self.boundary_loops is None else list(self.boundary_loops)
+        return MethodInput._trusted(self.points, self.faces, self.normals, self.name, loops)
 
     def describe(self) -> dict:
         """A JSON-serialisable summary (name, sizes, parameters, seed)."""
@@ -384,3 +427,53 @@ class Surface:
             "params": dict(self.params),
             "seed": self.seed,
         }
+
+
+@dataclass(frozen=True, eq=False)
+class MethodInput(_PointData):
+    """What a method is given: what a user's file would hold, and no ground truth.
+
+    Validated like :class:`Surface` (same functions). There are no ``exact_uv``,
+    ``exact_map_kind``, ``boundary_mask``, ``params`` or ``seed`` attributes: evaluation
+    reads those from the :class:`Surface`.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+        Sample positions.
+    faces : (M, 3) numpy.ndarray of int64 or None
+        Triangles over the points; None for a point set.
+    normals : (N, 3) numpy.ndarray of float64 or None
+        Unit normals when they are data (e.g. stored in the user's file); None otherwise.
+    name : str
+        Dataset or file name, for messages.
+    boundary_loops : list of (L_i,) numpy.ndarray of int64, or None
+        Loops the caller supplies (outer first, counter-clockwise as seen from the normals'
+        side, holes clockwise); None by default. A sweep fills them only for cells that ask
+        for the true boundary (e.g. ``fbcp-pc boundary=given``).
+
+    Raises
+    ------
+    InvalidInputError, TooFewPointsError, DegenerateFacesError
+        As :class:`Surface`.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    name: str = "surface"
+    boundary_loops: list | None = None
+
+    def __post_init__(self) -> None:
+        self._validate_data()
+        object.__setattr__(self, "boundary_loops", _validate_loops(self.boundary_loops))
+
+    @classmethod
+    def _trusted(cls, points: np.ndarray, faces: np.ndarray | None, normals: np.ndarray | None, name: str,
+                 boundary_loops: list | None) -> "MethodInput":
+        """A MethodInput over arrays a :class:`Surface` validated already (no copy, no re-validation)."""
+        obj = object.__new__(cls)
+        for key, value in (("points", points), ("faces", faces), ("normals", normals), ("name", name),
+                           ("boundary_loops", boundary_loops)):
+            object.__setattr__(obj, key, value)
+        return obj

@@ -7,15 +7,18 @@ reports.
 
 Who does what:
 
-* :meth:`Method.__call__` fills in defaults, refuses unknown parameter names and values
-  outside ``choices`` (then :meth:`Method.check_params`, the plugin's own checks), puts
-  the surface in unit pose, merges coincident points of point sets, times the whole run
+* :meth:`Method.__call__` accepts a :class:`~parambench.datasets_gen.surface.Surface` or a
+  :class:`~parambench.datasets_gen.surface.MethodInput` and hands the method a
+  ``MethodInput`` (a ``Surface`` is converted: points, faces, normals, loops and name, never
+  its exact map, boundary mask, generator parameters or seed); fills in defaults, refuses
+  unknown parameter names and values outside ``choices`` (then
+  :meth:`Method.check_params`, the plugin's own checks), puts the input in unit pose, merges coincident points of point sets, times the whole run
   and runs the point-set self-check.
 * :meth:`Method.run` (the base class's) creates the :class:`StageTimer`, calls
   :meth:`Method.solve` and builds the :class:`Parameterization` (method name, params,
   stage timings, diagnostics, faces).
 * A plugin implements only ``solve(surface, params, timer) -> MethodOutput``: its
-  method, timing its stages with ``with timer("stage"):``.
+  method on a ``MethodInput``, timing its stages with ``with timer("stage"):``.
 
 A plugin that overrides :meth:`Method.run` and returns a :class:`Parameterization`
 itself (the contract before ``solve``) still works: ``__call__`` only calls ``run``.
@@ -31,12 +34,12 @@ from typing import Any, Callable, ClassVar, Iterator
 import numpy as np
 
 from parambench.datasets_gen.errors import InvalidInputError, MissingFacesError, UnknownNameError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput, Surface
 
 from .hints import method_hints
 from .pose import run_in_unit_pose
 
-__all__ = ["Parameterization", "MethodOutput", "Method", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
+__all__ = ["Parameterization", "MethodOutput", "Method", "as_method_input", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
 
 
 @dataclass(eq=False)
@@ -93,6 +96,34 @@ class MethodOutput:
     uv: np.ndarray
     diagnostics: dict = field(default_factory=dict)
     faces: np.ndarray | None = None
+
+
+def as_method_input(surface: Surface | MethodInput) -> MethodInput:
+    """What a method is given: a ``MethodInput`` as is, a ``Surface`` converted.
+
+    Parameters
+    ----------
+    surface : Surface or MethodInput
+
+    Returns
+    -------
+    MethodInput
+        ``surface`` itself, or :meth:`Surface.as_method_input` (points, faces, normals,
+        loops and name shared with the ``Surface``; no exact map, mask, parameters or seed).
+
+    Raises
+    ------
+    InvalidInputError
+        Anything else.
+    """
+    if isinstance(surface, MethodInput):
+        return surface
+    if isinstance(surface, Surface):
+        return surface.as_method_input()
+    raise InvalidInputError(
+        f"a method takes a Surface or a MethodInput, got {type(surface).__name__}; "
+        "wrap arrays as parambench.datasets_gen.surface.MethodInput(points, faces)."
+    )
 
 
 #: Names of the StageTimer stages running now, innermost last (read by memory samplers).
@@ -236,12 +267,16 @@ class Method:
             Resolved parameters.
         """
 
-    def __call__(self, surface: Surface, **params: Any) -> Parameterization:
+    def __call__(self, surface: Surface | MethodInput, **params: Any) -> Parameterization:
         """Validate, run and time the method.
 
         Parameters
         ----------
-        surface : Surface
+        surface : Surface or MethodInput
+            A ``Surface`` is converted with :meth:`Surface.as_method_input` (its points,
+            faces, normals, boundary loops and name; never its exact map, boundary mask,
+            generator parameters or seed), so :meth:`run` and :meth:`solve` always receive
+            a :class:`MethodInput`.
         **params
             Method parameters; see ``defaults``.
 
@@ -263,11 +298,14 @@ class Method:
 
         Raises
         ------
+        InvalidInputError
+            ``surface`` is neither a ``Surface`` nor a ``MethodInput``.
         MissingFacesError
             Mesh method given a point set.
         UnknownNameError
             Unknown parameter name, or a value outside ``choices``.
         """
+        surface = as_method_input(surface)
         resolved = self.resolve_params(params)
         if self.needs_faces and not surface.has_faces:
             raise MissingFacesError(
@@ -291,7 +329,7 @@ class Method:
             )
         return result
 
-    def _run_point_or_mesh(self, surface: Surface, **params: Any) -> Parameterization:
+    def _run_point_or_mesh(self, surface: MethodInput, **params: Any) -> Parameterization:
         """Mesh methods: :meth:`run` in unit pose. Point-set methods: :meth:`_run_and_check`
         in unit pose on one point per group of coincident points (the pose is that of the
         distinct points, so copies change nothing), its uv copied to the others."""
@@ -300,12 +338,12 @@ class Method:
         # Imported here because parambench.methods.pointset imports this module.
         from .pointset.coincident import run_on_representatives
 
-        def checked_in_unit_pose(distinct: Surface, **kwargs: Any) -> Parameterization:
+        def checked_in_unit_pose(distinct: MethodInput, **kwargs: Any) -> Parameterization:
             return run_in_unit_pose(self._run_and_check, distinct, kwargs)
 
         return run_on_representatives(checked_in_unit_pose, surface, params)
 
-    def _run_and_check(self, surface: Surface, **params: Any) -> Parameterization:
+    def _run_and_check(self, surface: MethodInput, **params: Any) -> Parameterization:
         """:meth:`run`, then the point-set self-check on the same points (``diagnostics["selfcheck"]``).
 
         Inside :func:`~parambench.methods.pointset.coincident.run_on_representatives`, so the check
@@ -317,7 +355,7 @@ class Method:
         selfcheck_result(surface, result)
         return result
 
-    def run(self, surface: Surface, **params: Any) -> Parameterization:
+    def run(self, surface: MethodInput, **params: Any) -> Parameterization:
         """Time :meth:`solve` on ``surface`` and wrap its output in a :class:`Parameterization`.
 
         No pose normalisation, merging of coincident points or parameter checks: that is
@@ -325,8 +363,8 @@ class Method:
 
         Parameters
         ----------
-        surface : Surface
-            The surface as the method sees it (unit pose, distinct points).
+        surface : MethodInput
+            The input as the method sees it (unit pose, distinct points).
         **params
             Resolved parameters (every key of ``defaults``).
 
@@ -341,13 +379,15 @@ class Method:
         return Parameterization(uv=out.uv, method=self.name, params=dict(params), timings=timer.timings,
                                 diagnostics=out.diagnostics, faces=out.faces)
 
-    def solve(self, surface: Surface, params: dict[str, Any], timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict[str, Any], timer: StageTimer) -> MethodOutput:
         """The method itself. Subclasses implement this.
 
         Parameters
         ----------
-        surface : Surface
-            The surface in unit pose; for point-set methods, distinct points without faces.
+        surface : MethodInput
+            The input in unit pose; for point-set methods, distinct points without faces.
+            No ground truth: there is no exact map, boundary mask, parameters or seed;
+            ``boundary_loops`` only when the caller supplied them.
         params : dict
             Resolved and checked parameters (every key of ``defaults``).
         timer : StageTimer

@@ -29,7 +29,7 @@ from typing import Any, Callable
 import numpy as np
 
 from parambench.datasets_gen.errors import InvalidInputError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput, Surface
 
 __all__ = ["Pose", "surface_pose", "normalised_surface", "run_in_unit_pose"]
 
@@ -99,21 +99,21 @@ def _principal_axes(offsets: np.ndarray) -> np.ndarray:
     return axes
 
 
-def normalised_surface(surface: Surface) -> tuple[Surface, Pose]:
-    """A copy of ``surface`` in its unit-size principal frame; the caller's is untouched.
+def normalised_surface(surface: MethodInput | Surface) -> tuple[MethodInput, Pose]:
+    """A copy of a method's input in its unit-size principal frame; the caller's is untouched.
 
     Normals are rotated with the points (translation and uniform scaling do not move
-    them); ``exact_uv`` is divided by the scale so it stays the exact map of the new
-    points. Faces, loops, masks, name, params and seed are shared with the original
-    (read-only data).
+    them). Faces, loops and name are shared with the original (read-only data).
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput or Surface
+        A ``Surface`` is first converted with :meth:`Surface.as_method_input`: the copy
+        never carries ground truth (the exact map is evaluation's, in input units).
 
     Returns
     -------
-    unit : Surface
+    unit : MethodInput
         Points ``pose.to_unit(surface.points)``.
     pose : Pose
         To map results back with :func:`run_in_unit_pose`.
@@ -123,25 +123,25 @@ def normalised_surface(surface: Surface) -> tuple[Surface, Pose]:
     InvalidInputError
         See :func:`surface_pose`.
     """
+    if isinstance(surface, Surface):
+        surface = surface.as_method_input()
     pose = surface_pose(surface.points)
     unit = copy.copy(surface)  # a shallow copy skips __post_init__: the arrays were validated already
     object.__setattr__(unit, "points", pose.to_unit(surface.points))
     if surface.normals is not None:
         object.__setattr__(unit, "normals", surface.normals @ pose.rotation.T)
-    if surface.exact_uv is not None:
-        object.__setattr__(unit, "exact_uv", surface.exact_uv / pose.scale)
     return unit, pose
 
 
-def run_in_unit_pose(run: Callable[..., Any], surface: Surface, params: dict) -> Any:
+def run_in_unit_pose(run: Callable[..., Any], surface: MethodInput, params: dict) -> Any:
     """Run ``run(unit_surface, **params)`` on the normalised surface; uv back in input units.
 
     Parameters
     ----------
     run : callable
         A method's ``run``; returns a :class:`parambench.methods.base.Parameterization`.
-    surface : Surface
-        The caller's surface (not modified).
+    surface : MethodInput
+        The method's input (not modified).
     params : dict
         Resolved method parameters.
 

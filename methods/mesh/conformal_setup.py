@@ -8,7 +8,7 @@ import igl
 import numpy as np
 
 from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import StageTimer
 from ..hints import Hint, hinted
@@ -172,13 +172,13 @@ def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, we
     return searched
 
 
-def build_mesh_problem(surface: Surface, timer: StageTimer, *, weights: str, normalized: bool, uniform_at: Any,
+def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str, normalized: bool, uniform_at: Any,
                        b_matrix: str) -> tuple[ConformalProblem, list[np.ndarray], dict]:
     """Check the mesh and set up the conformal problem.
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput
         With faces.
     timer : StageTimer
         Stages ``topology`` and ``weights`` are recorded.

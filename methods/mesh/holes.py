@@ -21,7 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 from parambench.datasets_gen.errors import ConvergenceError, SolverError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..spectral.turning import is_regular_turning
 from .topology import require_connected_disk_like
@@ -32,17 +32,17 @@ __all__ = ["HOLES_MODES", "fill_holes", "solve_with_holes"]
 HOLES_MODES = ("auto", "free", "filled")
 
 
-def fill_holes(surface: Surface) -> tuple[Surface, int]:
+def fill_holes(surface: MethodInput) -> tuple[MethodInput, int]:
     """``surface`` with every boundary loop but the longest closed by a fan around its centroid.
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput
         With faces; connected and disk-like (one outer loop, any number of holes).
 
     Returns
     -------
-    filled : Surface
+    filled : MethodInput
         The original vertices first (same indices), then one centre vertex per hole; the
         original faces first, then the fans, oriented like the faces around each hole.
         A surface with one boundary loop is returned unchanged.
@@ -66,17 +66,17 @@ def fill_holes(surface: Surface) -> tuple[Surface, int]:
         # fan triangle on that edge has it reversed: (b, a, centre).
         a, b = loop, np.roll(loop, -1)
         fans.append(np.column_stack([b, a, np.full(loop.size, n + h)]))
-    filled = Surface(np.vstack([pts, centres]), np.vstack([faces, *fans]).astype(np.int64),
-                     name=f"{surface.name} (holes filled)")
+    filled = MethodInput(np.vstack([pts, centres]), np.vstack([faces, *fans]).astype(np.int64),
+                         name=f"{surface.name} (holes filled)")
     return filled, len(holes)
 
 
-def solve_with_holes(surface: Surface, holes: str, attempt: Callable[[Surface], tuple]) -> tuple[tuple, Surface, int]:
+def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[MethodInput], tuple]) -> tuple[tuple, MethodInput, int]:
     """Run a mesh method's ``attempt`` with the holes free, filled, or filled where free fails.
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput
     holes : {"auto", "free", "filled"}
         ``"auto"``: free first (the natural boundary condition; plain cotangent weights
         keep holes open, and filling would change their map), then filled when that
@@ -89,7 +89,7 @@ def solve_with_holes(surface: Surface, holes: str, attempt: Callable[[Surface], 
     -------
     result : tuple
         What the successful ``attempt`` returned.
-    work : Surface
+    work : MethodInput
         The surface it ran on; its first ``surface.n_points`` vertices are the surface's.
     n_filled : int
         Holes filled (0 when free).

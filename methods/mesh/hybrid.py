@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import StageTimer
 from ..geometry2d import flipped_triangles
@@ -80,7 +80,7 @@ def grow_rings(mask: np.ndarray, faces: np.ndarray, rings: int) -> np.ndarray:
     return out
 
 
-def fold_driven_hybrid(surface: Surface, timer: StageTimer, solve: Callable[[ConformalProblem], ConformalSolution], *,
+def fold_driven_hybrid(surface: MethodInput, timer: StageTimer, solve: Callable[[ConformalProblem], ConformalSolution], *,
                        normalized: bool, b_matrix: str, rings: int = HYBRID_RINGS,
                        max_rounds: int = HYBRID_MAX_ROUNDS
                        ) -> tuple[ConformalProblem, ConformalSolution, list[np.ndarray], dict]:
@@ -88,7 +88,7 @@ def fold_driven_hybrid(surface: Surface, timer: StageTimer, solve: Callable[[Con
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput
         With faces.
     timer : StageTimer
         Records ``topology`` and ``weights`` (as :func:`build_mesh_problem`); the solves are

@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 
 from parambench.datasets_gen.errors import ConvergenceError, ResourceLimitError, SolverError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, hinted
@@ -72,7 +72,7 @@ class SklearnLLE(Method):
     defaults = {"n_neighbors": 12, "eigen_solver": "auto", "seed": 0}
     max_points = 200_000
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         from sklearn.manifold import LocallyLinearEmbedding
 
         n_neighbors, eigen_solver, seed = params["n_neighbors"], params["eigen_solver"], params["seed"]

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from parambench.datasets_gen.errors import NotADiskError, SolverError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.topology import require_connected_disk_like
@@ -91,7 +91,7 @@ class BffMouette(Method):
     description = "Boundary First Flattening, zero boundary scale factors (Sawhney & Crane 2017; mouette; baseline)"
     needs_faces = True
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
             if len(loops) != 1:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, resolve_pins, scale_to_surface_area, solve_with_k_rule
@@ -38,7 +38,7 @@ class DncpOpt(Method):
     choices = {"holes": HOLES_MODES}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "k_search": ["line", "direct"]}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         weights, normalized = params["weights"], bool(params["normalized"])
 
         def attempt(surf):

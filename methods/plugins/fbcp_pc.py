@@ -65,8 +65,9 @@ Choices the paper leaves open, made here:
 * **Boundary.** ``boundary="detected"``: the front end's loops (the same boundary ``ocp``
   uses). ``boundary="given"``: the loops in ``surface.boundary_loops`` (e.g. a
   generator's true ordered boundary), for separating the cost of boundary detection
-  from that of the map. A method's input never carries them (``Surface.method_input``);
-  the sweep passes them back only to cells that ask for ``boundary="given"``.
+  from that of the map. A :class:`~parambench.datasets_gen.surface.MethodInput` has loops
+  only when the caller supplies them (``Surface.method_input`` leaves them out); the sweep
+  passes them back only to cells that ask for ``boundary="given"``.
 * **Output scale.** uv is scaled so its mean kNN edge equals the 3D spacing, as the other
   point-set methods (:func:`parambench.methods.pointset.plugin_support.scale_to_spacing`).
 
@@ -84,7 +85,7 @@ import numpy as np
 from scipy.sparse.csgraph import connected_components
 
 from parambench.datasets_gen.errors import DisconnectedError, InvalidInputError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.pins import farthest_pair
@@ -102,7 +103,7 @@ BOUNDARY_SOURCES = ("detected", "given")
 FREE_BOUNDARY_SOLVERS = ("spectral", "two-pins")
 
 
-def given_loops(surface: Surface) -> list[np.ndarray]:
+def given_loops(surface: MethodInput) -> list[np.ndarray]:
     """The caller's boundary loops (``surface.boundary_loops``), checked.
 
     Raises
@@ -215,7 +216,7 @@ class FbcpPc(Method):
         if isinstance(k_local, bool) or not isinstance(k_local, (int, np.integer)) or k_local < 3:
             raise InvalidInputError(f"k_local must be an integer >= 3, got {k_local!r}.")
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         boundary, solver, k_local = params["boundary"], params["free_boundary"], params["k_local"]
         loops = given_loops(surface) if boundary == "given" else None
         front = run_frontend(surface, params, timer)

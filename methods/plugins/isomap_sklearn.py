@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from parambench.datasets_gen.errors import ResourceLimitError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..registry import register
@@ -19,7 +19,7 @@ class IsomapPeer(Method):
     defaults = {"n_neighbors": 10}
     max_points = 20_000
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         from sklearn.manifold import Isomap
 
         n_neighbors = params["n_neighbors"]

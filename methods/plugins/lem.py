@@ -6,7 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import SolverError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
@@ -28,7 +28,7 @@ class Lem(Method):
     defaults = {**FRONTEND_DEFAULTS, "weights": "tangent"}
     param_grid = {"weights": ["tangent", "lle3d"]}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer, weights=params["weights"])
         with timer("solve"):
             w = 0.5 * (front.W + front.W.T)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import scipy.sparse as sp
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
@@ -25,7 +25,7 @@ class Lle(Method):
     defaults = {**FRONTEND_DEFAULTS, "weights": "tangent"}
     param_grid = {"weights": ["tangent", "lle3d"]}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer, weights=params["weights"])
         with timer("solve"):
             lap = front.L

@@ -5,7 +5,7 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.pins import farthest_pair
@@ -25,7 +25,7 @@ class LscmIgl(Method):
     description = "libigl LSCM, the two boundary vertices farthest apart pinned (baseline)"
     needs_faces = True
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
             i, j = farthest_pair(surface.points, np.concatenate(loops))

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
@@ -127,7 +127,7 @@ class Ocp(Method):
             raise InvalidInputError(f"solver='multilevel' searches k along a line; use k_search='line', "
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         solver = params["solver"]
         front = run_frontend(surface, params, timer)
         with timer("laplacian"):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
@@ -40,7 +40,7 @@ class Scp(Method):
     choices = {"holes": HOLES_MODES}
     param_grid = {"weights": list(WEIGHT_KINDS), "normalized": [False, True], "b_matrix": ["boundary", "mass"]}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         weights, normalized, b_matrix = params["weights"], bool(params["normalized"]), params["b_matrix"]
 
         def solve(problem):

@@ -6,7 +6,7 @@ import igl.spectra
 import numpy as np
 
 from parambench.datasets_gen.errors import SolverError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.topology import require_connected_disk_like
@@ -21,7 +21,7 @@ class ScpIgl(Method):
     description = "libigl spectral conformal parameterization, igl.spectra.lscm (baseline)"
     needs_faces = True
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
         with timer("solve"):

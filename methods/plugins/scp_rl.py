@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
@@ -26,7 +26,7 @@ class ScpRobustLaplacian(Method):
     defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30, "k_search": "line"}
     param_grid = {"k_search": ["none", "line"]}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         lap = robust_point_cloud_laplacian(surface.points, int(params["rl_neighbors"]), timer)
         with timer("solve"):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
@@ -25,7 +25,7 @@ class ScpTan(Method):
     description = "raw SCP on W^tan at fixed k (shows the spinning failure of Sec. 4.2; points only)"
     defaults = {**FRONTEND_DEFAULTS, "k": 1.0}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         with timer("solve"):
             problem = conformal_problem(front)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
@@ -31,7 +31,7 @@ class Sdp(Method):
     defaults = {**FRONTEND_DEFAULTS, "b_orthonormal": True}
     param_grid = {"b_orthonormal": [False, True]}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         lap = front.L.tocsc()
         front = front.without_balls()  # ~1.3 GB at 1M points, not needed by the solve

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
@@ -26,7 +26,7 @@ class SdpRobustLaplacian(Method):
     description = "SDP on robust-laplacian's point-cloud Laplacian (peer; points only)"
     defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30}
 
-    def solve(self, surface: Surface, params: dict, timer: StageTimer) -> MethodOutput:
+    def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         front = run_frontend(surface, params, timer)
         lap = robust_point_cloud_laplacian(surface.points, int(params["rl_neighbors"]), timer)
         with timer("solve"):

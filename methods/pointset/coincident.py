@@ -23,7 +23,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from parambench.datasets_gen.surface import Surface, duplicate_tolerance, find_duplicate_points
+from parambench.datasets_gen.surface import MethodInput, duplicate_tolerance, find_duplicate_points
 
 __all__ = ["CoincidentPointsWarning", "CoincidentGroups", "MERGE_SPACING_TOL", "merge_tolerance",
            "coincident_groups", "run_on_representatives"]
@@ -133,7 +133,7 @@ def _loops_on_representatives(loops, groups: CoincidentGroups):
     return out
 
 
-def run_on_representatives(run: Callable[..., Any], surface: Surface, params: dict) -> Any:
+def run_on_representatives(run: Callable[..., Any], surface: MethodInput, params: dict) -> Any:
     """Run a point-set method on one representative per group of coincident points.
 
     Parameters
@@ -141,7 +141,7 @@ def run_on_representatives(run: Callable[..., Any], surface: Surface, params: di
     run : callable
         ``run(surface, **params)`` returning a :class:`~parambench.methods.base.Parameterization`
         over the points it is given.
-    surface : Surface
+    surface : MethodInput
         The method's input; faces, if any, are not passed on (a point-set method reads
         positions and, where given, normals).
     params : dict
@@ -162,7 +162,7 @@ def run_on_representatives(run: Callable[..., Any], surface: Surface, params: di
     Raises
     ------
     ParambenchError
-        Whatever the method or the Surface built on the representatives raises (e.g.
+        Whatever the method or the MethodInput built on the representatives raises (e.g.
         TooFewPointsError when almost every point is a copy).
     """
     groups = coincident_groups(surface.points)
@@ -176,8 +176,7 @@ def run_on_representatives(run: Callable[..., Any], surface: Surface, params: di
         CoincidentPointsWarning, stacklevel=3)
     normals = None if surface.normals is None else surface.normals[reps]
     distinct = replace(surface, points=surface.points[reps], faces=None, normals=normals,
-                       boundary_mask=None, boundary_loops=_loops_on_representatives(surface.boundary_loops, groups),
-                       exact_uv=None, exact_map_kind=None)
+                       boundary_loops=_loops_on_representatives(surface.boundary_loops, groups))
     result = run(distinct, **params)
     result.uv = result.uv[groups.inverse]
     if result.faces is not None:

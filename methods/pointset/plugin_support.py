@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from parambench.datasets_gen.errors import SolverError, TooFewPointsError
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import MethodInput
 
 from ..base import StageTimer
 from .frontend import STAGES, FrontEnd, build_frontend
@@ -24,12 +24,12 @@ __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_
 FRONTEND_DEFAULTS: dict[str, Any] = method_defaults()
 
 
-def run_frontend(surface: Surface, params: dict, timer: StageTimer, *, weights: str = "tangent") -> FrontEnd:
+def run_frontend(surface: MethodInput, params: dict, timer: StageTimer, *, weights: str = "tangent") -> FrontEnd:
     """Run the front end with the front-end keys of ``params``; its stage timings go to ``timer``.
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput
     params : dict
         The method's parameters; the keys of :data:`FRONTEND_DEFAULTS` among them are
         passed on (see :func:`~parambench.methods.pointset.params.frontend_params`).
@@ -70,7 +70,7 @@ class _CheckInputs:
 
 #: Front-end facts of the last run on each surface, taken (and dropped) by
 #: :func:`selfcheck_result` so the check does not recompute normals and neighbours.
-_CHECK_INPUTS: "weakref.WeakKeyDictionary[Surface, _CheckInputs]" = weakref.WeakKeyDictionary()
+_CHECK_INPUTS: "weakref.WeakKeyDictionary[MethodInput, _CheckInputs]" = weakref.WeakKeyDictionary()
 
 
 #: Rows of balls per chunk when the candidates are recomputed.
@@ -108,7 +108,7 @@ def _check_inputs(front: FrontEnd) -> _CheckInputs:
                         loops=list(front.boundary_loops), candidates=candidates)
 
 
-def _estimated_inputs(surface: Surface, result) -> _CheckInputs:
+def _estimated_inputs(surface: MethodInput, result) -> _CheckInputs:
     """Normals and neighbours for a method that ran no front end (e.g. the sklearn peers)."""
     from .neighbourhoods import knn_graph
     from .normals import noise_adaptive_normals, orient_normals
@@ -123,7 +123,7 @@ def _estimated_inputs(surface: Surface, result) -> _CheckInputs:
                         loops=[np.asarray(lp) for lp in loops], candidates=None)
 
 
-def selfcheck_result(surface: Surface, result) -> dict:
+def selfcheck_result(surface: MethodInput, result) -> dict:
     """Check a point-set result and store the facts in ``result.diagnostics["selfcheck"]``.
 
     Uses the front end of the method's own run on ``surface`` when there was one,
@@ -133,7 +133,7 @@ def selfcheck_result(surface: Surface, result) -> dict:
 
     Parameters
     ----------
-    surface : Surface
+    surface : MethodInput
         The surface the method ran on.
     result : parambench.methods.base.Parameterization
 
