@@ -31,6 +31,7 @@ from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral import ConformalProblem
+from ..spectral.multilevel import FINE_SOLVERS
 
 #: ``solver`` values of ``ocp``: today's single-level solve, or the two-level one of
 #: :mod:`parambench.methods.spectral.multilevel`.
@@ -103,17 +104,19 @@ class Ocp(Method):
     map to shrink the fine k search to a ~20-function boundary subspace
     (:mod:`parambench.methods.spectral.multilevel`; line search only). Measured against "direct"
     at 20k-300k points: the same k_opt to 3e-5 and map to 8.3e-4 of the diameter
-    (1e-4 or better except on a random sampling), end to end within noise at 100k and
-    0.84x at 300k: the fine interior is still factorised once, so the path is not
-    near-linear and is not the default.
+    (1e-4 or better except on a random sampling). ``fine_solver``: ``"twogrid"``
+    (default) solves the fine interior by two-grid cycles on the coarse factorisation
+    (no fine factorisation: 1M points 4.9 GB peak instead of 6.3 GB), ``"direct"``
+    factorises it; end to end both are within noise of ``solver="direct"`` at 100k-1M,
+    so the path is not near-linear yet and is not the default.
     """
 
     name = "ocp"
     description = "optimized conformal parameterization, k line search (points only; Sec. 4.2)"
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
-                "solver": "direct"}
+                "solver": "direct", "fine_solver": "twogrid"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
-    choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES)}
+    choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS}
 
     def check_params(self, params: dict) -> None:
         """Refuse ``solver="multilevel"`` with a k search other than the line search.
@@ -134,7 +137,7 @@ class Ocp(Method):
             lap = ocp_laplacian(front, params["energy"], params["area_factor"])
         front = front.without_balls()
         if solver == "multilevel":
-            sol, counts, extra = _multilevel_solve(front, lap, timer)
+            sol, counts, extra = _multilevel_solve(front, lap, timer, params["fine_solver"])
         else:
             with timer("solve"):
                 problem = conformal_problem(front, lap)
@@ -147,7 +150,7 @@ class Ocp(Method):
         return MethodOutput(uv, diag)
 
 
-def _multilevel_solve(front, lap, timer: StageTimer):
+def _multilevel_solve(front, lap, timer: StageTimer, fine_solver: str = "twogrid"):
     """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics).
 
     Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
@@ -156,7 +159,7 @@ def _multilevel_solve(front, lap, timer: StageTimer):
     from ..pointset.subsample import poisson_disk_subsample
     from ..spectral.multilevel import MultilevelSettings, multilevel_scp
 
-    settings = MultilevelSettings()
+    settings = MultilevelSettings(fine_solver=fine_solver)
     with timer("subsample"):
         coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
                                         np.concatenate(front.boundary_loops), seed=settings.seed)

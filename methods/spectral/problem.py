@@ -110,6 +110,11 @@ class ConformalProblem:
         Most k searches on the subspace, each after a refinement grew it (1: search once).
     subspace_ktol : float
         Stop repeating the search once k_opt moves by less than this, relative.
+    interior_solver : callable, optional
+        Solves with the interior block of the boundary reduction instead of a sparse
+        factorisation (``interior_solver(l_ii, interior)``, see
+        :class:`~parambench.methods.spectral.reduction.BoundaryReduction`; the two-grid
+        solver of :mod:`.multilevel`). Used for the reduction onto the boundary loops alone.
     k_start : float
         Where the line search starts (its ``k0``) unless :meth:`solve` is given one: 1 for
         weights at the cotangent scale; a caller that knows the weights' scale differs
@@ -128,7 +133,8 @@ class ConformalProblem:
                  points: np.ndarray | None = None, max_boundary_dense: int = 4000,
                  psd_from_k: float | None = None, subspace_from: int = 300,
                  subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None,
-                 subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0) -> None:
+                 subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0,
+                 interior_solver=None) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -175,6 +181,7 @@ class ConformalProblem:
         self._retired_solves = 0
         self._perm: np.ndarray | None = None
         self._reductions: dict[tuple, BoundaryReduction] = {}
+        self._interior_solver = interior_solver
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -200,11 +207,24 @@ class ConformalProblem:
             self._perm = nested_dissection(self.points, self.laplacian + abs(self.area))
         return self._perm
 
+    def reduction(self) -> BoundaryReduction:
+        """The reduction onto the boundary loops (its interior factorisation computed on first use).
+
+        It is cached until the solver releases its factorisations; a caller that keeps the
+        returned object keeps its factorisation alive (the coarse level of :mod:`.multilevel`
+        hands it to the fine level's two-grid solves).
+        """
+        return self._reduction()
+
     def _reduction(self, extra: Sequence[int] = ()) -> BoundaryReduction:
         extra = tuple(int(v) for v in extra if int(v) not in set(self.boundary.tolist()))
         if extra not in self._reductions:
             keep = np.concatenate([self.boundary, np.asarray(extra, dtype=np.int64)])
             perm = None
+            if not extra and self._interior_solver is not None:
+                red = BoundaryReduction(self.laplacian, keep, interior_solver=self._interior_solver)
+                self._reductions[extra] = red
+                return red
             if self.points is not None:
                 mask = np.ones(self.n, dtype=bool)
                 mask[keep] = False

@@ -39,6 +39,12 @@ class BoundaryReduction:
         Kept vertices (boundary loops concatenated, then pins), distinct.
     perm_interior : (V - K,) numpy.ndarray of int64, optional
         Elimination order for L_II (indices into the interior list).
+    interior_solver : callable, optional
+        ``interior_solver(l_ii, interior)`` returns the object that solves with L_II
+        (``solve(rhs)``, ``n_solves``, ``mixed``, ``arrays_per_column``), e.g. a
+        :class:`~parambench.methods.spectral.twogrid.TwoGridSolver`; a
+        :class:`~parambench.methods.spectral.sparse_eigen.SparseFactor` in ``perm_interior``'s
+        order when omitted.
     max_block_bytes : int
         Memory bound for the work arrays of one block of right-hand sides. Wider blocks
         solve faster per right-hand side (measured with a single-precision factor at
@@ -56,7 +62,7 @@ class BoundaryReduction:
     """
 
     def __init__(self, laplacian: sp.spmatrix, keep: np.ndarray, perm_interior: np.ndarray | None = None,
-                 max_block_bytes: int = 128 * 2**20) -> None:
+                 max_block_bytes: int = 128 * 2**20, interior_solver=None) -> None:
         lap = sp.csr_matrix(laplacian)
         n = lap.shape[0]
         self.keep = np.asarray(keep, dtype=np.int64)
@@ -68,7 +74,9 @@ class BoundaryReduction:
         self._l_kk = sp.csr_matrix(lap[self.keep][:, self.keep])
         self._max_block_bytes = int(max_block_bytes)
         self._schur: np.ndarray | None = None
-        if self.interior.size:
+        if self.interior.size and interior_solver is not None:
+            self._factor = interior_solver(sp.csr_matrix(lap[self.interior][:, self.interior]), self.interior)
+        elif self.interior.size:
             with single_threaded_blas():
                 self._factor = SparseFactor(lap[self.interior][:, self.interior], perm_interior)
         else:
@@ -78,6 +86,11 @@ class BoundaryReduction:
     def boundary_block(self) -> sp.csr_matrix:
         """(K, K) scipy.sparse.csr_matrix of float64: L_KK."""
         return self._l_kk
+
+    @property
+    def interior_factor(self):
+        """What solves with L_II (a SparseFactor unless ``interior_solver`` was given), or None without interior."""
+        return self._factor
 
     @property
     def n_solves(self) -> int:
@@ -108,7 +121,7 @@ class BoundaryReduction:
         out = np.asarray(self._l_kk @ x, dtype=np.float64)
         if self._factor is None:
             return out
-        arrays_per_column = 4 if self._factor.mixed else 1
+        arrays_per_column = self._factor.arrays_per_column
         block = max(8, int(self._max_block_bytes // (8 * arrays_per_column * self.interior.size)))
         with single_threaded_blas():  # see parambench.methods.spectral.threads
             for start in range(0, x.shape[1], block):

@@ -110,6 +110,11 @@ class SparseFactor:
         self._matrix = None
 
     @property
+    def arrays_per_column(self) -> int:
+        """Work arrays of the matrix's size per right-hand side of a solve (4 in mixed precision)."""
+        return 4 if self.mixed else 1
+
+    @property
     def fill(self) -> int:
         """Nonzeros in the L and U factors."""
         return int(self._lu.L.nnz + self._lu.U.nnz)

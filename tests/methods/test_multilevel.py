@@ -149,3 +149,17 @@ def test_multilevel_passes_the_self_check_and_really_is_two_level(bump_20k):
     assert "coarse" not in direct.timings
     # The fine subspace is the coarse map plus a few modes: far fewer fine solves.
     assert multi.diagnostics["subspace_size"] < direct.diagnostics["subspace_size"] / 2
+    # The fine level factorises nothing: its interior solves are two-grid cycles on the
+    # coarse level's factorisation, and they converged (no direct fallback).
+    assert multi.diagnostics["fine_solver"] == "twogrid" and multi.diagnostics["factorizations"] == 0
+    assert multi.diagnostics["twogrid_cycles"] > 0 and not multi.diagnostics["twogrid_fell_back"]
+    assert direct.diagnostics["factorizations"] >= 1
+
+
+def test_multilevel_fine_solvers_give_the_same_map(bump_20k):
+    surf, _, multi = bump_20k
+    factored = get_method("ocp")(surf.points_only(), solver="multilevel", fine_solver="direct")
+    assert factored.diagnostics["factorizations"] == 1 and "twogrid_cycles" not in factored.diagnostics
+    assert abs(factored.diagnostics["k_opt"] - multi.diagnostics["k_opt"]) <= 1e-6
+    aligned = similarity_align(multi.uv, factored.uv)
+    assert np.sqrt(np.mean(np.sum((aligned - factored.uv) ** 2, axis=1))) <= 1e-5 * surf.diameter
