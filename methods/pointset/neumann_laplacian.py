@@ -36,7 +36,9 @@ corrects the estimate of the area per point.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -69,9 +71,12 @@ def _check_balls(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.n
     mask = np.asarray(mask, dtype=bool)
     if coords.ndim != 3 or coords.shape[2] != 2 or mask.shape != coords.shape[:2]:
         raise InvalidInputError(f"coords must be (N, B, 2) and mask (N, B); got {coords.shape} and {mask.shape}.")
-    if not np.all(np.isfinite(coords[mask])):
+    # Padding is zeroed first, so one pass over the copy checks the real members only
+    # (no gathered copy of them: at 1M points each copy of coords is ~0.5 GB).
+    t = np.where(mask[..., None], coords, 0.0)
+    if not np.isfinite(t).all():
         raise InvalidInputError("tangent coordinates contain NaN or inf.")
-    return np.where(mask[..., None], coords, 0.0), mask
+    return t, mask
 
 
 def _gaussian(coords: np.ndarray, mask: np.ndarray, width: float) -> np.ndarray:
@@ -119,17 +124,35 @@ def moment_weights(coords: np.ndarray, mask: np.ndarray, order: str = "quadratic
     if np.any(m.sum(axis=1) < n_con):
         raise InvalidInputError(f"{order} moment weights need balls of at least {n_con} members; "
                                 "increase ball_k.")
-    out = np.empty(m.shape)
-    # Row blocks bound the (rows, constraints, B) temporaries: ~0.5 GB per block at B ~ 40
-    # instead of several GB at a million points.
-    for start in range(0, m.shape[0], _ROW_BLOCK):
-        rows = slice(start, start + _ROW_BLOCK)
-        out[rows] = _moment_block(t[rows], m[rows], n_con, width, reg)
-    return out
+    return _moment_rows(t, m, n_con, width, reg)
 
 
 #: Centres per block of :func:`moment_weights`.
 _ROW_BLOCK = 65536
+
+
+def _moment_rows(t: np.ndarray, m: np.ndarray, n_con: int, width: float, reg: float) -> np.ndarray:
+    """:func:`moment_weights` on checked, padding-zeroed coordinates, by row blocks on a thread pool.
+
+    Row blocks bound the (rows, constraints, B) temporaries (~0.5 GB per block at B ~ 40
+    instead of several GB at a million points); numpy's einsum, exp and batched solve
+    release the GIL, so two blocks run at once on two cores.
+    """
+    out = np.empty(m.shape)
+
+    def run(start: int) -> None:
+        rows = slice(start, start + _ROW_BLOCK)
+        out[rows] = _moment_block(t[rows], m[rows], n_con, width, reg)
+
+    starts = range(0, m.shape[0], _ROW_BLOCK)
+    workers = min(len(starts), max(1, int(numba.config.NUMBA_NUM_THREADS)))
+    if workers <= 1:
+        for start in starts:
+            run(start)
+        return out
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        list(pool.map(run, starts))
+    return out
 
 
 def _moment_block(t: np.ndarray, m: np.ndarray, n_con: int, width: float, reg: float) -> np.ndarray:
@@ -174,6 +197,11 @@ def gradient_stencils(coords: np.ndarray, mask: np.ndarray, *, width: float | No
         Bad shapes or non-finite coordinates.
     """
     t, m = _check_balls(coords, mask)
+    return _gradient_rows(t, m, width, reg)
+
+
+def _gradient_rows(t: np.ndarray, m: np.ndarray, width: float | None, reg: float) -> np.ndarray:
+    """:func:`gradient_stencils` on checked, padding-zeroed coordinates."""
     om = m.astype(np.float64) if width is None else _gaussian(t, m, width)
     mom = np.einsum("nb,nbp,nbq->npq", om, t, t)
     mom += reg * np.trace(mom, axis1=1, axis2=2)[:, None, None] * np.eye(2)
@@ -230,24 +258,67 @@ def boundary_edge_normals(ball_indices: np.ndarray, coords: np.ndarray, loops: S
     return np.concatenate(pts), np.concatenate(vecs)
 
 
-def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int) -> sp.csr_matrix:
+def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int,
+                   rows: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse ``S`` with ``(S u)_i = sum_j values[i, j] (u[ball[i, j]] - u_i)`` (rows sum to 0).
 
     Parameters
     ----------
-    ball_indices : (N, B) numpy.ndarray of int64
+    ball_indices : (R, B) numpy.ndarray of int64
         -1 padding.
-    values : (N, B) numpy.ndarray of float64
+    values : (R, B) numpy.ndarray of float64
     n : int
+    rows : (R,) numpy.ndarray of int64, optional
+        The rows of S that ``ball_indices`` and ``values`` give (the others are zero);
+        all n rows in order (R = n) when omitted.
 
     Returns
     -------
     (n, n) scipy.sparse.csr_matrix of float64
     """
     mask = ball_indices >= 0
-    rows = np.broadcast_to(np.arange(ball_indices.shape[0])[:, None], ball_indices.shape)
-    off = sp.csr_matrix((values[mask], (rows[mask], ball_indices[mask])), shape=(n, n))
+    counts = np.zeros(n, dtype=np.int64)
+    counts[slice(None) if rows is None else rows] = mask.sum(axis=1)
+    if rows is not None and np.any(np.diff(rows) <= 0):  # CSR wants its rows in order
+        order = np.argsort(rows)
+        ball_indices, values, mask = ball_indices[order], values[order], mask[order]
+    # Built as CSR directly: each row's members are already grouped (no COO sort; at
+    # 300k points this was half the Laplacian's assembly time).
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    off = sp.csr_matrix((values[mask], ball_indices[mask], indptr), shape=(n, n))
     return (off - sp.diags(np.asarray(off.sum(axis=1)).ravel())).tocsr()
+
+
+def _row_weights(ball_indices: np.ndarray, t: np.ndarray, mask: np.ndarray, on_boundary: np.ndarray,
+                 interior: str, boundary: str, tangent_w: sp.spmatrix | None, width: float) -> np.ndarray:
+    """(N, B) weights of :func:`neumann_laplacian`: interior rows by ``interior``, boundary rows by ``boundary``."""
+    n = ball_indices.shape[0]
+    inner = ~on_boundary
+    if "tangent" in (interior, boundary):
+        rows = np.broadcast_to(np.arange(n)[:, None], ball_indices.shape)
+        w_tan = np.zeros(ball_indices.shape)
+        w_tan[mask] = np.asarray(sp.csr_matrix(tangent_w)[rows[mask], ball_indices[mask]]).ravel()
+    if interior == "tangent":
+        w = w_tan.copy()
+    else:
+        n_con = _MOMENTS["quadratic"]
+        if np.any(mask[inner].sum(axis=1) < n_con):
+            raise InvalidInputError(f"quadratic moment weights need balls of at least {n_con} members; "
+                                    "increase ball_k.")
+        if mask.sum(axis=1).min() >= n_con:
+            # Every row at once (boundary rows are overwritten below): no gathered copy
+            # of the interior rows' coordinates.
+            w = _moment_rows(t, mask, n_con, width, 1e-10)
+        else:
+            w = np.zeros(ball_indices.shape)
+            w[inner] = _moment_rows(t[inner], mask[inner], n_con, width, 1e-10)
+    if boundary == "tangent":
+        w[on_boundary] = w_tan[on_boundary]
+    elif on_boundary.any():
+        if np.any(mask[on_boundary].sum(axis=1) < _MOMENTS["linear"]):
+            raise InvalidInputError("linear moment weights need balls of at least 3 members; increase ball_k.")
+        w[on_boundary] = _moment_rows(t[on_boundary], mask[on_boundary], _MOMENTS["linear"], width, 1e-10)
+    return w
 
 
 def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Sequence[np.ndarray],
@@ -305,16 +376,8 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
     on_boundary = np.zeros(n, dtype=bool)
     on_boundary[bpts] = True
 
-    w = np.zeros(ball_indices.shape)
-    if "tangent" in (interior, boundary):
-        rows = np.broadcast_to(np.arange(n)[:, None], ball_indices.shape)
-        w_tan = np.zeros(ball_indices.shape)
-        w_tan[mask] = np.asarray(sp.csr_matrix(tangent_w)[rows[mask], ball_indices[mask]]).ravel()
+    w = _row_weights(ball_indices, t, mask, on_boundary, interior, boundary, tangent_w, width)
     inner = ~on_boundary
-    w[inner] = (moment_weights(t[inner], mask[inner], "quadratic", width=width) if interior == "quadratic"
-                else w_tan[inner])
-    w[on_boundary] = (moment_weights(t[on_boundary], mask[on_boundary], "linear", width=width)
-                      if boundary == "linear" else w_tan[on_boundary])
 
     # Eq. 14 with a known k_i: [(I - W) f]_i = -(q_i / 4) Lap f for quadratic f.
     q = (w * (t**2).sum(-1)).sum(axis=1)
@@ -325,9 +388,9 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
     scale = 4.0 * area / q
     lap = -stencil_matrix(ball_indices, w * scale[:, None], n)
 
-    grad = gradient_stencils(t[on_boundary], mask[on_boundary])  # (n_b, 2, B)
+    grad = _gradient_rows(t[on_boundary], mask[on_boundary], None, 1e-10)  # (n_b, 2, B)
     pos = np.full(n, -1, dtype=np.int64)
     pos[bpts] = np.arange(bpts.size)
-    flux = np.zeros(ball_indices.shape)
-    flux[on_boundary] = np.einsum("nc,ncb->nb", bvec[pos[on_boundary]], grad)
-    return (lap + stencil_matrix(ball_indices, flux, n)).tocsr()
+    boundary_rows = np.flatnonzero(on_boundary)
+    flux = np.einsum("nc,ncb->nb", bvec[pos[boundary_rows]], grad)
+    return (lap + stencil_matrix(ball_indices[boundary_rows], flux, n, rows=boundary_rows)).tocsr()
