@@ -10,7 +10,8 @@ factorisation of the Galerkin block ``P_II^T L_II P_II``, which is exactly the c
 problem's interior block (coarse interior columns of P vanish on the boundary, whose
 points are coarse points). One cycle is ``sweeps`` forward Gauss-Seidel sweeps, the
 coarse correction, and ``sweeps`` backward sweeps; it is iterated as a stationary method
-until every column's residual is below ``rtol`` of its right-hand side.
+until every column's residual (read after a forward smoothing) is below ``rtol`` of its
+right-hand side.
 
 Measured on ocp's Neumann Laplacian (29 nonzeros per row, non-symmetric) at 100k points
 (bump, jittered; coarse block 9.5k rows): the residual falls by a factor 7-8 per cycle,
@@ -38,25 +39,30 @@ __all__ = ["TwoGridSolver"]
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 
-@numba.njit(cache=_CACHE, nogil=True)
+@numba.njit(cache=_CACHE, nogil=True, fastmath=True)
 def _gauss_seidel(indptr, indices, data, diag, b, x, c0, c1, sweeps, backward):  # pragma: no cover - compiled
-    """In-place Gauss-Seidel sweeps on columns c0:c1 of the block x (rows in order or reversed)."""
+    """In-place Gauss-Seidel sweeps on columns c0:c1 of the block x (rows in order or reversed).
+
+    The diagonal term is summed with the others and added back, so the inner loop over
+    the columns has no branch and vectorises (2.3x faster at 11 columns).
+    """
     n = x.shape[0]
-    acc = np.empty(c1 - c0)
+    width = c1 - c0
+    acc = np.empty(width)
     for _ in range(sweeps):
         for step in range(n):
             i = n - 1 - step if backward else step
-            for c in range(c0, c1):
-                acc[c - c0] = b[i, c]
+            for c in range(width):
+                acc[c] = b[i, c0 + c]
             for p in range(indptr[i], indptr[i + 1]):
-                j = indices[p]
-                if j != i:
-                    a = data[p]
-                    for c in range(c0, c1):
-                        acc[c - c0] -= a * x[j, c]
-            inv = 1.0 / diag[i]
-            for c in range(c0, c1):
-                x[i, c] = acc[c - c0] * inv
+                a = data[p]
+                xj = x[indices[p], c0:c1]
+                for c in range(width):
+                    acc[c] -= a * xj[c]
+            di = diag[i]
+            xi = x[i, c0:c1]
+            for c in range(width):
+                xi[c] = (acc[c] + di * xi[c]) / di
 
 
 class TwoGridSolver:
@@ -79,7 +85,7 @@ class TwoGridSolver:
         Gauss-Seidel sweeps before and after the coarse correction.
     stall : float
         Fall back to the direct solve when a cycle reduces the largest relative residual
-        by less than this factor (after the first two cycles).
+        by less than this factor (after the first three cycles).
     workers : int
         Threads; the columns of a block are shared among them (the kernel releases the GIL).
 
@@ -161,23 +167,21 @@ class TwoGridSolver:
         x = np.zeros_like(b)
         previous = np.inf
         for cycle in range(self.max_cycles):
-            self._cycle(b, x)
-            self.n_cycles += 1
-            rel = float((np.linalg.norm(b - self._a @ x, axis=0) / norm_b).max())
+            # The residual after the pre-smoothing both feeds the coarse correction and
+            # decides convergence: one product with A per cycle instead of two.
+            self._smooth(b, x, backward=False)
+            r = b - self._a @ x
+            rel = float((np.linalg.norm(r, axis=0) / norm_b).max())
             if rel <= self.rtol:
                 return x
-            if cycle >= 2 and rel > self.stall * previous:
+            if cycle >= 3 and rel > self.stall * previous:
                 break
             previous = rel
+            x += self._p @ self._coarse_solve(np.ascontiguousarray(self._pt @ r))
+            self._smooth(b, x, backward=True)
+            self.n_cycles += 1
         self._fall_back()
         return self._direct.solve(b)
-
-    def _cycle(self, b: np.ndarray, x: np.ndarray) -> None:
-        """One cycle in place on the block x: smooth, correct on the coarse level, smooth back."""
-        self._smooth(b, x, backward=False)
-        r = b - self._a @ x
-        x += self._p @ self._coarse_solve(np.ascontiguousarray(self._pt @ r))
-        self._smooth(b, x, backward=True)
 
     def _smooth(self, b: np.ndarray, x: np.ndarray, backward: bool) -> None:
         a, cols = self._a, x.shape[1]
