@@ -8,7 +8,8 @@ and the peak resident memory of the process while each stage ran (``stage_peak_r
 The issue's target: ``ocp`` at 100k points no slower than ``scp-igl`` (ratio <= 1).
 ``ocp-multilevel`` is ``ocp`` with ``solver="multilevel"`` (issue #14), ``fbcp-pc`` the
 free-boundary peer; ``ocp-multilevel``'s ``extra_info``
-adds the coarse level's size and the fine subspace's, and ``stage_ratio_vs_scp_igl`` gives
+adds the coarse level's size, the fine subspace's, how the fine level solved
+(``fine_solver``) and its two-grid cycles, and ``stage_ratio_vs_scp_igl`` gives
 each stage's seconds over the whole ``scp-igl`` time, for every method.
 """
 
@@ -46,6 +47,7 @@ def test_scaling_bump(benchmark, n_points, method_name):
     benchmark.extra_info.update(n_points=surface.n_points, stage_timings=result.timings,
                                 stage_ratio_vs_scp_igl={k: round(v / base_time, 4) for k, v in result.timings.items()},
                                 solver=diag.get("solver"), coarse_points=diag.get("coarse_points"),
+                                fine_solver=diag.get("fine_solver"), twogrid_cycles=diag.get("twogrid_cycles"),
                                 subspace_size=diag.get("subspace_size"),
                                 stage_peak_rss_mb={k: round(v, 1) for k, v in peak.stage_peak_mb.items()},
                                 peak_rss_mb=round(peak.peak_mb, 1),
