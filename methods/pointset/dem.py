@@ -501,17 +501,31 @@ def _run_blocks(centre_ids: np.ndarray, cloud: _Cloud, rule: _BallRule, scratch:
 
 def _assemble(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
               sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stack the blocks' rows into arrays as wide as the largest ball, padded with -1, 0 and +inf."""
+    """Stack the blocks' rows into arrays as wide as the largest ball, padded with -1, 0 and +inf.
+
+    Empties ``parts`` (each block is released once copied).
+    """
     n_out = sizes.size
     width = int(sizes.max()) if n_out else 0
-    idx = np.full((n_out, width), -1, dtype=np.int64)
-    coords = np.zeros((n_out, width, 2))
-    gdist = np.full((n_out, width), np.inf)
+    # Uninitialised outputs, each block's rows padded as they are filled, and each block
+    # dropped once copied: the pages of the result are touched only as the blocks are
+    # released, so the peak is one copy of the balls plus a block, not two copies
+    # (~1.2 GB less at a million points).
+    idx = np.empty((n_out, width), dtype=np.int64)
+    coords = np.empty((n_out, width, 2))
+    gdist = np.empty((n_out, width))
     row = 0
-    for b_idx, b_uv, b_dist in parts:
+    parts.reverse()
+    while parts:
+        b_idx, b_uv, b_dist = parts.pop()
         m, w = b_idx.shape
-        idx[row:row + m, :w] = b_idx
-        coords[row:row + m, :w] = b_uv
-        gdist[row:row + m, :w] = b_dist
+        rows = slice(row, row + m)
+        idx[rows, :w] = b_idx
+        idx[rows, w:] = -1
+        coords[rows, :w] = b_uv
+        coords[rows, w:] = 0.0
+        gdist[rows, :w] = b_dist
+        gdist[rows, w:] = np.inf
         row += m
+        del b_idx, b_uv, b_dist
     return idx, coords, gdist
