@@ -378,19 +378,21 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
 
     w = _row_weights(ball_indices, t, mask, on_boundary, interior, boundary, tangent_w, width)
     inner = ~on_boundary
+    boundary_rows = np.flatnonzero(on_boundary)
+    grad = _gradient_rows(t[boundary_rows], mask[boundary_rows], None, 1e-10)  # (n_b, 2, B)
 
     # Eq. 14 with a known k_i: [(I - W) f]_i = -(q_i / 4) Lap f for quadratic f.
-    q = (w * (t**2).sum(-1)).sum(axis=1)
+    q = np.einsum("nbk,nbk,nb->n", t, t, w)
+    del t  # the largest array here (N x B x 2): gone before the stencils are assembled
     q_ref = np.median(q[inner]) if inner.any() else np.median(q)
     q = np.maximum(q, 0.25 * q_ref)  # half balls with negative weights: keep the scale sane
     area = area_factor * np.broadcast_to(np.asarray(mean_spacing, dtype=np.float64), (n,))**2
     area[on_boundary] *= 0.5
-    scale = 4.0 * area / q
-    lap = -stencil_matrix(ball_indices, w * scale[:, None], n)
+    w *= (4.0 * area / q)[:, None]
+    lap = -stencil_matrix(ball_indices, w, n)
+    del w
 
-    grad = _gradient_rows(t[on_boundary], mask[on_boundary], None, 1e-10)  # (n_b, 2, B)
     pos = np.full(n, -1, dtype=np.int64)
     pos[bpts] = np.arange(bpts.size)
-    boundary_rows = np.flatnonzero(on_boundary)
     flux = np.einsum("nc,ncb->nb", bvec[pos[boundary_rows]], grad)
     return (lap + stencil_matrix(ball_indices[boundary_rows], flux, n, rows=boundary_rows)).tocsr()
