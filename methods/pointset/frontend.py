@@ -99,7 +99,8 @@ class FrontEnd:
     W : (N, N) scipy.sparse.csr_matrix of float64
         Row-normalised weights (W^tan or 3D LLE) over the balls; no diagonal.
     L : (N, N) scipy.sparse.csr_matrix of float64
-        ``I - W``.
+        ``I - W`` (a property, built on first use: ``ocp``'s default energy never reads
+        it, and at 1M points it is ~0.35 GB).
     boundary_mask : (N,) numpy.ndarray of bool
         Points of ``boundary_loops``.
     boundary_loops : list of (L_i,) numpy.ndarray of int64
@@ -123,7 +124,6 @@ class FrontEnd:
     ball_indices: np.ndarray
     tangent_coords: np.ndarray
     W: sp.csr_matrix
-    L: sp.csr_matrix
     boundary_mask: np.ndarray
     boundary_loops: list
     reconstruction_error: np.ndarray
@@ -136,13 +136,24 @@ class FrontEnd:
         """N."""
         return int(self.points.shape[0])
 
+    @property
+    def L(self) -> sp.csr_matrix | None:  # noqa: N802 - the paper's name
+        """``I - W``, built on first use and kept; None once :meth:`without_balls` dropped W."""
+        if self.W is None:
+            return None
+        cached = self.__dict__.get("_laplacian")
+        if cached is None:
+            cached = graph_laplacian(self.W)
+            object.__setattr__(self, "_laplacian", cached)  # a cache, not state: frozen otherwise
+        return cached
+
     def without_balls(self) -> "FrontEnd":
         """A copy without the per-ball data (balls, tangent coordinates, W, L): set to None.
 
         Solvers that have built their operator call this before factorising, so that at
         1M points the ~1.3 GB of ball data is not held through the factorisation.
         """
-        return replace(self, ball_indices=None, tangent_coords=None, W=None, L=None)
+        return replace(self, ball_indices=None, tangent_coords=None, W=None)
 
 
 def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[np.ndarray, np.ndarray | None]:
@@ -585,7 +596,6 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         w = w[inv]
         w_mat = weight_matrix(ball_indices, w)
         del w
-        lap = graph_laplacian(w_mat)
 
     recorded = {"k_nn": k_nn, "ball_k": int(params.ball_k), "ball_eps_factor": float(params.ball_eps_factor),
                 "dem": params.dem, "smooth_normals": bool(params.smooth_normals), "reg_eps": float(params.reg_eps),
@@ -597,7 +607,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(nb.graph.indices[inv], order),
                     mean_spacing=float(nb.spacing),
                     local_spacing=_interior_spacing(nb.h_local, nb.graph.indices, bnd.mask)[inv],
-                    ball_indices=ball_indices, tangent_coords=coords, W=w_mat, L=lap,
+                    ball_indices=ball_indices, tangent_coords=coords, W=w_mat,
                     boundary_mask=bnd.mask[inv], boundary_loops=loops, reconstruction_error=r_x[inv],
                     diagnostics=diagnostics, timings=dict(timer.timings), params=recorded)
 
