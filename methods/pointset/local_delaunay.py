@@ -30,7 +30,7 @@ from parambench.datasets_gen.errors import InvalidInputError
 from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
 
-__all__ = ["local_delaunay_rings", "drop_outside_boundary", "one_ring_cotangent_weights"]
+__all__ = ["local_delaunay_rings", "tangent_plane_rings", "drop_outside_boundary", "one_ring_cotangent_weights"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -191,6 +191,41 @@ def local_delaunay_rings(points: np.ndarray, normals: np.ndarray, candidates: np
         ok = local >= 0
         rings[sl] = np.where(ok, np.take_along_axis(cand[sl], np.where(ok, local, 0).reshape(len(local), -1),
                                                     axis=1).reshape(local.shape), -1)
+    return rings
+
+
+def tangent_plane_rings(coords: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """One-rings from coordinates already in each point's tangent plane (e.g. DEM coordinates).
+
+    The kernel of :func:`local_delaunay_rings` without its projection: used where the
+    coordinates exist already (the Neumann Laplacian's boundary cells, from the DEM balls).
+
+    Parameters
+    ----------
+    coords : (N, C, 2) numpy.ndarray of float64
+        Candidates' coordinates relative to their centre (the centre at the origin).
+    valid : (N, C) numpy.ndarray of bool
+        True at real candidates (no repeats; a candidate at the origin is skipped).
+
+    Returns
+    -------
+    (N, C, 2) numpy.ndarray of int64
+        ``rings[i, t] = (a, b)``: columns of the triangle ``(centre, a, b)``,
+        counter-clockwise; -1 padding. An open fan where the centre is on the hull of its
+        candidates.
+
+    Raises
+    ------
+    InvalidInputError
+        Shapes disagree.
+    """
+    coords = np.ascontiguousarray(coords, dtype=np.float64)
+    valid = np.ascontiguousarray(valid, dtype=bool)
+    if coords.ndim != 3 or coords.shape[2] != 2 or valid.shape != coords.shape[:2]:
+        raise InvalidInputError(f"coords must be (N, C, 2) and valid (N, C); got {coords.shape} and {valid.shape}.")
+    rings = np.full(valid.shape + (2,), -1, dtype=np.int64)
+    if valid.size:
+        _rings_kernel(coords, valid, rings)
     return rings
 
 

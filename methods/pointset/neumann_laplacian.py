@@ -27,6 +27,24 @@ This module builds, from the front end's DEM balls,
   boundary polygon ``sum_i x_i . b_i`` is exactly its area, so ``1/2 z^H L z`` equals the
   boundary area term of Eq. 7 for a linear map).
 
+Boundary rows differ from interior ones in two more ways, both because the matrix is
+not symmetric, so nothing keeps ``1/2 z^H L z`` above the enclosed area for every z (as
+the cotangent Laplacian does): a boundary curve that curls at the sample scale (turning
+number 3-15 at k = 1) can have negative conformal energy, and the k search then stops at
+the k where those modes give way (k_opt 1.15-4.2, QC up to 2.4x cotangent SCP and folds
+at the holes of graded and random samplings, measured on the 2k cases of
+``bench/benchmarks/bench_realdata.py``). What keeps those modes out:
+
+* the half cell's area ``a_i`` is measured, not modelled: a third of the area of the
+  point's tangent-plane Delaunay fan inside the boundary (:func:`boundary_cell_areas`).
+  The model ``area_factor * h^2 / 2`` with the spacing of interior neighbours was off by
+  up to 4x where a boundary is sampled sparser than the inside next to it (graded
+  samplings, real scans), and the row's stiffness against curling scales with ``a_i``;
+* the linear weights of boundary rows use a narrower Gaussian
+  (:data:`DEFAULT_BOUNDARY_WIDTH`): spread over two or three rings, they barely feel an
+  oscillation of the boundary from one sample to the next, while the area term M sees it
+  at full resolution.
+
 Rows sum to zero. The matrix is not symmetric, but on a planar region every linear map
 is an exact zero-energy solution of ``(L / 2 - M) z = 0`` (M: boundary area matrix), so
 k_opt = 1 there and is close to 1 on curved surfaces: the k search of Eq. 16 then only
@@ -47,6 +65,9 @@ from parambench.datasets_gen.errors import InvalidInputError
 __all__ = [
     "DEFAULT_AREA_FACTOR",
     "DEFAULT_GAUSS_WIDTH",
+    "DEFAULT_BOUNDARY_WIDTH",
+    "BOUNDARY_AREAS",
+    "boundary_cell_areas",
     "moment_weights",
     "gradient_stencils",
     "boundary_edge_normals",
@@ -62,6 +83,18 @@ DEFAULT_AREA_FACTOR = 0.65
 #: Width of the Gaussian weighting of ball members, as a fraction of the squared ball
 #: radius: omega_j = exp(-|t_j|^2 / (width * max_j |t_j|^2)).
 DEFAULT_GAUSS_WIDTH = 0.5
+
+#: Gaussian width of the boundary rows' linear weights (same units). Measured on the 20
+#: random/graded 2k cases of bench_realdata.py (fold excluded), with measured boundary
+#: areas: 0.08, 0.1, 0.15 and 0.2 all give 19 of 20 within 3 % of scp-igl with 0 folds
+#: (the one left, protrusions/random, fails alike for every width); 0.25 leaves
+#: holes-bumped/graded at +3.0 %, 0.5 (the interior width) holes/graded at +8.9 % with 2
+#: folds and saddle/graded at +6.9 % with 3. 0.15 is the middle of the plateau.
+DEFAULT_BOUNDARY_WIDTH = 0.15
+
+#: ``boundary_area`` values of :func:`neumann_laplacian`: the measured half cell
+#: (:func:`boundary_cell_areas`) or the spacing model ``area_factor * h^2 / 2``.
+BOUNDARY_AREAS = ("fan", "spacing")
 
 _MOMENTS = {"linear": 3, "quadratic": 5}
 
@@ -258,6 +291,73 @@ def boundary_edge_normals(ball_indices: np.ndarray, coords: np.ndarray, loops: S
     return np.concatenate(pts), np.concatenate(vecs)
 
 
+def boundary_cell_areas(ball_indices: np.ndarray, coords: np.ndarray, loops: Sequence[np.ndarray]
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Area of each boundary point's half cell, measured in its tangent plane.
+
+    A third of the area of the point's one-ring in the Delaunay triangulation of its ball
+    (DEM coordinates, :func:`parambench.methods.pointset.local_delaunay.tangent_plane_rings`),
+    counting only the fan's triangles inside the boundary: those whose middle direction
+    lies in the sector counter-clockwise from the next loop point to the previous one
+    (the surface lies to the left of a loop walked in its orientation, see
+    :func:`boundary_edge_normals`). That is the barycentric cell of a Delaunay mesh of
+    the points; on the generated surfaces it matches the true mesh's boundary vertex areas
+    to 1 % in the median. Why not ``area_factor * h^2 / 2``: a boundary sampled sparser than
+    the inside next to it has larger cells than the interior spacing says (measured: up
+    to 4x on graded samplings).
+
+    Parameters
+    ----------
+    ball_indices : (N, B) numpy.ndarray of int64
+        Ball members, -1 padding.
+    coords : (N, B, 2) numpy.ndarray of float64
+        Their tangent coordinates.
+    loops : sequence of (L_i,) numpy.ndarray of int64
+        Oriented boundary loops.
+
+    Returns
+    -------
+    points : (n_b,) numpy.ndarray of int64
+        Boundary points, loop after loop (as :func:`boundary_edge_normals`).
+    areas : (n_b,) numpy.ndarray of float64
+        Their half-cell areas; NaN where a loop neighbour is not in the ball or no fan
+        triangle lies inside (the caller falls back to its model there).
+    """
+    from .local_delaunay import tangent_plane_rings  # local: local_delaunay is numba-heavy
+
+    two_pi = 2.0 * np.pi
+    pts, out = [], []
+    for loop in loops:
+        loop = np.asarray(loop, dtype=np.int64)
+        members = ball_indices[loop]
+        valid = members >= 0
+        t = np.where(valid[..., None], coords[loop], 0.0)
+        has_n = members == np.roll(loop, -1)[:, None]
+        has_p = members == np.roll(loop, 1)[:, None]
+        rows = np.arange(loop.size)
+        theta = np.arctan2(t[..., 1], t[..., 0])
+        th0 = theta[rows, has_n.argmax(axis=1)][:, None]
+        span = np.mod(theta[rows, has_p.argmax(axis=1)][:, None] - th0, two_pi)
+        rings = tangent_plane_rings(t, valid)
+        a, b = rings[..., 0], rings[..., 1]
+        has = a >= 0
+        a, b = np.where(has, a, 0), np.where(has, b, 0)
+        ta = np.take_along_axis(t, a[..., None], axis=1)
+        tb = np.take_along_axis(t, b[..., None], axis=1)
+        rel_a = np.mod(np.take_along_axis(theta, a, axis=1) - th0, two_pi)
+        rel_b = np.mod(np.take_along_axis(theta, b, axis=1) - th0, two_pi)
+        # Fan triangles are counter-clockwise with less than pi between their spokes.
+        mid = np.mod(rel_a + 0.5 * np.mod(rel_b - rel_a, two_pi), two_pi)
+        tri = 0.5 * (ta[..., 0] * tb[..., 1] - ta[..., 1] * tb[..., 0])
+        area = np.where(has & (mid < span), tri, 0.0).sum(axis=1) / 3.0
+        ok = has_n.any(axis=1) & has_p.any(axis=1) & (area > 0)
+        pts.append(loop)
+        out.append(np.where(ok, area, np.nan))
+    if not pts:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    return np.concatenate(pts), np.concatenate(out)
+
+
 def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int,
                    rows: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse ``S`` with ``(S u)_i = sum_j values[i, j] (u[ball[i, j]] - u_i)`` (rows sum to 0).
@@ -290,7 +390,8 @@ def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int,
 
 
 def _row_weights(ball_indices: np.ndarray, t: np.ndarray, mask: np.ndarray, on_boundary: np.ndarray,
-                 interior: str, boundary: str, tangent_w: sp.spmatrix | None, width: float) -> np.ndarray:
+                 interior: str, boundary: str, tangent_w: sp.spmatrix | None, width: float,
+                 boundary_width: float) -> np.ndarray:
     """(N, B) weights of :func:`neumann_laplacian`: interior rows by ``interior``, boundary rows by ``boundary``."""
     n = ball_indices.shape[0]
     inner = ~on_boundary
@@ -317,14 +418,15 @@ def _row_weights(ball_indices: np.ndarray, t: np.ndarray, mask: np.ndarray, on_b
     elif on_boundary.any():
         if np.any(mask[on_boundary].sum(axis=1) < _MOMENTS["linear"]):
             raise InvalidInputError("linear moment weights need balls of at least 3 members; increase ball_k.")
-        w[on_boundary] = _moment_rows(t[on_boundary], mask[on_boundary], _MOMENTS["linear"], width, 1e-10)
+        w[on_boundary] = _moment_rows(t[on_boundary], mask[on_boundary], _MOMENTS["linear"], boundary_width, 1e-10)
     return w
 
 
 def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Sequence[np.ndarray],
                       mean_spacing: float, *, interior: str = "quadratic", boundary: str = "linear",
                       tangent_w: sp.spmatrix | None = None, area_factor: float = DEFAULT_AREA_FACTOR,
-                      width: float = DEFAULT_GAUSS_WIDTH) -> sp.csr_matrix:
+                      width: float = DEFAULT_GAUSS_WIDTH, boundary_width: float = DEFAULT_BOUNDARY_WIDTH,
+                      boundary_area: str = "fan") -> sp.csr_matrix:
     """The Laplacian ``s_i (I - W)_i + b_i . G_i`` described in the module docstring.
 
     Parameters
@@ -337,7 +439,8 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
         Oriented boundary loops (``FrontEnd.boundary_loops``).
     mean_spacing : float or (N,) numpy.ndarray of float64
         l, or the spacing around each point; the area per point is
-        ``area_factor * l^2`` (halved at boundary points).
+        ``area_factor * l^2`` (halved at boundary points, where ``boundary_area="fan"``
+        measures it instead).
     interior : {"quadratic", "tangent"}
         Weights of the interior rows: :func:`moment_weights` of order 2, or the given
         ``tangent_w`` (W^tan).
@@ -347,7 +450,12 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
         W^tan, required when either option is "tangent".
     area_factor : float
     width : float
-        Gaussian width of the moment weights (the gradient uses equal weights).
+        Gaussian width of the interior rows' moment weights (the gradient uses equal weights).
+    boundary_width : float
+        Gaussian width of the boundary rows' linear moment weights (see the module docstring).
+    boundary_area : {"fan", "spacing"}
+        Boundary rows' area: measured (:func:`boundary_cell_areas`; the model where it is
+        undefined) or the model ``area_factor * l^2 / 2`` (before this option existed).
 
     Returns
     -------
@@ -366,8 +474,10 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
                                 f"got {interior!r}, {boundary!r}.")
     if (interior == "tangent" or boundary == "tangent") and tangent_w is None:
         raise InvalidInputError("tangent_w (W^tan) is needed for 'tangent' rows.")
-    if not (np.all(np.asarray(mean_spacing) > 0) and area_factor > 0):
-        raise InvalidInputError("mean_spacing and area_factor must be positive.")
+    if not (np.all(np.asarray(mean_spacing) > 0) and area_factor > 0 and width > 0 and boundary_width > 0):
+        raise InvalidInputError("mean_spacing, area_factor and the Gaussian widths must be positive.")
+    if boundary_area not in BOUNDARY_AREAS:
+        raise InvalidInputError(f"boundary_area must be one of {', '.join(BOUNDARY_AREAS)}, got {boundary_area!r}.")
     ball_indices = np.asarray(ball_indices, dtype=np.int64)
     mask = ball_indices >= 0
     t, mask = _check_balls(coords, mask)
@@ -376,10 +486,13 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
     on_boundary = np.zeros(n, dtype=bool)
     on_boundary[bpts] = True
 
-    w = _row_weights(ball_indices, t, mask, on_boundary, interior, boundary, tangent_w, width)
+    w = _row_weights(ball_indices, t, mask, on_boundary, interior, boundary, tangent_w, width, boundary_width)
     inner = ~on_boundary
     boundary_rows = np.flatnonzero(on_boundary)
     grad = _gradient_rows(t[boundary_rows], mask[boundary_rows], None, 1e-10)  # (n_b, 2, B)
+    fan = boundary_area == "fan" and bpts.size > 0
+    if fan:
+        cell_pts, cells = boundary_cell_areas(ball_indices, t, loops)
 
     # Eq. 14 with a known k_i: [(I - W) f]_i = -(q_i / 4) Lap f for quadratic f.
     q = np.einsum("nbk,nbk,nb->n", t, t, w)
@@ -388,6 +501,9 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
     q = np.maximum(q, 0.25 * q_ref)  # half balls with negative weights: keep the scale sane
     area = area_factor * np.broadcast_to(np.asarray(mean_spacing, dtype=np.float64), (n,))**2
     area[on_boundary] *= 0.5
+    if fan:
+        measured = np.isfinite(cells)
+        area[cell_pts[measured]] = cells[measured]
     w *= (4.0 * area / q)[:, None]
     lap = -stencil_matrix(ball_indices, w, n)
     del w
