@@ -48,14 +48,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from parambench.datasets_gen.errors import ConvergenceError, SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..hints import hinted
 from ..spectral.turning import is_regular_turning
-from .pins import farthest_pair, opposite_pairs
+from .conformal_setup import resolve_pins
+from .pins import opposite_pairs
 from .topology import require_connected_disk_like
 
 __all__ = ["PIN_ALTERNATIVES", "AUTHALIC_FALLBACK", "Attempt", "mesh_attempts", "first_regular",
@@ -137,7 +136,7 @@ def mesh_attempts(solve: Callable[[Any, tuple[int, int] | None], tuple], surface
         def run():
             if not chosen:
                 loops = require_connected_disk_like(surface.points, surface.faces)
-                farthest = farthest_pair(surface.points, np.concatenate(loops))
+                farthest = resolve_pins("farthest", surface.points, loops)  # the default pins
                 chosen["farthest"] = [int(v) for v in farthest]
                 chosen["pairs"] = opposite_pairs(surface.points, loops[0], farthest[0], PIN_ALTERNATIVES)
             if rank > len(chosen["pairs"]):
