@@ -184,7 +184,8 @@ def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str,
         Stages ``topology`` and ``weights`` are recorded.
     weights, normalized, uniform_at
         See :func:`parambench.methods.mesh.weights.mesh_weights` (a hybrid ``uniform_at`` of
-        ``"auto"`` must be resolved first: :mod:`parambench.methods.mesh.hybrid`).
+        ``"auto"`` must be resolved first: :mod:`parambench.methods.mesh.hybrid`; an authalic
+        one is the fallback of :mod:`parambench.methods.mesh.fallbacks`).
     b_matrix : {"boundary", "mass"}
         Mullen's boundary indicator, or libigl's Voronoi mass matrix (what
         ``igl.spectra.lscm`` uses).
@@ -195,7 +196,8 @@ def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str,
     loops : list of (L_i,) numpy.ndarray of int64
         Boundary loops, longest first, oriented with the faces.
     info : dict
-        Diagnostics: ``n_boundary_loops``, ``n_uniform_rows`` (hybrid).
+        Diagnostics: ``n_boundary_loops``, ``n_uniform_rows`` (hybrid, and authalic with
+        ``uniform_at``, then also ``uniform_share``).
 
     Raises
     ------
@@ -213,9 +215,11 @@ def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str,
         loops = require_connected_disk_like(pts, faces)
     info: dict = {"n_boundary_loops": len(loops)}
     with timer("weights"):
-        if weights == "hybrid":
-            uniform_at = uniform_vertex_mask(uniform_at, pts, faces)
+        if weights == "hybrid" or (weights == "authalic" and uniform_at is not None):
+            uniform_at = uniform_vertex_mask(uniform_at, pts, faces, kind=weights)
             info["n_uniform_rows"] = int(uniform_at.sum())
+            if weights == "authalic":
+                info["uniform_share"] = float(uniform_at.mean())
         w = mesh_weights(pts, faces, weights, normalized=bool(normalized), uniform_at=uniform_at)
         b = "boundary" if b_matrix == "boundary" else igl.massmatrix(pts, faces, igl.MASSMATRIX_TYPE_VORONOI)
         # Cotangent weights give the exact Dirichlet energy of the piecewise-linear map,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
-__all__ = ["farthest_pair"]
+__all__ = ["farthest_pair", "opposite_pairs"]
 
 
 def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048) -> tuple[int, int]:
@@ -36,3 +36,51 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
             best, best_pair = float(d[r, c]), (start + r, c)
     a, b = sorted(best_pair)
     return int(cand[a]), int(cand[b])
+
+
+def opposite_pairs(points: np.ndarray, loop: np.ndarray, start: int, count: int) -> list[tuple[int, int]]:
+    """Pairs of loop vertices half the loop's length apart, at evenly shifted places along it.
+
+    The other pin pairs DNCP tries where the farthest pair gives no regular map: well
+    separated along the boundary (each pair cuts the loop into two halves of equal
+    length), spread around it, and in a fixed order. Pair j (j = 1..count) starts
+    ``j / (2 (count + 1))`` of the loop's length after ``start``, so the shifts cover half
+    the loop (the other half gives the same pairs swapped) without repeating the pair at
+    ``start``.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    loop : (L,) numpy.ndarray of int64
+        A boundary loop (usually the outer one), L >= 2.
+    start : int
+        A vertex of the loop where the shifts start (usually a pin of the farthest pair);
+        the loop's first vertex if it is not on the loop.
+    count : int
+        Pairs wanted.
+
+    Returns
+    -------
+    list of (int, int)
+        At most ``count`` pairs of distinct vertices, in the order of their shifts; pairs
+        that repeat an earlier one (short loops) are dropped.
+    """
+    loop = np.asarray(loop, dtype=np.int64)
+    seg = np.linalg.norm(points[np.roll(loop, -1)] - points[loop], axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg)[:-1]])      # arc length at each loop vertex
+    perimeter = float(seg.sum())
+    where = np.flatnonzero(loop == start)
+    origin = arc[where[0]] if where.size else 0.0
+
+    def nearest(s: float) -> int:
+        # circular distance along the loop, so the vertex just before the origin is found too
+        d = np.abs((arc - s + 0.5 * perimeter) % perimeter - 0.5 * perimeter)
+        return int(loop[int(np.argmin(d))])
+
+    pairs: list[tuple[int, int]] = []
+    for j in range(1, count + 1):
+        s = origin + j * perimeter / (2.0 * (count + 1))
+        a, b = nearest(s % perimeter), nearest((s + 0.5 * perimeter) % perimeter)
+        if a != b and (a, b) not in pairs and (b, a) not in pairs:
+            pairs.append((a, b))
+    return pairs

@@ -31,7 +31,19 @@ uniform
     lattice these weights equal the cotangent weights exactly.
 authalic
     Desbrun, Meyer & Alliez 2002: ``(cot g_ij + cot d_ij) / |x_i - x_j|^2`` with g, d the
-    angles *at x_j* in the faces beside edge ij, halved to the cotangent scale.
+    angles *at x_j* in the faces beside edge ij, halved to the cotangent scale. Any angle
+    at x_j above 90 degrees makes a weight negative. With ``uniform_at`` the rows of those
+    vertices are replaced by the *uniform authalic* weights ``u_ij / |x_i - x_j|^2``, with
+    ``u_ij`` the uniform weights below before their symmetrisation (``tan(theta_i / 2) / 2``
+    per face beside the edge, theta_i vertex i's regular apex angle): on a regular
+    one-ring the angles at x_j are the base angles ``(pi - theta_i) / 2``, whose cotangent
+    is ``tan(theta_i / 2)``, so these are the authalic formula on the regular one-ring of
+    vertex i's valence, with the true edge lengths (the authalic scale, unlike plain
+    uniform weights), and positive. Only rows change (the authalic weights are not
+    symmetric anyway). ``uniform_at="negative"``: every vertex with
+    a negative authalic weight in its row. The mesh methods use this only as a fallback
+    where the plain authalic weights give no regular map
+    (:mod:`parambench.methods.mesh.fallbacks`).
 mean-value
     Floater 2003: ``(tan(g_ij / 2) + tan(d_ij / 2)) / |x_i - x_j|`` with g, d the angles
     *at x_i* in the faces beside edge ij, halved likewise.
@@ -66,11 +78,13 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
 
 
-__all__ = ["WEIGHT_KINDS", "mesh_weights", "laplacian", "negative_cotangent_vertices", "uniform_vertex_mask",
-           "corner_angles"]
+__all__ = ["WEIGHT_KINDS", "UNIFORM_AT_KINDS", "mesh_weights", "laplacian", "negative_cotangent_vertices",
+           "negative_weight_rows", "uniform_vertex_mask", "corner_angles"]
 
 #: Accepted values of ``kind``.
 WEIGHT_KINDS = ("uniform", "cotangent", "authalic", "mean-value", "hybrid")
+#: Kinds that take ``uniform_at`` (vertices whose weights are made uniform).
+UNIFORM_AT_KINDS = ("hybrid", "authalic")
 
 
 def corner_angles(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -127,14 +141,19 @@ def _boundary_vertex_mask(faces: np.ndarray, n: int) -> np.ndarray:
     return mask
 
 
-def _uniform(faces: np.ndarray, n: int) -> sp.csr_matrix:
+def _uniform_rows(faces: np.ndarray, n: int) -> sp.csr_matrix:
+    """Row i: the cotangent weights of a regular one-ring with vertex i's connectivity (not symmetrised)."""
     m = _vertex_face_counts(faces, n).astype(np.float64)
     on_boundary = _boundary_vertex_mask(faces, n)
     apex = np.where(on_boundary, np.pi / np.maximum(m, 2.0), 2.0 * np.pi / np.maximum(m, 1.0))
     corner_w = 0.5 * np.tan(0.5 * apex)                 # per vertex, per face corner
     i, j, k = _directed_spokes(faces)
     cw = corner_w[i]
-    rows = _assemble(n, np.concatenate([i, i]), np.concatenate([j, k]), np.concatenate([cw, cw]))
+    return _assemble(n, np.concatenate([i, i]), np.concatenate([j, k]), np.concatenate([cw, cw]))
+
+
+def _uniform(faces: np.ndarray, n: int) -> sp.csr_matrix:
+    rows = _uniform_rows(faces, n)
     return sp.csr_matrix(0.5 * (rows + rows.T))
 
 
@@ -149,6 +168,21 @@ def _authalic(points: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     w_ij = 0.5 / np.tan(ang_next) / len2_ij
     w_ik = 0.5 / np.tan(ang_prev) / len2_ik
     return _assemble(points.shape[0], np.concatenate([i, i]), np.concatenate([j, k]), np.concatenate([w_ij, w_ik]))
+
+
+def _authalic_uniform_rows(points: np.ndarray, faces: np.ndarray, chosen: np.ndarray) -> sp.csr_matrix:
+    """Authalic weights, with the uniform authalic weights ``w^uni_ij / |x_i - x_j|^2`` in the rows of ``chosen``."""
+    n = points.shape[0]
+    w = _authalic(points, faces).tocoo()
+    swap = chosen[w.row]
+    if not swap.any():
+        return w.tocsr()
+    # vertex i's own regular one-ring, unsymmetrised: the row is i's, like the authalic row it replaces
+    uni = _uniform_rows(faces, n)
+    rows, cols = w.row[swap], w.col[swap]
+    vals = w.data.copy()
+    vals[swap] = np.asarray(uni[rows, cols]).ravel() / np.sum((points[cols] - points[rows]) ** 2, axis=1)
+    return sp.csr_matrix((vals, (w.row, w.col)), shape=(n, n))
 
 
 def _mean_value(points: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
@@ -179,8 +213,25 @@ def negative_cotangent_vertices(points: np.ndarray, faces: np.ndarray) -> np.nda
     return mask
 
 
-def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The vertices a hybrid ``uniform_at`` value selects.
+def negative_weight_rows(weights: sp.spmatrix) -> np.ndarray:
+    """Rows of a weight matrix with at least one negative entry.
+
+    Parameters
+    ----------
+    weights : (N, N) scipy.sparse matrix of float64
+
+    Returns
+    -------
+    (N,) numpy.ndarray of bool
+    """
+    w = sp.coo_matrix(weights)
+    mask = np.zeros(w.shape[0], dtype=bool)
+    mask[w.row[w.data < 0]] = True
+    return mask
+
+
+def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray, kind: str = "hybrid") -> np.ndarray:
+    """The vertices a ``uniform_at`` value selects.
 
     Parameters
     ----------
@@ -188,6 +239,9 @@ def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray) 
         See :func:`mesh_weights`.
     points : (N, 3) numpy.ndarray of float64
     faces : (M, 3) numpy.ndarray of int64
+    kind : {"hybrid", "authalic"}
+        Whose negative weights ``"negative"`` (and, for hybrid, None) means: the cotangent
+        weights for hybrid, the authalic ones for authalic.
 
     Returns
     -------
@@ -202,6 +256,8 @@ def uniform_vertex_mask(uniform_at: Any, points: np.ndarray, faces: np.ndarray) 
     """
     n = points.shape[0]
     if uniform_at is None or (isinstance(uniform_at, str) and uniform_at == "negative"):
+        if kind == "authalic":
+            return negative_weight_rows(_authalic(points, faces))
         return negative_cotangent_vertices(points, faces)
     if isinstance(uniform_at, str) and uniform_at == "auto":
         raise InvalidInputError(
@@ -276,10 +332,13 @@ def mesh_weights(points: np.ndarray, faces: np.ndarray, kind: str, normalized: b
     normalized : bool
         Divide each row by its sum.
     uniform_at : None, "negative", str, array of int or (N,) array of bool
-        Only for ``kind="hybrid"``: vertices whose row is uniform. None or ``"negative"``:
+        For ``kind="hybrid"``: vertices whose edges are uniform. None or ``"negative"``:
         the vertices with a negative cotangent weight; ``"3,17,42"`` or an index array:
         those vertices; a boolean mask: the True ones. (``"auto"``, the methods' default,
         is resolved by :func:`parambench.methods.mesh.hybrid.fold_driven_hybrid` before this call.)
+        For ``kind="authalic"``: vertices whose row holds the uniform authalic weights
+        (module docstring); None: none (plain authalic weights), ``"negative"``: the vertices
+        with a negative authalic weight, or a vertex set as for hybrid.
 
     Returns
     -------
@@ -296,15 +355,18 @@ def mesh_weights(points: np.ndarray, faces: np.ndarray, kind: str, normalized: b
     """
     if kind not in WEIGHT_KINDS:
         raise UnknownNameError(f"unknown weight kind {kind!r}; choose one of {', '.join(WEIGHT_KINDS)}.")
-    if uniform_at is not None and kind != "hybrid":
-        raise InvalidInputError(f"uniform_at only applies to kind='hybrid', not {kind!r}; drop it or use 'hybrid'.")
+    if uniform_at is not None and kind not in UNIFORM_AT_KINDS:
+        raise InvalidInputError(f"uniform_at only applies to kind='hybrid' or 'authalic', not {kind!r}; drop it or "
+                                "use 'hybrid'.")
     n = points.shape[0]
     if kind == "cotangent":
         w = _cotangent(points, faces)
     elif kind == "uniform":
         w = _uniform(faces, n)
-    elif kind == "authalic":
+    elif kind == "authalic" and uniform_at is None:
         w = _authalic(points, faces)
+    elif kind == "authalic":
+        w = _authalic_uniform_rows(points, faces, uniform_vertex_mask(uniform_at, points, faces, kind="authalic"))
     elif kind == "mean-value":
         w = _mean_value(points, faces)
     else:

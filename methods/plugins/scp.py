@@ -6,6 +6,7 @@ from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, scale_to_surface_area, solve_with_k_rule
+from ..mesh.fallbacks import first_regular, mesh_attempts
 from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..mesh.hybrid import fold_driven_hybrid
 from ..mesh.weights import WEIGHT_KINDS
@@ -29,6 +30,14 @@ class Scp(Method):
     filled by a fan (:mod:`parambench.methods.mesh.holes`); ``"free"`` or ``"filled"``
     forces one.
 
+    ``weights="authalic"`` (without ``uniform_at``): where the plain authalic weights give
+    no regular map at any k, every vertex with a negative authalic weight gets the uniform
+    authalic weights in its row (``uniform_at="negative"``) and the map is solved again;
+    the result then says so in ``diagnostics["authalic_fallback"]`` (with
+    ``n_uniform_rows``, ``uniform_share`` and ``fallback_reason``). Measured cause and
+    alternatives: :mod:`parambench.methods.mesh.fallbacks`. ``uniform_at`` given with
+    authalic weights sets those rows directly.
+
     The output is scaled so that its boundary encloses the 3D surface area.
     """
 
@@ -47,15 +56,19 @@ class Scp(Method):
             with timer("solve"):
                 return solve_with_k_rule(problem, "scp", params["k_search"], weights=weights, normalized=normalized)
 
-        def attempt(surf):
-            if weights == "hybrid" and params["uniform_at"] in (None, "auto"):
+        def attempt(surf, uniform_at):
+            if weights == "hybrid" and uniform_at in (None, "auto"):
                 return fold_driven_hybrid(surf, timer, solve, normalized=normalized, b_matrix=b_matrix)
             problem, loops, info = build_mesh_problem(surf, timer, weights=weights, normalized=normalized,
-                                                      uniform_at=params["uniform_at"], b_matrix=b_matrix)
+                                                      uniform_at=uniform_at, b_matrix=b_matrix)
             return problem, solve(problem), loops, info
 
-        (problem, sol, loops, info), work, n_filled = solve_with_holes(surface, params["holes"], attempt)
+        def with_holes(uniform_at, _pins):
+            return solve_with_holes(surface, params["holes"], lambda surf: attempt(surf, uniform_at))
+
+        attempts = mesh_attempts(with_holes, surface, weights=weights, uniform_at=params["uniform_at"])
+        ((problem, sol, loops, info), work, n_filled), fallback = first_regular(attempts)
         with timer("solve"):
             uv = scale_to_surface_area(sol.z, problem, work.points, work.faces)[: surface.n_points]
-        diagnostics = dict(sol.diagnostics, holes_filled=n_filled, **info)
+        diagnostics = dict(sol.diagnostics, holes_filled=n_filled, **info, **fallback)
         return MethodOutput(uv, diagnostics)

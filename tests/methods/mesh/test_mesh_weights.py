@@ -10,7 +10,7 @@ from scipy.spatial import Delaunay
 
 from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
 from parambench.methods.mesh.weights import (WEIGHT_KINDS, laplacian, mesh_weights, negative_cotangent_vertices,
-                                  uniform_vertex_mask)
+                                  negative_weight_rows, uniform_vertex_mask)
 
 
 def hexagon_fan() -> tuple[np.ndarray, np.ndarray]:
@@ -143,6 +143,41 @@ def test_hybrid_explicit_vertex_set():
         hyb = mesh_weights(pts, faces, "hybrid", uniform_at=given).toarray()
         assert np.allclose(hyb[0], uni[0]) and np.allclose(hyb[:, 0], uni[:, 0])
         assert np.isclose(hyb[1, 2], cot[1, 2])
+
+
+def test_authalic_uniform_rows_by_hand():
+    # hexagon fan with rim vertex 1 moved out to radius 2: the centre's authalic row changes,
+    # its uniform authalic row is tan(60 deg / 2) / |e|^2 on every spoke (valence 6, two
+    # faces per spoke, tan(theta / 2) / 2 each), so 1/sqrt(3) and 1/(4 sqrt(3)) on the long spoke
+    pts, faces = hexagon_fan()
+    pts[1] *= 2.0
+    plain = mesh_weights(pts, faces, "authalic").toarray()
+    got = mesh_weights(pts, faces, "authalic", uniform_at="0").toarray()
+    expect = np.full(6, 1 / np.sqrt(3))
+    expect[0] /= 4.0
+    assert np.allclose(got[0, 1:], expect, rtol=1e-14)
+    assert not np.allclose(plain[0, 1:], expect)
+    # rows of the other vertices are the authalic ones, bit for bit
+    assert np.array_equal(got[1:], plain[1:])
+
+
+def test_authalic_negative_rule_switches_exactly_the_rows_with_a_negative_weight():
+    pts, faces = random_planar(300, seed=3)
+    faces = Delaunay(pts[:, :2] * [1.0, 5.0]).simplices.astype(np.int64)  # stretched: obtuse angles
+    plain = mesh_weights(pts, faces, "authalic")
+    negative = negative_weight_rows(plain)
+    assert 0 < negative.sum() < len(pts)
+    assert np.array_equal(uniform_vertex_mask("negative", pts, faces, kind="authalic"), negative)
+    got = mesh_weights(pts, faces, "authalic", uniform_at="negative")
+    assert got.data.min() > 0  # the uniform authalic rows are positive
+    kept = ~negative
+    assert abs(got[kept] - plain[kept]).max() == 0
+    assert abs(got[negative] - plain[negative]).max() > 0
+    # same sparsity: only values change
+    assert np.array_equal((got != 0).toarray(), (plain != 0).toarray())
+    # normalizing still gives rows summing to one
+    norm = mesh_weights(pts, faces, "authalic", normalized=True, uniform_at="negative")
+    assert np.allclose(np.asarray(norm.sum(axis=1)).ravel(), 1.0)
 
 
 def test_bad_names_and_arguments():

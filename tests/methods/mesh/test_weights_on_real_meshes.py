@@ -12,7 +12,7 @@ from parambench.datasets_gen.registry import make_surface
 from parambench.methods.base import StageTimer
 from parambench.methods.mesh.conformal_setup import build_mesh_problem, k_start_estimate, resolve_pins
 from parambench.methods.mesh.holes import fill_holes
-from parambench.methods.mesh.weights import WEIGHT_KINDS, laplacian, mesh_weights
+from parambench.methods.mesh.weights import WEIGHT_KINDS, laplacian, mesh_weights, negative_weight_rows
 from parambench.methods.registry import get_method
 
 SCP = get_method("scp")
@@ -115,14 +115,23 @@ def test_uniform_weights_keep_bunny_holes_open_once_filled(real_meshes):
     assert SCP(s).diagnostics["holes_filled"] == 0
 
 
-#: Combinations with no regular map at any k. bump-domain: turning numbers 3 to 110 from
-#: k = 0.5 to 7523 with the farthest pins (regular with 7 of 10 other pin pairs). cortex-lh:
-#: the authalic maps keep one extra turn (turning number 2) up to k = 18 (raw) or 7523
-#: (normalized), and no near-real k of the pencil gives a regular map.
-NO_MAP = {("real/bump-domain", "dncp-opt", "authalic", True), ("real/cortex-lh", "scp", "authalic", False),
-          ("real/cortex-lh", "scp", "authalic", True), ("real/cortex-lh", "dncp-opt", "authalic", False)}
-#: More than 10 s each (measured 12 to 32 s): the failing searches above on cortex-lh's
-#: 451 boundary vertices, and the exact boundary search after the subspace one.
+#: Combinations with no regular map at any k as asked, and the fallback that gives one
+#: (methods/mesh/fallbacks.py). bump-domain: with the farthest pins (two corners of the
+#: square) the map spins at every k (turning numbers 3 to 110), with or without the
+#: uniform authalic rows; the first other pair is regular. cortex-lh: the authalic maps
+#: keep an extra turn at every k (boundary vertices whose negative weights cancel their
+#: row); with uniform authalic rows at the 3150 vertices with a negative weight they are
+#: regular.
+FALLBACKS = {
+    ("real/bump-domain", "dncp-opt", "authalic", True): {"pins_fallback": 1, "pins_farthest": [230, 232],
+                                                         "pins": [494, 354]},
+    ("real/cortex-lh", "scp", "authalic", False): {"authalic_fallback": "negative", "n_uniform_rows": 3150},
+    ("real/cortex-lh", "scp", "authalic", True): {"authalic_fallback": "negative", "n_uniform_rows": 3150},
+    ("real/cortex-lh", "dncp-opt", "authalic", False): {"authalic_fallback": "negative", "n_uniform_rows": 3150,
+                                                        "pins": [376, 12191]},
+}
+#: More than 10 s each (measured 12 to 32 s): the failing searches before the fallback on
+#: cortex-lh's 451 boundary vertices, and the exact boundary search after the subspace one.
 SLOW = {("real/cortex-lh", "scp", "authalic", False), ("real/cortex-lh", "scp", "authalic", True),
         ("real/cortex-lh", "scp", "cotangent", True), ("real/cortex-lh", "scp", "hybrid", True)}
 #: Regular outer boundary, but one of bunny10k's filled holes collapses (turning number 0;
@@ -140,17 +149,19 @@ CASES = [pytest.param(name, method, weights, normalized, id=f"{name[5:]}-{method
 def test_every_weight_option_works_on_every_real_mesh(real_meshes, name, method, weights, normalized):
     s = real_meshes[name]
     case = (name, method, weights, normalized)
-    if case in NO_MAP:
-        # a specific error naming parameters the method has, not "use k_search='direct'" (tried)
-        mode = "dncp" if method == "dncp-opt" else "scp"
-        with pytest.raises(ConvergenceError, match=rf"no regular {mode} map at any k.*other weights") as info:
-            get_method(method)(s, weights=weights, normalized=normalized)
-        assert ("normalized=False" in str(info.value)) == normalized
-        assert ("other pins" in str(info.value)) == (mode == "dncp")
-        return
     res = get_method(method)(s, weights=weights, normalized=normalized)
     assert np.isfinite(res.uv).all()
     assert res.diagnostics["regular_boundary"]
+    fallback = FALLBACKS.get(case, {})
+    for key, value in fallback.items():
+        assert res.diagnostics[key] == value, key
+    if fallback:
+        assert res.diagnostics["fallback_reason"].startswith(f"no regular {method.split('-')[0]} map at any k")
+    else:
+        # the fallbacks fire nowhere else: every other map is the one asked for
+        assert not {"authalic_fallback", "pins_fallback", "fallback_reason"} & set(res.diagnostics)
+    assert ("authalic_fallback" in fallback) == ("authalic_fallback" in res.diagnostics)
+    assert ("pins_fallback" in fallback) == ("pins_fallback" in res.diagnostics)
     loops = mesh_boundary_loops(s.faces)
     turning = sorted(round(turning_number(res.uv[loop])) for loop in loops)
     m = evaluate(s.points, s.faces, res.uv)
@@ -159,3 +170,24 @@ def test_every_weight_option_works_on_every_real_mesh(real_meshes, name, method,
         assert turning == [-1, -1, -1, 0, 1]
         return
     assert turning == [-1] * (len(loops) - 1) + [1]
+
+
+def test_given_pins_are_never_changed(real_meshes):
+    # the farthest pair of bump-domain, given explicitly: no other pins are tried, only the
+    # authalic rows, which do not help with these pins
+    s = real_meshes["real/bump-domain"]
+    with pytest.raises(ConvergenceError, match=r"no regular dncp map at any k") as info:
+        DNCP(s, weights="authalic", normalized=True, pins="230,232")
+    assert "(also without a regular map: uniform_at='negative')" in str(info.value)
+    assert "pins=" not in str(info.value)
+
+
+def test_authalic_uniform_rows_can_be_asked_for(real_meshes):
+    # uniform_at with authalic weights is a plain parameter: used as given, no fallback
+    s = real_meshes["real/lilium"]
+    plain = SCP(s, weights="authalic")
+    res = SCP(s, weights="authalic", uniform_at="negative")
+    n_negative = int(negative_weight_rows(mesh_weights(s.points, s.faces, "authalic")).sum())
+    assert res.diagnostics["n_uniform_rows"] == n_negative > 0
+    assert "authalic_fallback" not in res.diagnostics and "n_uniform_rows" not in plain.diagnostics
+    assert not np.array_equal(res.uv, plain.uv)
