@@ -6,7 +6,8 @@ also covers with peak memory). Each benchmark stores the stage timings, the size
 ratio to ``scp-igl`` on the ground-truth mesh of the same points, timed in the same process,
 and the peak resident memory of the process while each stage ran (``stage_peak_rss_mb``).
 The issue's target: ``ocp`` at 100k points no slower than ``scp-igl`` (ratio <= 1).
-``ocp-multilevel`` is ``ocp`` with ``solver="multilevel"`` (issue #14), ``fbcp-pc`` the
+``ocp`` is ``solver="direct"`` and ``ocp-multilevel`` ``solver="multilevel"`` (issue #14;
+``ocp``'s default ``"auto"`` is the latter from 200k points on), ``fbcp-pc`` the
 free-boundary peer; ``ocp-multilevel``'s ``extra_info``
 adds the coarse level's size, the fine subspace's, how the fine level solved
 (``fine_solver``) and its two-grid cycles, and ``stage_ratio_vs_scp_igl`` gives
@@ -26,7 +27,7 @@ from parambench.methods.registry import get_method
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_BENCH_SIZES", "10000,100000").split(",") if s.strip()]
 #: Benchmark name -> (method, parameters).
-VARIANTS = {"scp-igl": ("scp-igl", {}), "scp": ("scp", {}), "sdp": ("sdp", {}), "ocp": ("ocp", {}),
+VARIANTS = {"scp-igl": ("scp-igl", {}), "scp": ("scp", {}), "sdp": ("sdp", {}), "ocp": ("ocp", {"solver": "direct"}),
             "ocp-multilevel": ("ocp", {"solver": "multilevel"}), "fbcp-pc": ("fbcp-pc", {})}
 METHODS = list(VARIANTS)
 CASES = [(n, m) for n in SIZES for m in METHODS]

@@ -163,3 +163,19 @@ def test_multilevel_fine_solvers_give_the_same_map(bump_20k):
     assert abs(factored.diagnostics["k_opt"] - multi.diagnostics["k_opt"]) <= 1e-6
     aligned = similarity_align(multi.uv, factored.uv)
     assert np.sqrt(np.mean(np.sum((aligned - factored.uv) ** 2, axis=1))) <= 1e-5 * surf.diameter
+
+
+def test_auto_solver_takes_the_two_level_path_from_its_threshold(monkeypatch):
+    import parambench.methods.plugins.ocp as ocp_plugin
+
+    surf = make_surface("bump", 3000, sampling="jittered", seed=0)
+    below = get_method("ocp")(surf.points_only())
+    assert below.diagnostics["solver"] == "direct" and below.diagnostics["solver_option"] == "auto"
+    monkeypatch.setattr(ocp_plugin, "MULTILEVEL_FROM", 2000)
+    above = get_method("ocp")(surf.points_only())
+    assert above.diagnostics["solver"] == "multilevel" and above.diagnostics["coarse_points"] > 0
+    # the direct k search has no two-level path: auto keeps it direct at any size
+    direct_k = get_method("ocp")(surf.points_only(), k_search="direct")
+    assert direct_k.diagnostics["solver"] == "direct"
+    assert ocp_plugin.resolve_solver("multilevel", 10, "line") == "multilevel"
+    assert ocp_plugin.resolve_solver("auto", 10**6, "direct") == "direct"
