@@ -163,7 +163,8 @@ def test_setuptools_config_lists_only_existing_package_data():
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())
     package_dir = config["tool"]["setuptools"]["package-dir"]
     for package, patterns in config["tool"]["setuptools"]["package-data"].items():
-        base = ROOT / package_dir[package]
+        top = max((name for name in package_dir if package == name or package.startswith(name + ".")), key=len)
+        base = ROOT / package_dir[top] / Path(*package[len(top) + 1:].split(".")) if package != top else ROOT / package_dir[top]
         assert importlib.util.find_spec(package) is not None
         for pattern in patterns:
             assert list(base.glob(pattern)), f"{package}: {pattern} matches no file"
@@ -183,13 +184,17 @@ def test_env_var_still_overrides_the_shipped_folder(tmp_path, monkeypatch):
 
 
 def _source_packages() -> set[str]:
-    """Every package folder of the four top-level folders, as its installed dotted name."""
+    """Every package folder of the four top-level folders (and data folder), as its installed dotted name."""
     names = set()
     for top in TOP_FOLDERS:
         for init in (ROOT / top).rglob("__init__.py"):
             rel = init.parent.relative_to(ROOT)
             if rel.parts[:2] != ("bench", "benchmarks") and "__pycache__" not in rel.parts:
                 names.add("parambench." + ".".join(rel.parts))
+    # Data-only folders ship as packages of their own (the real meshes).
+    for folder in (ROOT / "datasets_gen" / "data").iterdir():
+        if folder.is_dir() and folder.name != "__pycache__":
+            names.add(f"parambench.datasets_gen.data.{folder.name}")
     return names
 
 
