@@ -31,15 +31,14 @@ was factorised once (sparse direct, O(n^1.5)) and the front end is unchanged: at
 
 The fine level now factorises nothing by default (``fine_solver="twogrid"``): its
 interior solves are two-grid cycles (:mod:`.twogrid`) whose coarse correction is the
-coarse level's own interior factorisation, kept alive for that. Measured (bump,
-jittered, one run each, 2 cores): at 100k the fine map equals the factorised one to
-2e-6 relative (k_opt to 5e-8) with ``fine_rtol`` 1e-8; at 300k ocp end to end 35.6 s
-against 34.3 s with the fine factorisation and 36.5 s for ``solver="direct"``, peak
-1.69 GB against 1.93 and 1.82 GB (the peak is now the Laplacian's assembly, not a
-solve); at 1M (``fine_rtol`` 1e-10, a second job on the cores) 249 s against 226 s,
-peak 4.9 GB against 6.3 GB, k_opt equal to 4e-9. So the fine factorisation's memory is
-gone but not its time: 33 right-hand sides, each about ten cycles of four Gauss-Seidel
-sweeps over 29 nonzeros per row, cost what the factorisation and its solves did.
+coarse level's own interior factorisation, kept alive for that. Measured on the final
+code (jittered, quiet 2-core machine, one run each, ocp end to end): 300k points bump /
+holes / cap 30.3 / 42.8 / 35.9 s against 48.1 / 42.7 / 46.9 s for ``solver="direct"``;
+1M bump 176 s and 3.44 GB peak against 237 s and 5.86 GB (fine level 106 s: 37
+right-hand sides, 99 cycles). The map is the direct one's to 5.4e-4 of the diameter or
+better (20k, 11 surfaces and samplings; 300k), k_opt to 2.4e-5 or better. Where the
+cycles stall (the slit, whose coarse interpolation bridges the gap; random sampling,
+with 65 % of the rows not diagonally dominant) the solver factorises instead.
 """
 
 from __future__ import annotations
@@ -244,8 +243,7 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     solvers: list = []
     interior_solver = None
     if coarse_reduction is not None:
-        interior_solver = _two_grid_factory(prolong, coarse, coarse_reduction, settings, solvers)
-    del prolong
+        interior_solver = _two_grid_factory(prolong, coarse_reduction, settings, solvers)
     with single_threaded_blas(), stage("fine"):
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points, subspace_modes=settings.fine_modes,
                                 subspace_extra=np.column_stack([z_b.real, z_b.imag]), interior_solver=interior_solver)
@@ -261,8 +259,7 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     return sol, info
 
 
-def _two_grid_factory(prolong: sp.csr_matrix, coarse: np.ndarray, coarse_reduction, settings: MultilevelSettings,
-                      made: list):
+def _two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: MultilevelSettings, made: list):
     """``interior_solver`` for the fine problem: two-grid cycles on the coarse interior factorisation.
 
     The fine interior rows of P restricted to the coarse interior columns interpolate
