@@ -91,6 +91,9 @@ class MultilevelSettings:
         factorisation.
     fine_rtol : float
         Relative residual of the two-grid solves.
+    fine_ktol : float
+        The fine subspace k search is repeated on the refined subspace until k_opt moves
+        by less than this, relative (``ConformalProblem``'s ``subspace_ktol``).
     """
 
     radius_factor: float = 2.0
@@ -98,6 +101,7 @@ class MultilevelSettings:
     seed: int = 0
     fine_solver: str = "twogrid"
     fine_rtol: float = 1e-8
+    fine_ktol: float = 1e-6
 
 
 def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.ndarray | None = None,
@@ -246,7 +250,8 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         interior_solver = _two_grid_factory(prolong, coarse_reduction, settings, solvers)
     with single_threaded_blas(), stage("fine"):
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points, subspace_modes=settings.fine_modes,
-                                subspace_extra=np.column_stack([z_b.real, z_b.imag]), interior_solver=interior_solver)
+                                subspace_extra=np.column_stack([z_b.real, z_b.imag]), interior_solver=interior_solver,
+                                subspace_ktol=settings.fine_ktol)
         sol = fine.solve("scp", "line")
     info = {"coarse_points": int(coarse.size), "coarse_k_opt": float(coarse_k),
             "coarse_regular": bool(coarse_info["regular"]),

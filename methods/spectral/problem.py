@@ -306,7 +306,7 @@ class ConformalProblem:
     def _scp_subspace_search(self, line_kwargs: dict) -> tuple[ConformalSolution, dict]:
         """k_opt by the line search on the boundary subspace, then the exact map there."""
         red, sub, result, point, info = self._subspace_search(line_kwargs)
-        z = red.extend(point.state[0]) if point.regular else None
+        z = sub.extend(point.state[0]) if point.regular else None
         # The interior factorisation is done with; free it before any fallback factorises.
         self._release_reductions()
         backend = "subspace"

@@ -41,7 +41,8 @@ class BoundaryReduction:
         Elimination order for L_II (indices into the interior list).
     interior_solver : callable, optional
         ``interior_solver(l_ii, interior)`` returns the object that solves with L_II
-        (``solve(rhs)``, ``n_solves``, ``mixed``, ``arrays_per_column``), e.g. a
+        (``solve(rhs)``, ``n_solves``, ``mixed``, ``arrays_per_column``, optionally
+        ``iterative``), e.g. a
         :class:`~parambench.methods.spectral.twogrid.TwoGridSolver`; a
         :class:`~parambench.methods.spectral.sparse_eigen.SparseFactor` in ``perm_interior``'s
         order when omitted.
@@ -104,6 +105,11 @@ class BoundaryReduction:
             self._schur = self.apply_schur(np.eye(self.keep.size))
         return self._schur
 
+    @property
+    def solves_are_iterative(self) -> bool:
+        """Whether each interior solve costs cycles of an iterative solver (then callers keep solutions)."""
+        return bool(getattr(self._factor, "iterative", False))
+
     def apply_schur(self, x: np.ndarray) -> np.ndarray:
         """``S x = L_KK x - L_KI L_II^{-1} L_IK x`` without forming S.
 
@@ -117,6 +123,23 @@ class BoundaryReduction:
             Costs m solves with the interior factorisation, in blocks bounded by
             ``max_block_bytes``.
         """
+        return self._schur_product(x, None)
+
+    def apply_schur_extended(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``S x`` and the interior values of the harmonic extensions of x's columns.
+
+        Returns
+        -------
+        sx : (K, m) numpy.ndarray of float64
+        interior : (V - K, m) numpy.ndarray of float64
+            ``-L_II^{-1} L_IK x``: with them, :meth:`extend` of any combination of x's
+            columns costs no further solve.
+        """
+        x = np.asarray(x, dtype=np.float64)
+        interior = np.zeros((self.interior.size, x.shape[1]))
+        return self._schur_product(x, interior), interior
+
+    def _schur_product(self, x: np.ndarray, interior: np.ndarray | None) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
         out = np.asarray(self._l_kk @ x, dtype=np.float64)
         if self._factor is None:
@@ -126,15 +149,21 @@ class BoundaryReduction:
         with single_threaded_blas():  # see parambench.methods.spectral.threads
             for start in range(0, x.shape[1], block):
                 cols = slice(start, min(start + block, x.shape[1]))
-                out[:, cols] -= self._l_ki @ self._factor.solve(np.ascontiguousarray(self._l_ik @ x[:, cols]))
+                sol = self._factor.solve(np.ascontiguousarray(self._l_ik @ x[:, cols]))
+                out[:, cols] -= self._l_ki @ sol
+                if interior is not None:
+                    interior[:, cols] = -sol
         return out
 
-    def extend(self, z_keep: np.ndarray) -> np.ndarray:
+    def extend(self, z_keep: np.ndarray, interior: np.ndarray | None = None) -> np.ndarray:
         """Harmonic extension of kept values to all vertices.
 
         Parameters
         ----------
         z_keep : (K,) numpy.ndarray of complex128
+        interior : (V - K,) numpy.ndarray of complex128, optional
+            The extension's interior values when the caller already has them (a
+            combination of :meth:`apply_schur_extended`'s); no solve then.
 
         Returns
         -------
@@ -143,7 +172,9 @@ class BoundaryReduction:
         n = self.keep.size + self.interior.size
         z = np.empty(n, dtype=np.complex128)
         z[self.keep] = z_keep
-        if self._factor is not None:
+        if interior is not None:
+            z[self.interior] = interior
+        elif self._factor is not None:
             rhs = -(self._l_ik @ np.column_stack([z_keep.real, z_keep.imag]))
             with single_threaded_blas():
                 x = self._factor.solve(rhs)

@@ -149,13 +149,24 @@ class BoundarySubspace:
         Interior solves spent on ``S Q``.
     """
 
+    #: Largest relative distance of boundary values from the basis's span for which
+    #: :meth:`extend` combines the kept interior values.
+    SPAN_RTOL = 1e-10
+
     def __init__(self, reduction: BoundaryReduction, area: sp.spmatrix, loops: Sequence[np.ndarray],
                  points: np.ndarray | None = None, n_modes: int = DEFAULT_MODES,
                  extra: np.ndarray | None = None) -> None:
         self.basis = boundary_basis(loops, points, n_modes, extra)
         self._reduction = reduction
         before = reduction.n_solves
-        self._sq = reduction.apply_schur(self.basis)
+        # With an iterative interior solver every solve costs cycles: the interior values
+        # the Schur products compute anyway are kept, so the final map's harmonic
+        # extension is a combination of them (:meth:`extend`), not two more solves.
+        self._interior = None
+        if reduction.solves_are_iterative:
+            self._sq, self._interior = reduction.apply_schur_extended(self.basis)
+        else:
+            self._sq = reduction.apply_schur(self.basis)
         self.n_solves = reduction.n_solves - before
         keep = reduction.keep
         self._m_kk = sp.csr_matrix(area)[keep][:, keep]
@@ -267,7 +278,7 @@ class BoundarySubspace:
             The preconditioner is singular.
         """
         red = self._reduction
-        basis, sq = self.basis, self._sq
+        basis, sq, interior = self.basis, self._sq, self._interior
         l_kk = red.boundary_block
         scale = 0.5 * abs(k) * float(np.abs(l_kk.diagonal()).max())
         eye = sp.identity(basis.shape[0], format="csc")
@@ -296,12 +307,38 @@ class BoundarySubspace:
                 break
             q = q[:, ok]
             basis = np.hstack([basis, q])
-            sq = np.hstack([sq, red.apply_schur(q)])
+            if interior is None:
+                sq = np.hstack([sq, red.apply_schur(q)])
+            else:
+                sq_q, interior_q = red.apply_schur_extended(q)
+                sq, interior = np.hstack([sq, sq_q]), np.hstack([interior, interior_q])
             steps += 1
         if absorb and basis is not self.basis:
-            self.basis, self._sq = basis, sq
+            self.basis, self._sq, self._interior = basis, sq, interior
             self._s = basis.T @ sq
             self._m = basis.T @ np.asarray(self._m_kk @ basis)
         turning = loop_turning_numbers(z, self._local_loops)
         point = KPoint(k=float(k), energy=float(lam.real), turning=turning, state=(z, lam))
         return point, {"refine_steps": steps, "boundary_residual": rel}
+
+    def extend(self, z_keep: np.ndarray) -> np.ndarray:
+        """Harmonic extension of boundary values to every vertex.
+
+        For values in the basis's span (every map :meth:`evaluate` and :meth:`refine`
+        with ``absorb`` return) and kept interior values, a combination of those; an
+        interior solve otherwise (:meth:`BoundaryReduction.extend`).
+
+        Parameters
+        ----------
+        z_keep : (K,) numpy.ndarray of complex128
+
+        Returns
+        -------
+        (V,) numpy.ndarray of complex128
+        """
+        if self._interior is not None:
+            y = self.basis.T @ z_keep  # the basis is orthonormal
+            off = np.linalg.norm(z_keep - self.basis @ y)
+            if off <= self.SPAN_RTOL * max(np.linalg.norm(z_keep), np.finfo(float).tiny):
+                return self._reduction.extend(z_keep, interior=self._interior @ y)
+        return self._reduction.extend(z_keep)

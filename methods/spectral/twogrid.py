@@ -101,10 +101,14 @@ class TwoGridSolver:
         Always False (the attribute :class:`~parambench.methods.spectral.reduction.BoundaryReduction` reads).
     arrays_per_column : int
         Work arrays of the matrix's size per right-hand side (block-size budget).
+    iterative : bool
+        Always True: every solve costs cycles, so callers keep solutions they may reuse
+        (:meth:`~parambench.methods.spectral.reduction.BoundaryReduction.apply_schur_extended`).
     """
 
     mixed = False
     arrays_per_column = 4
+    iterative = True
 
     def __init__(self, matrix: sp.spmatrix, prolong: sp.spmatrix, coarse_solve: Callable[[np.ndarray], np.ndarray],
                  *, rtol: float = 1e-10, max_cycles: int = 40, sweeps: int = 2, stall: float = 0.7,

@@ -12,6 +12,7 @@ from parambench.datasets_gen.registry import make_surface
 from parambench.methods.pointset.subsample import poisson_disk_subsample
 from parambench.methods.spectral.multilevel import interpolation_matrix
 from parambench.methods.spectral.reduction import BoundaryReduction
+from parambench.methods.spectral.subspace import BoundarySubspace
 from parambench.methods.spectral.twogrid import TwoGridSolver
 
 
@@ -105,3 +106,24 @@ def test_boundary_reduction_with_the_two_grid_solver_matches_the_factorised_one(
     assert np.abs(s_iter - s_exact).max() <= 1e-7 * np.abs(s_exact).max()
     z = np.exp(2j * np.pi * np.arange(boundary.size) / boundary.size)
     assert np.abs(iterative.extend(z) - exact.extend(z)).max() <= 1e-8
+
+
+def test_a_subspace_on_the_two_grid_solver_extends_its_maps_without_a_further_solve(cap_problem):
+    """The interior values the Schur products computed are reused: same map, no extra solve."""
+    lap, interior, boundary, l_ii, p_ii = cap_problem
+    coarse_solve = _coarse_solver(l_ii, p_ii)
+    iterative = BoundaryReduction(lap, boundary, interior_solver=lambda block, rows: TwoGridSolver(block, p_ii, coarse_solve))
+    exact = BoundaryReduction(lap, boundary)
+    assert iterative.solves_are_iterative and not exact.solves_are_iterative
+    area = sp.identity(lap.shape[0], format="csr", dtype=np.complex128)
+    sub = BoundarySubspace(iterative, area, [boundary], n_modes=4)
+    y = np.random.default_rng(5).standard_normal(sub.size) + 1j * np.random.default_rng(6).standard_normal(sub.size)
+    z_b = sub.basis @ y
+    before = iterative.n_solves
+    z = sub.extend(z_b)
+    assert iterative.n_solves == before
+    assert np.abs(z - exact.extend(z_b)).max() <= 1e-7 * np.abs(z_b).max()
+    # Values outside the basis's span take the solve.
+    off = np.exp(2j * np.pi * 7.3 * np.arange(boundary.size) / boundary.size)
+    assert np.abs(sub.extend(off) - exact.extend(off)).max() <= 1e-7
+    assert iterative.n_solves == before + 2
