@@ -110,6 +110,11 @@ class BoundaryReduction:
         """Whether each interior solve costs cycles of an iterative solver (then callers keep solutions)."""
         return bool(getattr(self._factor, "iterative", False))
 
+    @property
+    def solve_rtol(self) -> float:
+        """Relative residual the interior solves stop at (0.0 for a factorisation, exact to rounding)."""
+        return float(getattr(self._factor, "rtol", 0.0)) if self.solves_are_iterative else 0.0
+
     def apply_schur(self, x: np.ndarray) -> np.ndarray:
         """``S x = L_KK x - L_KI L_II^{-1} L_IK x`` without forming S.
 

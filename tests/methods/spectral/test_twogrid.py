@@ -127,3 +127,21 @@ def test_a_subspace_on_the_two_grid_solver_extends_its_maps_without_a_further_so
     off = np.exp(2j * np.pi * 7.3 * np.arange(boundary.size) / boundary.size)
     assert np.abs(sub.extend(off) - exact.extend(off)).max() <= 1e-7
     assert iterative.n_solves == before + 2
+
+
+def test_refinement_on_iterative_solves_stops_at_their_accuracy(cap_problem):
+    """Davidson steps cannot beat the interior solves' tolerance: refine stops there, spending no solve."""
+    lap, interior, boundary, l_ii, p_ii = cap_problem
+    coarse_solve = _coarse_solver(l_ii, p_ii)
+    red = BoundaryReduction(lap, boundary,
+                            interior_solver=lambda block, rows: TwoGridSolver(block, p_ii, coarse_solve, rtol=1e-6))
+    assert red.solve_rtol == 1e-6
+    area = sp.diags(np.isin(np.arange(lap.shape[0]), boundary).astype(np.complex128) * 1e-3).tocsr()
+    sub = BoundarySubspace(red, area, [boundary], n_modes=6)
+    first, info = sub.refine(1.0, absorb=True)
+    floor = BoundarySubspace.SOLVE_FLOOR * red.solve_rtol
+    assert info["boundary_residual"] <= floor or info["refine_steps"] == 12
+    before = red.n_solves
+    again, info = sub.refine(1.0)
+    assert info["refine_steps"] == 0 and red.n_solves == before
+    assert abs(again.energy - first.energy) <= 1e-12 * max(abs(first.energy), 1.0)
