@@ -122,6 +122,13 @@ def is_symmetric(matrix: sp.spmatrix, rtol: float = 1e-12) -> bool:
     a = sp.csr_matrix(matrix)
     if a.nnz == 0:
         return True
+    # Two products decide the common non-symmetric case (ocp's Laplacian) without forming
+    # A - A^T (1.2 s at 1M points): x^T A y = y^T A x for every x, y only if A is symmetric.
+    rng = np.random.default_rng(0)
+    x, y = rng.standard_normal(a.shape[0]), rng.standard_normal(a.shape[0])
+    scale = float(np.abs(a.data).max()) * np.linalg.norm(x) * np.linalg.norm(y) * np.sqrt(a.nnz / a.shape[0])
+    if abs(x @ (a @ y) - y @ (a @ x)) > 1e-6 * scale:
+        return False
     diff = abs(a - a.T)
     return bool(diff.nnz == 0 or diff.max() <= rtol * abs(a).max())
 

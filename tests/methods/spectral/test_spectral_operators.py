@@ -88,3 +88,14 @@ def test_turning_numbers_and_penalty():
     assert not is_regular_turning(np.array([1, 1])) and not is_regular_turning(np.array([2]))
     assert turning_penalty(np.array([1, -1, -1])) == 0
     assert turning_penalty(np.array([3, -1])) == 2 and turning_penalty(np.array([0])) == 1
+
+
+@pytest.mark.parametrize("asymmetry, expected", [(0.0, True), (1e-14, True), (1e-9, False), (0.3, False)])
+def test_is_symmetric_decides_by_the_entrywise_tolerance(asymmetry, expected):
+    """The quick two-product test may only say no where the entrywise test does."""
+    n = 400
+    rng = np.random.default_rng(1)
+    a = sp.random(n, n, density=0.02, random_state=2, format="csr")
+    sym = (a + a.T).tocsr()
+    bump = sp.csr_matrix(([asymmetry * abs(sym).max()], ([3], [int(rng.integers(4, n))])), shape=(n, n))
+    assert is_symmetric(sym + bump) is expected
