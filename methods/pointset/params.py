@@ -69,13 +69,16 @@ class FrontEndParams:
         balls; "global": the paper's single ``eps = ball_eps_factor * l`` everywhere and
         one area per point.
     neighbours : {"auto", "euclidean", "surface", "pruned"}
-        "auto" (default): the "pruned" graph where it finds a gap (some dropped edge
-        whose ends are more than 4 hops apart along the pruned graph), the paper's plain
-        K nearest otherwise (:func:`parambench.methods.pointset.surface_neighbours.gap_aware_knn_graph`);
-        on the 56 cases of the real-data benchmark it picks "pruned" on camelhead,
-        cortex-lh, bunny10k and the "fold" with random and graded sampling, and is
-        "euclidean" bit for bit everywhere else. "euclidean": the paper's plain K
-        nearest. "surface": K neighbours kept
+        "auto" (default): the paper's plain K nearest, except where the points have a
+        gap (some edge "pruned" drops joins points more than 4 hops apart along the
+        pruned graph); there the pruning is redone with poorly fitted normals borrowed
+        from the best-fitted neighbour and its dropped edges without a 4-hop detour are
+        cut (:func:`parambench.methods.pointset.surface_neighbours.gap_aware_knn_graph`).
+        On the 56 cases of the real-data benchmark a gap is found on camelhead,
+        cortex-lh, bunny10k and "fold" with random and graded sampling (the four folds
+        then 0 foldovers, QC within 1.2 % of scp-igl); every other case gets the
+        Euclidean graph bit for bit. Costs ~0.35 s of CPU per 20k points without a gap.
+        "euclidean": the paper's plain K nearest. "surface": K neighbours kept
         along the surface, not across narrow gaps
         (:func:`parambench.methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it
         does not separate the touching sheets of the camelhead scan and with noise of 0.5
@@ -86,9 +89,8 @@ class FrontEndParams:
         balls and boundary then stay on one sheet. It fixes the "fold" surface (jittered
         2k/20k, graded 2k: 0 foldovers, QC within 2 % of scp-igl), but on its own it also
         drops edges at sharp tips where no gap is (protrusions, random 2k: 34 foldovers
-        instead of 17), hence "auto"; the camelhead lips (closer than a fifth of a
-        spacing) and the cortex's sulci are still bridged, and "fold" with random
-        sampling or graded at 20k still fails.
+        instead of 17) and keeps a few edges between the fold's free edges (random 2k
+        and 20k, graded 20k: ConvergenceError), hence "auto".
     boundary_method : {"angle", "rings"}
         "angle" (default): the paper's angle criterion on the geodesic balls, candidates
         chained into loops (:mod:`parambench.methods.pointset.boundary`); "rings": loops of the

@@ -1,17 +1,19 @@
-"""The default neighbour graph (``neighbours="auto"``): pruned where a gap is, Euclidean elsewhere."""
+"""The default neighbour graph (``neighbours="auto"``): gap edges cut where a gap is, Euclidean elsewhere."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.pointset.frontend import build_frontend
 from parambench.methods.pointset.neighbourhoods import far_along_graph, knn_graph, symmetric_adjacency
 from parambench.methods.pointset.params import FrontEndParams
-from parambench.methods.pointset.surface_neighbours import gap_aware_knn_graph, pruned_knn_graph
+from parambench.methods.pointset.normals import pca_normals
+from parambench.methods.pointset.surface_neighbours import _fitted_normals, gap_aware_knn_graph, pruned_knn_graph
 from parambench.methods.registry import get_method
 
 
@@ -47,26 +49,61 @@ def test_no_gap_keeps_the_euclidean_graph(name, sampling):
         assert pruned_knn_graph(s.points, 8)[1]["n_dropped_edges"] > 0
 
 
+def _cross_sheet_edges(surface, graph):
+    """Undirected edges whose ends are more than twice as far apart on the fold as in space.
+
+    The fold is developable and its unrolled domain convex, so the distance on the
+    surface is that of the exact uv coordinates; a chord across the U bend has ratio at
+    most pi / 2, an edge across the gap between the flat sheets at least 2.
+    """
+    adj = symmetric_adjacency(graph).tocoo()
+    on_surface = np.linalg.norm(surface.exact_uv[adj.row] - surface.exact_uv[adj.col], axis=1)
+    return int(np.count_nonzero(on_surface > 2.0 * adj.data)) // 2
+
+
 @pytest.mark.parametrize("sampling", ["graded", "random"])
-def test_a_gap_switches_to_the_pruned_graph(sampling):
+def test_a_gap_cuts_every_edge_across_the_fold(sampling):
     s = make_surface("fold", 2000, sampling=sampling, seed=0)
+    assert _cross_sheet_edges(s, knn_graph(s.points, 8)) > 10  # the Euclidean graph bridges the sheets
     graph, diag = gap_aware_knn_graph(s.points, 8)
-    pruned, _ = pruned_knn_graph(s.points, 8)
-    assert diag["pruned"] and diag["n_gap_edges"] > 0
-    assert np.array_equal(graph.indices, pruned.indices)
-    # the gap edges really are long on the surface: the fold is developable, so the
-    # distance on it is the distance of the exact map; across the gap it is > 2x the chord
-    plain = knn_graph(s.points, 8)
-    adj = symmetric_adjacency(plain).tocoo()
-    on_surface = np.linalg.norm(s.exact_uv[adj.row] - s.exact_uv[adj.col], axis=1)
-    assert np.count_nonzero(on_surface > 2.0 * adj.data) > 0
+    assert diag["pruned"] and diag["n_gap_edges"] > 0 and diag["n_cut_edges"] > 0
+    assert _cross_sheet_edges(s, graph) == 0
+    assert np.all(np.diff(graph.distances, axis=1) >= 0) and np.all(graph.indices != np.arange(s.n_points)[:, None])
+    assert connected_components(symmetric_adjacency(graph), directed=False)[0] == 1
+    if sampling == "random":
+        # the plain pruning keeps edges between the sheets' free edges (normals fitted
+        # across the gap there): the reason for the second pruning with borrowed normals
+        assert _cross_sheet_edges(s, pruned_knn_graph(s.points, 8)[0]) > 0
 
 
-def test_default_ocp_on_a_graded_fold_has_no_foldovers():
-    # Sheets 2-2.5 nominal spacings apart, sampled ~1 local spacing apart where the graded
-    # density is low: the Euclidean neighbours bridge them (158 foldovers, QC 244x before
-    # neighbours="auto"); the default now gives the pruned graph's map.
-    s = make_surface("fold", 2000, sampling="graded", seed=0)
+def test_borrowed_normals_replace_only_poor_fits():
+    rng = np.random.default_rng(0)
+    # a jittered planar grid z = 0 and, over its corner, a 3 x 3 patch of a second sheet
+    # 0.8 spacings above: points next to the patch fit planes across the gap
+    xy = np.stack(np.meshgrid(np.arange(12.0), np.arange(12.0)), axis=-1).reshape(-1, 2)
+    xy += rng.uniform(-0.2, 0.2, xy.shape)
+    plane = np.column_stack([xy, np.zeros(len(xy))])
+    corner = np.all(xy < 2.5, axis=1)
+    pts = np.concatenate([plane, plane[corner] + [0.5, 0.5, 0.8]])
+    idx = knn_graph(pts, 6).indices
+    own = pca_normals(pts, idx)
+    assert np.array_equal(_fitted_normals(pts, idx, None), own)
+    borrowed = _fitted_normals(pts, idx, 5.0)
+    changed = np.flatnonzero(np.any(borrowed != own, axis=1))
+    assert changed.size > 0
+    # every borrowed normal is a better fit's: nearer a sheet's normal (z) than its own
+    assert np.all(np.abs(borrowed[changed, 2]) > np.abs(own[changed, 2]))
+    # points of the plane away from the patch keep their own normal
+    away = np.flatnonzero(np.linalg.norm(xy - 1.0, axis=1) > 5.0)
+    assert not np.isin(away, changed).any()
+
+
+@pytest.mark.parametrize("sampling", ["graded", "random"])
+def test_default_ocp_on_a_fold_has_no_foldovers(sampling):
+    # Sheets 2-2.5 nominal spacings apart (graded: ~1 local spacing where the density is
+    # low). Before neighbours="auto": graded 158 foldovers, QC 244x scp-igl's; random a
+    # ConvergenceError (two loops for one), also with neighbours="pruned".
+    s = make_surface("fold", 2000, sampling=sampling, seed=0)
     given = s.method_input(False)
     base = evaluate(s.points, s.faces, get_method("scp-igl")(s).uv, boundary_loops=s.boundary_loops,
                     diameter=s.diameter)
