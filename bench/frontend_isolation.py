@@ -217,6 +217,8 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
     opts = replace(params or FrontEndParams(), smooth_normals=bool(smooth))
     if graph is None and mesh_neighbours:
         graph = mesh_ring_knn(pts, ctx["adjacency"], int(opts.k_nn), rings)
+    if graph is not None:  # the substitute replaces the Euclidean kNN search (the patched knn_graph)
+        opts = replace(opts, neighbours="euclidean")
     with _front_end_patched(pts, graph, skip_normal_check=true_normals):
         front = _frontend.build_frontend(pts, ctx["normals"] if true_normals else None, opts)
     detected = front.boundary_loops

@@ -25,7 +25,7 @@ from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
-from .surface_neighbours import pruned_knn_graph, surface_knn_graph
+from .surface_neighbours import gap_aware_knn_graph, pruned_knn_graph, surface_knn_graph
 from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
@@ -63,7 +63,7 @@ SPACING_MODES = ("local", "global")
 BOUNDARY_METHODS = ("angle", "rings")
 
 #: ``neighbours`` settings of :func:`build_frontend`.
-NEIGHBOUR_MODES = ("surface", "euclidean", "pruned")
+NEIGHBOUR_MODES = ("auto", "surface", "euclidean", "pruned")
 
 #: When no boundary loop closes, the boundary stage is retried on balls this much wider.
 _RETRY_BALL_SCALE = 1.6
@@ -242,7 +242,7 @@ class Neighbourhoods(NamedTuple):
     h_local: np.ndarray
 
 
-def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing_mode: str = "local") -> Neighbourhoods:
+def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode: str = "local") -> Neighbourhoods:
     """Stage ``knn``: kd-tree order, the kNN graph, its connectedness, and the spacing fields.
 
     Parameters
@@ -250,7 +250,7 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing
     pts : (N, 3) numpy.ndarray of float64
         Checked points, input order.
     k_nn : int
-    neighbours : {"euclidean", "surface", "pruned"}
+    neighbours : {"auto", "euclidean", "surface", "pruned"}
     spacing_mode : {"local", "global"}
 
     Returns
@@ -273,6 +273,8 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "euclidean", spacing
         graph, nbr_diag = surface_knn_graph(p, k_nn)
     elif neighbours == "pruned":
         graph, nbr_diag = pruned_knn_graph(p, k_nn)
+    elif neighbours == "auto":
+        graph, nbr_diag = gap_aware_knn_graph(p, k_nn)
     else:
         graph, nbr_diag = knn_graph(p, k_nn), {}
     adjacency = symmetric_adjacency(graph)

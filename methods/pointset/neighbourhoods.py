@@ -16,7 +16,8 @@ from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError
 
-__all__ = ["local_spacing", "KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order"]
+__all__ = ["local_spacing", "KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order",
+           "far_along_graph"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,3 +176,41 @@ def spatial_order(points: np.ndarray) -> np.ndarray:
         ``points[order]`` is the reordered set.
     """
     return np.asarray(cKDTree(points, leafsize=16).indices, dtype=np.int64)
+
+
+#: Source points per block of the hop search (bounds the reach matrix's memory).
+_HOP_CHUNK = 20_000
+
+
+def far_along_graph(adjacency: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray, hops: int) -> np.ndarray:
+    """Whether each pair ``rows[i]``, ``cols[i]`` is more than ``hops`` edges apart in a graph.
+
+    Parameters
+    ----------
+    adjacency : (N, N) scipy.sparse.csr_matrix
+        Symmetric; non-zero entries are edges.
+    rows, cols : (M,) numpy.ndarray of int
+    hops : int
+
+    Returns
+    -------
+    (M,) numpy.ndarray of bool
+    """
+    far = np.ones(rows.size, dtype=bool)
+    if rows.size == 0:
+        return far
+    n = adjacency.shape[0]
+    step = (adjacency + sp.identity(n, format="csr")).astype(bool).tocsr()
+    sources, which = np.unique(rows, return_inverse=True)
+    for lo in range(0, sources.size, _HOP_CHUNK):
+        block = sources[lo:lo + _HOP_CHUNK]
+        # Boolean reach of each source after 1, 2, ..., hops steps (a breadth-first
+        # search of all sources at once, as sparse products).
+        reach = sp.csr_matrix((np.ones(block.size, dtype=bool), (np.arange(block.size), block)),
+                              shape=(block.size, n))
+        for _ in range(int(hops)):
+            reach = (reach @ step).astype(bool)
+        reach = reach.tocsr()
+        mine = np.flatnonzero((which >= lo) & (which < lo + block.size))
+        far[mine] = ~np.asarray(reach[which[mine] - lo, cols[mine]]).ravel().astype(bool)
+    return far

@@ -182,7 +182,10 @@ def test_stage_diagnostics_are_json_and_match_the_stages(grid_stages):
     assert diag["n_points"] == N_SIDE**2 and diag["k_nn"] == 8 and diag["normals_source"] == "pca"
     assert diag["ball_size"]["min"] == balls.sizes.min() and diag["ball_size"]["max"] == balls.sizes.max()
     assert diag["reconstruction_error"]["max"] == pytest.approx(r_x.max() / nb.spacing**2)
-    assert diag["boundary"]["retried_with_wider_balls"] is False and diag["neighbours"] == {"mode": "euclidean"}
+    assert diag["boundary"]["retried_with_wider_balls"] is False
+    # knn_stage's default ("auto") found no gap on the grid: its facts, under the mode given
+    assert diag["neighbours"] == dict(nb.neighbour_diagnostics, mode="euclidean")
+    assert nb.neighbour_diagnostics["pruned"] is False
 
 
 def test_build_frontend_is_the_stages_chained(tilted_grid, grid_stages):
