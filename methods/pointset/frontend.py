@@ -25,7 +25,7 @@ from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
-from .surface_neighbours import gap_aware_knn_graph, pruned_knn_graph, surface_knn_graph
+from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
 from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
@@ -563,14 +563,27 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     k_nn = int(params.k_nn)
     timer = StageTimer()
 
+    # "auto" starts from the Euclidean graph; a screen with the normals fitted on it
+    # decides whether the gap-aware graph (about 10x the kNN search) is worth building.
+    screened = params.neighbours == "auto"
     with timer("knn"):
-        nb = knn_stage(pts, k_nn, params.neighbours, params.spacing)
+        nb = knn_stage(pts, k_nn, "euclidean" if screened else params.neighbours, params.spacing)
     order, inv = nb.order, nb.inv
 
-    with timer("normals"):
-        oriented, frame_normals, normal_fit = normals_stage(nb.points, None if given is None else given[order], nb.graph,
-                                                nb.spacing, smooth=params.smooth_normals,
-                                                smoothing=variant["smoothing"])
+    def fit_normals(nb: Neighbourhoods):
+        with timer("normals"):
+            return normals_stage(nb.points, None if given is None else given[order], nb.graph, nb.spacing,
+                                 smooth=params.smooth_normals, smoothing=variant["smoothing"])
+
+    oriented, frame_normals, normal_fit = fit_normals(nb)
+    if screened:
+        with timer("knn"):
+            suspects = gap_suspected(nb.points, nb.graph, oriented)
+            nb = (knn_stage(pts, k_nn, "auto", params.spacing) if suspects
+                  else nb._replace(neighbour_diagnostics={"pruned": False, "n_gap_edges": 0}))
+            nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, screen_suspects=suspects))
+        if nb.neighbour_diagnostics["pruned"]:
+            oriented, frame_normals, normal_fit = fit_normals(nb)
 
     with timer("dem"):
         balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=params.ball_k,

@@ -77,7 +77,12 @@ class FrontEndParams:
         On the 56 cases of the real-data benchmark a gap is found on camelhead,
         cortex-lh, bunny10k and "fold" with random and graded sampling (the four folds
         then 0 foldovers, QC within 1.2 % of scp-igl); every other case gets the
-        Euclidean graph bit for bit. Costs ~0.35 s of CPU per 20k points without a gap.
+        Euclidean graph bit for bit. The gap-aware graph (~10x the kNN search) is only
+        built where a screen with the normals fitted on the Euclidean graph finds a
+        suspect edge without a detour
+        (:func:`parambench.methods.pointset.surface_neighbours.gap_suspected`): on the 56
+        cases and the 22 generated ones at 100k it flags exactly the cases with a gap;
+        elsewhere it costs about half the kNN search (0.13 s at 100k points).
         "euclidean": the paper's plain K nearest. "surface": K neighbours kept
         along the surface, not across narrow gaps
         (:func:`parambench.methods.pointset.surface_neighbours.surface_knn_graph`). Experimental: it

@@ -122,3 +122,21 @@ def test_frontend_reports_the_choice():
     assert nbr["mode"] == "auto" and nbr["pruned"] and nbr["n_gap_edges"] > 0
     flat = build_frontend(make_surface("bump", 1000, sampling="random", seed=1).points)
     assert flat.diagnostics["neighbours"]["pruned"] is False
+
+
+def test_the_screen_flags_a_gap_and_spares_a_surface_without_one(monkeypatch):
+    """The cheap screen on the front end's own normals: the gap-aware graph only where it may matter."""
+    import parambench.methods.pointset.frontend as frontend
+
+    fold = build_frontend(make_surface("fold", 2000, sampling="random", seed=0).points)
+    assert fold.diagnostics["neighbours"]["screen_suspects"] > 0 and fold.diagnostics["neighbours"]["pruned"]
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the gap-aware graph was built on a surface without a gap")
+
+    monkeypatch.setattr(frontend, "gap_aware_knn_graph", refuse)
+    bump = make_surface("bump", 2000, sampling="random", seed=0).points
+    screened = build_frontend(bump)
+    plain = build_frontend(bump, neighbours="euclidean")
+    assert screened.diagnostics["neighbours"]["screen_suspects"] == 0
+    np.testing.assert_array_equal(screened.ball_indices, plain.ball_indices)
