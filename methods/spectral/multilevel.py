@@ -31,14 +31,18 @@ was factorised once (sparse direct, O(n^1.5)) and the front end is unchanged: at
 
 The fine level now factorises nothing by default (``fine_solver="twogrid"``): its
 interior solves are two-grid cycles (:mod:`.twogrid`) whose coarse correction is the
-coarse level's own interior factorisation, kept alive for that. Measured on the final
-code (jittered, quiet 2-core machine, one run each, ocp end to end): 300k points bump /
-holes / cap 30.3 / 42.8 / 35.9 s against 48.1 / 42.7 / 46.9 s for ``solver="direct"``;
-1M bump 176 s and 3.44 GB peak against 237 s and 5.86 GB (fine level 106 s: 37
-right-hand sides, 99 cycles). The map is the direct one's to 5.4e-4 of the diameter or
-better (20k, 11 surfaces and samplings; 300k), k_opt to 2.4e-5 or better. Where the
-cycles stall (the slit, whose coarse interpolation bridges the gap; random sampling,
-with 65 % of the rows not diagonally dominant) the solver factorises instead.
+coarse level's own interior factorisation, kept alive for that. The fine subspace keeps
+the interior values its Schur products solved for, so the final map's extension costs no
+solve, and its Davidson refinement stops at the accuracy the cycles allow
+(:attr:`~parambench.methods.spectral.subspace.BoundarySubspace.SOLVE_FLOOR`): at 1M points
+the fine level then solves its 21 basis columns and nothing else (27 cycles; before, 7
+more sequential 2-column solves that moved k_opt by 4.5e-6). Measured on the final code
+(jittered, quiet 2-core machine, one run each, ocp end to end): 300k points bump / holes
+/ cap 20.5 / 27.3 / 26.0 s against 39.6 / 35.1 / 43.1 s for ``solver="direct"`` (k_opt
+to 6.8e-5, uv to 2.4e-4 of the diameter); 1M bump 110 s and 3.45 GB peak (fine level
+38.8 s) against 237 s and 5.86 GB for the direct path. Where the cycles stall (the
+slit, whose coarse interpolation bridges the gap; random sampling, with 65 % of the rows
+not diagonally dominant) the solver factorises instead.
 """
 
 from __future__ import annotations
