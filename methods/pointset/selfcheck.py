@@ -426,7 +426,9 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
 
 def failure_line(check: dict, params: dict, method: str) -> str:
     """One line, no final period: what failed and what to try."""
-    return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], params, method)}"
+    # After a failed retry (Method.retry_params) propose beyond what it already tried.
+    tried = {**params, **check.get("retry", {}).get("params", {})}
+    return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], tried, method)}"
 
 
 def pointset_faces(points: np.ndarray, uv: np.ndarray, loops: list | None) -> np.ndarray:

@@ -1,0 +1,62 @@
+"""ocp's second run with more neighbours when its map fails the self-check with flipped triangles."""
+
+from __future__ import annotations
+
+import pytest
+
+from parambench.bench.metrics import evaluate
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.pointset.selfcheck import failure_line
+from parambench.methods.registry import get_method
+
+
+@pytest.fixture(scope="module")
+def fingertips():
+    """Random sampling of under-resolved fingertips (radius of curvature ~1 spacing at 20k)."""
+    return make_surface("protrusions", 20000, sampling="random", seed=0)
+
+
+def _quality(surf, result):
+    return evaluate(surf.points, surf.faces, result.uv, boundary_loops=surf.boundary_loops, diameter=surf.diameter)
+
+
+def test_a_map_with_folds_is_replaced_by_the_retry_that_passes(fingertips):
+    ocp = get_method("ocp")
+    first = ocp(fingertips.method_input(False), retry_k_nn=0)
+    assert not first.diagnostics["selfcheck"]["passed"] and "flipped" in first.diagnostics["selfcheck"]["failed"]
+    assert _quality(fingertips, first)["foldovers"] > 0
+
+    retried = ocp(fingertips.method_input(False))
+    check = retried.diagnostics["selfcheck"]
+    assert check["passed"] and check["retry"]["params"] == {"k_nn": 12} and check["retry"]["passed"]
+    assert retried.params["k_nn"] == 8 and not (retried.uv == first.uv).all()
+    base = _quality(fingertips, get_method("scp-igl")(fingertips.method_input(True)))
+    q = _quality(fingertips, retried)
+    assert q["foldovers"] == 0 and q["qc_mean"] <= 1.03 * base["qc_mean"]
+
+
+def test_a_failed_retry_keeps_the_first_map_and_the_hint_goes_further():
+    surf = make_surface("protrusions", 2000, sampling="random", seed=0)
+    ocp = get_method("ocp")
+    plain = ocp(surf.method_input(False), retry_k_nn=0)
+    result = ocp(surf.method_input(False))
+    check = result.diagnostics["selfcheck"]
+    assert not check["passed"] and check["retry"] == {"params": {"k_nn": 12}, "passed": False,
+                                                      "first_reason": plain.diagnostics["selfcheck"]["reason"]}
+    assert (result.uv == plain.uv).all()
+    assert failure_line(check, result.params, "ocp").endswith("try --param k_nn=16")
+    assert failure_line(plain.diagnostics["selfcheck"], plain.params, "ocp").endswith("try --param k_nn=12")
+
+
+def test_a_map_that_passes_is_not_run_again():
+    surf = make_surface("bump", 2000, sampling="jittered", seed=0)
+    result = get_method("ocp")(surf.method_input(False))
+    assert result.diagnostics["selfcheck"]["passed"] and "retry" not in result.diagnostics["selfcheck"]
+
+
+@pytest.mark.parametrize("bad", [-1, 2.5, True, "12"])
+def test_retry_k_nn_must_be_a_whole_number(bad):
+    surf = make_surface("bump", 500, sampling="jittered", seed=0)
+    with pytest.raises(InvalidInputError, match="retry_k_nn"):
+        get_method("ocp")(surf.method_input(False), retry_k_nn=bad)
