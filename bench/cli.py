@@ -137,7 +137,18 @@ def _selfcheck_summary(check: dict | None) -> str:
             + (f" (+{uncertain} within the normals' error of {check.get('normal_tol_deg', 0):g} deg)" if uncertain else "")
             + f", {check.get('n_degenerate', 0)} degenerate of {check['n_triangles']} triangles"
             + (f", loop turning {turning}" if turning else "")
-            + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops" if cov else ""))
+            + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops" if cov else "")
+            + _retry_summary(check.get("retry")))
+
+
+def _retry_summary(retry: dict | None) -> str:
+    """Whether the map is a retry's (Method.retry_params) and with what."""
+    if not retry:
+        return ""
+    changed = ", ".join(f"{key}={value}" for key, value in retry["params"].items())
+    if retry["passed"]:
+        return f" (the map of a second run with {changed}: the first failed, {retry['first_reason']})"
+    return f" (a second run with {changed} failed too{': ' + retry['error'] if retry.get('error') else ''})"
 
 
 def _cmd_flatten(args: argparse.Namespace) -> int:

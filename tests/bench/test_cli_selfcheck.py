@@ -111,3 +111,15 @@ def test_flatten_summary_names_uncertain_flips_only_when_there_are_some():
     assert _selfcheck_summary(check) == "; self-check ok: 0 flipped, 0 degenerate of 3900 triangles"
     text = _selfcheck_summary(dict(check, n_flipped_uncertain=2))
     assert "0 flipped (+2 within the normals' error of 10 deg), 0 degenerate" in text
+
+
+def test_the_summary_says_when_the_map_is_a_retry():
+    from parambench.bench.cli import _selfcheck_summary
+
+    check = {"passed": True, "n_triangles": 10, "n_flipped": 0, "n_degenerate": 0,
+             "retry": {"params": {"k_nn": 12}, "passed": True, "first_reason": "1 flipped triangle(s) of 10"}}
+    assert "second run with k_nn=12: the first failed, 1 flipped" in _selfcheck_summary(check)
+    check = dict(check, passed=False, retry={"params": {"k_nn": 12}, "passed": False, "first_reason": "x",
+                                             "error": "NoBoundaryError: none"})
+    assert _selfcheck_summary(check).endswith("(a second run with k_nn=12 failed too: NoBoundaryError: none)")
+    assert "second run" not in _selfcheck_summary({"passed": True, "n_triangles": 10})
