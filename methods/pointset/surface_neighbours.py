@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 from .neighbourhoods import KnnGraph, far_along_graph, knn_graph, symmetric_adjacency
 from .normals import consistent_signs, pca_fit, pca_normals
 
-__all__ = ["surface_knn_graph", "pruned_knn_graph", "gap_aware_knn_graph", "CANDIDATE_FACTOR", "MAX_SLOPE",
+__all__ = ["surface_knn_graph", "pruned_knn_graph", "gap_aware_knn_graph", "gap_suspected", "CANDIDATE_FACTOR", "MAX_SLOPE",
            "FACING_TOL", "GAP_HOPS", "BORROW_RATIO"]
 
 #: Euclidean candidates examined per point, in units of K.
