@@ -29,7 +29,9 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
 - ``ocp_qc_mean`` and ``ocp_foldovers`` on the ground-truth mesh, the same for
   ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
   ``time_ratio_vs_scp_igl`` (ocp / scp-igl), the self-check verdict
-  ``selfcheck_passed`` and its failed checks, ``ocp_error`` when ocp refused.
+  ``selfcheck_passed`` and its failed checks, ``selfcheck_retry`` (what ocp's second run
+  with more neighbours changed and whether it passed; None without one), ``ocp_error``
+  when ocp refused.
 
 ``scp-igl`` is the baseline the issue names; on ``real/bunny10k`` (5 holes) it maps holes
 with turning number +1 and folds hundreds of triangles, so a QC ratio there says little.
@@ -184,7 +186,7 @@ def test_realdata_boundary_and_ocp(benchmark, monkeypatch, dataset, size, sampli
                 ocp_error=error)
     if result is None:
         info.update(ocp_qc_mean=None, ocp_foldovers=None, qc_ratio_vs_scp_igl=None, time_ratio_vs_scp_igl=None,
-                    selfcheck_passed=None, selfcheck_failed=None, ocp_loops=None)
+                    selfcheck_passed=None, selfcheck_failed=None, selfcheck_retry=None, ocp_loops=None)
     else:
         quality = _quality(surface, result.uv)
         check = result.diagnostics.get("selfcheck", {})
@@ -192,5 +194,5 @@ def test_realdata_boundary_and_ocp(benchmark, monkeypatch, dataset, size, sampli
                     qc_ratio_vs_scp_igl=quality["qc_mean"] / base["qc_mean"],
                     time_ratio_vs_scp_igl=benchmark.stats.stats.min / base_time,
                     selfcheck_passed=bool(check.get("passed", False)), selfcheck_failed=check.get("failed"),
-                    ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
+                    selfcheck_retry=check.get("retry"), ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
     benchmark.extra_info.update(info)
