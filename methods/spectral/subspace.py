@@ -151,8 +151,8 @@ class BoundarySubspace:
 
     #: Boundary residuals of :meth:`refine` floor at about this multiple of the interior
     #: solves' relative residual (measured with two-grid solves at rtol 1e-8, 1M points:
-    #: 1.3e-7 to 2.1e-7, steps beyond it changed the residual by 0.2 %); refine stops there
-    #: instead of paying a solve to find out.
+    #: 1.2e-7 to 2.1e-7; a step from there left it at 2.06e-7 (0.03 % less) or made it
+    #: worse, 1.2e-7 -> 5.1e-6); refine stops there instead of paying a solve to find out.
     SOLVE_FLOOR = 50.0
 
     #: Largest relative distance of boundary values from the basis's span for which
