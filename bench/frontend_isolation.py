@@ -35,7 +35,8 @@ from parambench.methods.pointset import frontend as _frontend
 from parambench.methods.pointset.neighbourhoods import KnnGraph, knn_graph, spatial_order
 from parambench.methods.pointset.params import FrontEndParams
 from parambench.methods.pointset.plugin_support import scale_to_spacing
-from parambench.methods.plugins.ocp import conformal_problem, ocp_laplacian
+from parambench.methods.hints import method_hints
+from parambench.methods.plugins.ocp import Ocp, conformal_problem, ocp_laplacian
 
 __all__ = ["mesh_adjacency", "vertex_normals", "ring_distance", "mesh_ring_knn", "bridges", "oriented_loops",
            "flipped_faces", "isolate", "pruned_with_true_normals", "STANDARD_CASES", "main"]
@@ -228,7 +229,9 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
         mask[np.concatenate(loops)] = True
         front = replace(front, boundary_loops=loops, boundary_mask=mask)
     lap = ocp_laplacian(front, energy)
-    sol = conformal_problem(front, lap).solve("scp", "line")
+    # Outside Method.__call__: fit error hints to ocp's parameters here (issue 11, item 7).
+    with method_hints(Ocp.defaults, {**Ocp.defaults, "energy": energy}):
+        sol = conformal_problem(front, lap).solve("scp", "line")
     uv = scale_to_spacing(sol.uv, front)
     m = evaluate(pts, faces, uv)
     cos = np.einsum("ij,ij->i", front.normals, ctx["normals"])

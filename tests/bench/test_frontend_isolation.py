@@ -1,6 +1,7 @@
 """The ground-truth substitution diagnostic of bench/frontend_isolation.py, on a small clean surface."""
 
 import numpy as np
+import pytest
 
 from parambench.bench import frontend_isolation as iso
 from parambench.datasets_gen.registry import make_surface
@@ -56,3 +57,12 @@ def test_a_given_graph_is_the_same_as_the_mesh_neighbours_option_and_pruning_pat
     pruned = iso.pruned_with_true_normals(s)
     assert (sn.pca_normals, sn.consistent_signs) == saved
     assert pruned.indices.shape == (s.n_points, 8)
+
+
+def test_errors_of_the_isolated_pipeline_name_only_ocp_parameters():
+    """bunny10k with its true loops: every hole turns inside out, the k search gives up."""
+    from parambench.datasets_gen.errors import ConvergenceError
+
+    with pytest.raises(ConvergenceError) as err:
+        iso.isolate(make_surface("real/bunny10k"), true_loops=True)
+    assert "normalized" not in str(err.value) and "k_search='direct'" in str(err.value)
