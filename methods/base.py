@@ -36,7 +36,7 @@ import numpy as np
 from parambench.datasets_gen.errors import InvalidInputError, MissingFacesError, ParambenchError, UnknownNameError
 from parambench.datasets_gen.surface import MethodInput, Surface
 
-from .hints import method_hints
+from .hints import fit_hints, method_hints
 from .pose import run_in_unit_pose
 
 __all__ = ["Parameterization", "MethodOutput", "Method", "as_method_input", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
@@ -360,6 +360,7 @@ class Method:
         try:
             second = self.run(surface, **retry)
         except ParambenchError as exc:  # the retry is a second chance, never a new way to fail
+            fit_hints(exc, self.defaults, retry)  # what it suggests must exist for this method
             check["retry"] = {"params": changed, "passed": False, "first_reason": check["reason"],
                               "error": f"{type(exc).__name__}: {exc}"}
             return result

@@ -71,8 +71,9 @@ def fill_holes(surface: MethodInput) -> tuple[MethodInput, int]:
     return filled, len(holes)
 
 
-def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[MethodInput], tuple]) -> tuple[tuple, MethodInput, int]:
-    """Run a mesh method's ``attempt`` with the holes free, filled, or filled where free fails.
+def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[MethodInput], tuple],
+                     fill: Callable[[MethodInput], tuple[MethodInput, int]] = fill_holes) -> tuple[tuple, MethodInput, int]:
+    """Run a method's ``attempt`` with the holes free, filled, or filled where free fails.
 
     Parameters
     ----------
@@ -83,7 +84,12 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         attempt raises :class:`SolverError` / :class:`ConvergenceError` or returns a map
         whose boundary is not regular. Free is also all there is for one boundary loop.
     attempt : callable
-        ``attempt(surface) -> (problem, solution, loops, info)``.
+        ``attempt(surface) -> (problem, solution, ...)``: ``result[1]`` is the solution
+        (its ``turning`` and ``diagnostics`` are read).
+    fill : callable
+        ``fill(surface) -> (filled surface, holes filled)``; :func:`fill_holes` (fans, for
+        meshes) by default; point sets pass
+        :func:`parambench.methods.pointset.hole_filling.fill_point_holes` through a closure.
 
     Returns
     -------
@@ -100,7 +106,7 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         From the free attempt, when the filled one fails too (``"auto"``), or from the only attempt.
     """
     if holes == "filled":
-        work, n = fill_holes(surface)
+        work, n = fill(surface)
         return attempt(work), work, n
     first_error = None
     try:
@@ -113,7 +119,7 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         sol = result[1]
         if holes == "free" or (sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)):
             return result, surface, 0
-    work, n = fill_holes(surface)
+    work, n = fill(surface)
     if n == 0:
         if first_error is not None:
             raise first_error

@@ -27,6 +27,8 @@ from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
+from ..mesh.holes import HOLES_MODES, solve_with_holes
+from ..pointset.hole_filling import fill_point_holes
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
@@ -124,15 +126,19 @@ class Ocp(Method):
     ``"direct"`` (see :data:`MULTILEVEL_FROM`); the path is not near-linear yet.
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
     ``k_nn`` is smaller, ocp runs once more with this ``k_nn`` and keeps that map if it
-    passes (:meth:`retry_params`); 0 turns the retry off.
+    passes (:meth:`retry_params`); 0 turns the retry off. ``holes``: ``"auto"`` (default)
+    solves with the holes free and, where that raises ConvergenceError / SolverError or
+    turns a hole inside out, fills each hole with points and solves again
+    (:mod:`parambench.methods.pointset.hole_filling`; ``holes_filled`` and
+    ``n_fill_points`` in the diagnostics); ``"free"`` / ``"filled"`` force one.
     """
 
     name = "ocp"
     description = "optimized conformal parameterization, k line search (points only; Sec. 4.2)"
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
-                "solver": "auto", "fine_solver": "twogrid", "retry_k_nn": RETRY_K_NN}
+                "solver": "auto", "fine_solver": "twogrid", "retry_k_nn": RETRY_K_NN, "holes": "auto"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
-    choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS}
+    choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS, "holes": HOLES_MODES}
 
     def check_params(self, params: dict) -> None:
         """Refuse ``solver="multilevel"`` with a k search other than the line search, and a bad ``retry_k_nn``.
@@ -165,21 +171,37 @@ class Ocp(Method):
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         solver = resolve_solver(params["solver"], surface.n_points, params["k_search"])
-        front = run_frontend(surface, params, timer)
-        with timer("laplacian"):
-            lap = ocp_laplacian(front, params["energy"], params["area_factor"])
-        front = front.without_balls()
-        if solver == "multilevel":
-            sol, counts, extra = _multilevel_solve(front, lap, timer, params["fine_solver"])
-        else:
-            with timer("solve"):
-                problem = conformal_problem(front, lap)
-                sol = problem.solve("scp", params["k_search"])
-            counts, extra = problem.counts, {}
+        fronts = []  # the front end of each attempt, without its balls; the first is the surface's
+
+        def attempt(work: MethodInput):
+            front = run_frontend(work, params, timer)
+            with timer("laplacian"):
+                lap = ocp_laplacian(front, params["energy"], params["area_factor"])
+            front = front.without_balls()
+            fronts.append(front)
+            if solver == "multilevel":
+                sol, counts, extra = _multilevel_solve(front, lap, timer, params["fine_solver"])
+            else:
+                with timer("solve"):
+                    problem = conformal_problem(front, lap)
+                    sol = problem.solve("scp", params["k_search"])
+                counts, extra = problem.counts, {}
+            return front, sol, counts, extra
+
+        def fill(work: MethodInput):
+            if not fronts:  # holes="filled": the loops come from a front end of its own
+                fronts.append(run_frontend(work, params, timer).without_balls())
+            with timer("fill_holes"):
+                return fill_point_holes(work, fronts[0].normals, fronts[0].boundary_loops, fronts[0].local_spacing)
+
+        (_, sol, counts, extra), work, n_filled = solve_with_holes(surface, params["holes"], attempt, fill)
+        front = fronts[0]  # loops, spacing and neighbours of the points the user gave
         with timer("solve"):
-            uv = scale_to_spacing(sol.uv, front)
+            uv = scale_to_spacing(sol.uv[:surface.n_points], front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, **extra, "energy": params["energy"],
-                "solver": solver, "solver_option": params["solver"], "k_opt": float(sol.k), "turning": np.asarray(sol.turning).tolist()}
+                "solver": solver, "solver_option": params["solver"], "k_opt": float(sol.k),
+                "turning": np.asarray(sol.turning).tolist(), "holes_filled": int(n_filled),
+                "n_fill_points": int(work.n_points - surface.n_points)}
         return MethodOutput(uv, diag)
 
 
