@@ -169,7 +169,11 @@ def empty_clusters(points: np.ndarray, normals: np.ndarray, faces: np.ndarray, l
 
 
 def main(argv=None) -> int:
-    """Print the regularity and, per threshold, the clusters of a dataset (default ``real/bunny10k``) as JSON lines."""
+    """Print the regularity and, per threshold, the clusters of a dataset as JSON lines.
+
+    Arguments: dataset name (default ``real/bunny10k``), then for a generated surface its
+    point count and sampling (e.g. ``slit 20000 random``).
+    """
     import json
     import sys
 
@@ -177,7 +181,9 @@ def main(argv=None) -> int:
     from parambench.methods.pointset.frontend import build_frontend
 
     args = sys.argv[1:] if argv is None else list(argv)
-    surface = make_surface(args[0] if args else "real/bunny10k")
+    name = args[0] if args else "real/bunny10k"
+    surface = (make_surface(name, int(args[1]), sampling=args[2] if len(args) > 2 else "jittered", seed=0)
+               if len(args) > 1 else make_surface(name))
     front = build_frontend(surface.method_input(False).points)
     found = front.boundary_mask
     print(json.dumps({"face_regularity": face_regularity(surface.points, surface.faces),
