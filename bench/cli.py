@@ -151,6 +151,15 @@ def _retry_summary(retry: dict | None) -> str:
     return f" (a second run with {changed} failed too{': ' + retry['error'] if retry.get('error') else ''})"
 
 
+def _holes_summary(diag: dict) -> str:
+    """Whether the method filled holes to get its map (``holes="auto"``) and with how much."""
+    n = int(diag.get("holes_filled") or 0)
+    if not n:
+        return ""
+    points = diag.get("n_fill_points")
+    return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: with free holes the map failed)"
+
+
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from parambench.datasets_gen.io import load_surface
     from parambench.methods.pointset.selfcheck import failure_line, pointset_faces
@@ -167,7 +176,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
-    summary = f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
+    summary = (f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
+               + _holes_summary(result.diagnostics))
     if failed and not args.force:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
         print(f"parambench: error: {failure_line(check, result.params, method.name)} "

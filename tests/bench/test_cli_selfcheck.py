@@ -123,3 +123,12 @@ def test_the_summary_says_when_the_map_is_a_retry():
                                              "error": "NoBoundaryError: none"})
     assert _selfcheck_summary(check).endswith("(a second run with k_nn=12 failed too: NoBoundaryError: none)")
     assert "second run" not in _selfcheck_summary({"passed": True, "n_triangles": 10})
+
+
+def test_the_summary_says_when_holes_were_filled():
+    from parambench.bench.cli import _holes_summary
+
+    assert _holes_summary({"holes_filled": 0, "n_fill_points": 0}) == ""
+    assert _holes_summary({}) == ""
+    assert _holes_summary({"holes_filled": 2, "n_fill_points": 31}) == (
+        " (2 hole(s) filled with 31 points: with free holes the map failed)")
