@@ -415,8 +415,8 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     workers = max(1, int(numba.config.NUMBA_NUM_THREADS))
     scratch = _scratch(workers, n, _heap_capacity(cloud.indptr, rule.max_ball))
     sizes = np.zeros(centre_ids.size, dtype=np.int64)
-    parts, n_trunc = _run_blocks(centre_ids, cloud, rule, scratch, sizes)
-    idx, coords, gdist = _assemble(parts, sizes)
+    store, n_trunc = _run_blocks(centre_ids, cloud, rule, scratch, sizes)
+    idx, coords, gdist = _assemble(store, sizes)
     return GeodesicBalls(indices=idx, coords=coords, sizes=sizes, graph_dist=gdist, n_truncated=n_trunc)
 
 
@@ -473,59 +473,116 @@ def _scratch(workers: int, n: int, cap: int) -> list[_Scratch]:
 
 
 def _run_blocks(centre_ids: np.ndarray, cloud: _Cloud, rule: _BallRule, scratch: list[_Scratch],
-                sizes: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], int]:
+                sizes: np.ndarray) -> tuple[_BallBlock, int]:
     """Run the kernel over blocks of ``_BLOCK`` centres, each block split evenly between the workers.
 
-    Fills ``sizes``; returns per block (members, coordinates, distances) cut to the
-    block's widest ball (the full ``max_ball`` width is only the temporary), and the
-    number of truncated balls.
+    Fills ``sizes``; returns the balls (the rows of :func:`_store_for`, padded with -1,
+    0 and +inf) and the number of truncated balls.
     """
     workers = len(scratch)
     n_out = centre_ids.size
-    parts = []
     n_trunc = 0
+    # One block buffer, reused: a fresh full-width buffer per block was ~1 GB of newly
+    # touched pages at a million points (slow first touches on this kind of VM).
+    m0 = min(_BLOCK, n_out)
+    block = _BallBlock(idx=np.empty((m0, rule.max_ball), dtype=np.int64), uv=np.empty((m0, rule.max_ball, 2)),
+                       dist=np.empty((m0, rule.max_ball)), size=sizes[:m0])
+    store = None
     with ThreadPoolExecutor(max_workers=workers) as pool:
         for start in range(0, n_out, _BLOCK):
             stop = min(start + _BLOCK, n_out)
-            m = stop - start
-            out = _BallBlock(idx=np.full((m, rule.max_ball), -1, dtype=np.int64), uv=np.zeros((m, rule.max_ball, 2)),
-                             dist=np.full((m, rule.max_ball), np.inf), size=sizes[start:stop])
             bounds = np.linspace(start, stop, workers + 1).astype(np.int64)
-            args = [(centre_ids, int(bounds[t]), int(bounds[t + 1]), start, cloud, rule, out, scratch[t])
+            block = block._replace(size=sizes[start:stop])
+            args = [(centre_ids, int(bounds[t]), int(bounds[t + 1]), start, cloud, rule, block, scratch[t])
                     for t in range(workers)]
             n_trunc += sum(int(r) for r in pool.map(lambda a: _dem_range(*a), args))
-            width = int(out.size.max())
-            parts.append((out.idx[:, :width].copy(), out.uv[:, :width].copy(), out.dist[:, :width].copy()))
-    return parts, n_trunc
+            store = _store_for(store, int(block.size.max()), start, sizes, rule.max_ball)
+            parts = [(int(bounds[t]) - start, int(bounds[t + 1]) - start) for t in range(workers)]
+            list(pool.map(lambda part: _copy_rows(block, store, start, *part), parts))
+    if store is None:  # no centres
+        store = _store_for(None, 0, 0, sizes, rule.max_ball)
+    return store, n_trunc
 
 
-def _assemble(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-              sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stack the blocks' rows into arrays as wide as the largest ball, padded with -1, 0 and +inf.
+#: Extra columns of the balls' first allocation, relative to the first block's widest
+#: ball (later blocks are usually a little wider; a wider one reallocates).
+_WIDTH_MARGIN = 0.25
 
-    Empties ``parts`` (each block is released once copied).
+
+def _store_for(store: _BallBlock | None, width: int, filled: int, sizes: np.ndarray, max_ball: int) -> _BallBlock:
+    """The output rows, at least ``width`` columns wide: ``store`` itself, or a wider copy of its first ``filled`` rows.
+
+    Allocated uninitialised (pages are touched only as rows are copied in) with
+    ``_WIDTH_MARGIN`` spare columns, at most ``max_ball``; :func:`_assemble` cuts the
+    spare columns off at the end.
+    """
+    if store is not None and width <= store.idx.shape[1]:
+        return store
+    n_out = sizes.size
+    cols = min(max_ball, width + max(4, int(np.ceil(_WIDTH_MARGIN * width))))
+    wider = _BallBlock(idx=np.empty((n_out, cols), dtype=np.int64), uv=np.empty((n_out, cols, 2)),
+                       dist=np.empty((n_out, cols)), size=sizes)
+    if store is not None and filled:
+        old = store.idx.shape[1]
+        for new, prev, pad in ((wider.idx, store.idx, -1), (wider.uv, store.uv, 0.0), (wider.dist, store.dist, np.inf)):
+            new[:filled, :old] = prev[:filled]
+            new[:filled, old:] = pad
+    return wider
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _copy_rows(block, store, offset, lo, hi):
+    """Rows lo:hi of ``block`` (members only) into rows ``offset + lo:offset + hi`` of ``store``, padded.
+
+    ``block.size`` holds the block's rows' sizes.
+    """
+    b_idx, b_uv, b_dist, size = block
+    s_idx, s_uv, s_dist, _ = store
+    width = s_idx.shape[1]
+    for r in range(lo, hi):
+        row = offset + r
+        m = size[r]
+        for j in range(m):
+            s_idx[row, j] = b_idx[r, j]
+            s_uv[row, j, 0] = b_uv[r, j, 0]
+            s_uv[row, j, 1] = b_uv[r, j, 1]
+            s_dist[row, j] = b_dist[r, j]
+        for j in range(m, width):
+            s_idx[row, j] = -1
+            s_uv[row, j, 0] = 0.0
+            s_uv[row, j, 1] = 0.0
+            s_dist[row, j] = np.inf
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _narrow_rows(idx, uv, dist, width):
+    """Re-lay C-contiguous rows at ``width`` columns in place, ascending (each row moves towards the start)."""
+    stride = idx.shape[1]
+    f_idx = idx.reshape(-1)
+    f_uv = uv.reshape(-1)
+    f_dist = dist.reshape(-1)
+    for r in range(idx.shape[0]):
+        src = r * stride
+        dst = r * width
+        for j in range(width):
+            f_idx[dst + j] = f_idx[src + j]
+            f_dist[dst + j] = f_dist[src + j]
+            f_uv[2 * (dst + j)] = f_uv[2 * (src + j)]
+            f_uv[2 * (dst + j) + 1] = f_uv[2 * (src + j) + 1]
+
+
+def _assemble(store: _BallBlock, sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The balls as arrays exactly as wide as the largest ball (``store``'s buffers, narrowed in place).
+
+    Rows are moved within the buffers and the spare tail is given back (``ndarray.resize``),
+    so no second copy of the balls (~1.2 GB at a million points) is ever made.
     """
     n_out = sizes.size
     width = int(sizes.max()) if n_out else 0
-    # Uninitialised outputs, each block's rows padded as they are filled, and each block
-    # dropped once copied: the pages of the result are touched only as the blocks are
-    # released, so the peak is one copy of the balls plus a block, not two copies
-    # (~1.2 GB less at a million points).
-    idx = np.empty((n_out, width), dtype=np.int64)
-    coords = np.empty((n_out, width, 2))
-    gdist = np.empty((n_out, width))
-    row = 0
-    parts.reverse()
-    while parts:
-        b_idx, b_uv, b_dist = parts.pop()
-        m, w = b_idx.shape
-        rows = slice(row, row + m)
-        idx[rows, :w] = b_idx
-        idx[rows, w:] = -1
-        coords[rows, :w] = b_uv
-        coords[rows, w:] = 0.0
-        gdist[rows, :w] = b_dist
-        gdist[rows, w:] = np.inf
-        row += m
-        del b_idx, b_uv, b_dist
-    return idx, coords, gdist
+    idx, uv, dist = store.idx, store.uv, store.dist
+    if width < idx.shape[1]:
+        _narrow_rows(idx, uv, dist, width)
+        idx.resize((n_out, width), refcheck=False)
+        uv.resize((n_out, width, 2), refcheck=False)
+        dist.resize((n_out, width), refcheck=False)
+    return idx, uv, dist

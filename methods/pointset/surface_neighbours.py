@@ -26,15 +26,22 @@ best-fitted neighbour, and only its dropped edges without such a detour are cut.
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numba
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from ..numba_cache import configure_numba_cache
 from .neighbourhoods import KnnGraph, far_along_graph, knn_graph, symmetric_adjacency
-from .normals import consistent_signs, pca_fit, pca_normals
+from .normals import _dot3, consistent_signs, pca_fit, pca_normals
 
 __all__ = ["surface_knn_graph", "pruned_knn_graph", "gap_aware_knn_graph", "gap_suspected", "CANDIDATE_FACTOR", "MAX_SLOPE",
            "FACING_TOL", "GAP_HOPS", "BORROW_RATIO"]
+
+# On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 #: Euclidean candidates examined per point, in units of K.
 CANDIDATE_FACTOR = 2
@@ -414,9 +421,9 @@ def gap_suspected(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, *, h
     cand = graph.indices
     rows = np.broadcast_to(np.arange(points.shape[0])[:, None], cand.shape)
     noise = _noise_level(points, cand, normals)
-    opposed = ((np.einsum("nki,ni->nk", normals[cand], normals) < orient_cos)
-               & (_off_plane(points, normals, rows, cand) > noise))
-    suspect = _crossing(points, normals, rows, cand, tol, noise) | opposed
+    suspect = np.empty(cand.shape, dtype=np.bool_)
+    _suspect_edges(points, normals, np.ascontiguousarray(cand, dtype=np.int64), float(tol), float(noise),
+                   float(orient_cos), suspect)
     if not suspect.any():
         return 0
     r, c = np.nonzero(suspect)
@@ -424,3 +431,31 @@ def gap_suspected(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, *, h
     n = points.shape[0]
     rest = sp.csr_matrix((np.ones(int(kept.sum())), (rows[kept], cand[kept])), shape=(n, n))
     return int(far_along_graph((rest + rest.T).tocsr(), r, cand[r, c], hops).sum())
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _suspect_edges(points, normals, cand, tol, noise, orient_cos, out):
+    """``out[i, c]``: edge i -> cand[i, c] fails :func:`_crossing` or has opposed normals beyond the noise.
+
+    One pass over the edges instead of a dozen (N, K, 3) temporaries; the arithmetic is
+    that of ``_crossing`` and ``_off_plane`` in the same order (see ``_dot3``), so the
+    tests decide alike.
+    """
+    n, k = cand.shape
+    for i in numba.prange(n):
+        nix, niy, niz = normals[i, 0], normals[i, 1], normals[i, 2]
+        for c in range(k):
+            j = cand[i, c]
+            njx, njy, njz = normals[j, 0], normals[j, 1], normals[j, 2]
+            dx = points[j, 0] - points[i, 0]
+            dy = points[j, 1] - points[i, 1]
+            dz = points[j, 2] - points[i, 2]
+            length = np.sqrt(_dot3(dx, dy, dz, dx, dy, dz))
+            along_i = _dot3(dx, dy, dz, nix, niy, niz)
+            along_j = _dot3(dx, dy, dz, njx, njy, njz)
+            a = along_i / length
+            b = -along_j / length
+            dot = _dot3(nix, niy, niz, njx, njy, njz)
+            crossing = a * b * dot < 0 and min(abs(a), abs(b)) > max(tol, noise / length)
+            opposed = _dot3(njx, njy, njz, nix, niy, niz) < orient_cos and min(abs(along_i), abs(along_j)) > noise
+            out[i, c] = crossing or opposed

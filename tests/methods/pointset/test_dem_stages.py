@@ -8,8 +8,8 @@ import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.methods.pointset import dem
-from parambench.methods.pointset.dem import (_assemble, _BallBlock, _BallRule, _centre_ids, _check_options, _dem_range,
-                                  _graph_cloud, _heap_capacity, _scratch, dem_balls)
+from parambench.methods.pointset.dem import (_assemble, _BallBlock, _BallRule, _centre_ids, _check_options, _copy_rows,
+                                  _dem_range, _graph_cloud, _heap_capacity, _scratch, _store_for, dem_balls)
 from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
 from parambench.methods.pointset.normals import orient_normals, pca_normals
 
@@ -99,19 +99,39 @@ def test_kernel_counts_truncated_balls():
     assert out.idx.tolist() == [[1, 2], [4, 3]]
 
 
-def test_assemble_pads_blocks_to_the_widest_ball():
-    parts = [(np.array([[4, 7]]), np.ones((1, 2, 2)), np.array([[1.0, 2.0]])),
-             (np.array([[5], [6]]), 2 * np.ones((2, 1, 2)), np.array([[3.0], [4.0]]))]
-    idx, coords, gdist = _assemble(parts, np.array([2, 1, 0]))
-    assert idx.tolist() == [[4, 7], [5, -1], [6, -1]]
-    assert coords[:, :, 0].tolist() == [[1, 1], [2, 0], [2, 0]]
-    assert gdist.tolist() == [[1, 2], [3, np.inf], [4, np.inf]]
-    empty = _assemble([], np.zeros(0, dtype=np.int64))
+def _block(idx, uv, dist):
+    return _BallBlock(idx=np.array(idx, dtype=np.int64), uv=np.array(uv, dtype=np.float64),
+                      dist=np.array(dist, dtype=np.float64), size=(np.array(idx) >= 0).sum(axis=1))
+
+
+def test_blocks_are_copied_padded_widened_and_narrowed_to_the_widest_ball():
+    sizes = np.zeros(3, dtype=np.int64)
+    first = _block([[4, 7, 9]], np.ones((1, 3, 2)), [[1.0, 2.0, 9.0]])
+    first = first._replace(size=np.array([2]))  # column 2 is stale data beyond the ball: not copied
+    sizes[:1] = first.size
+    store = _store_for(None, 2, 0, sizes, max_ball=64)
+    _copy_rows(first, store, 0, 0, 1)
+    assert store.idx.shape[1] == 2 + 4  # the first block's width plus the margin
+    second = _block([[5, -1], [6, 8]], 2 * np.ones((2, 2, 2)), [[3.0, 0.0], [4.0, 5.0]])
+    second = second._replace(size=np.array([1, 2]))
+    sizes[1:] = second.size
+    assert _store_for(store, 2, 1, sizes, 64) is store
+    wide = _store_for(store, 7, 1, sizes, max_ball=8)  # wider than the store: rows so far copied over
+    assert wide.idx.shape[1] == 8
+    assert wide.idx[0].tolist() == [4, 7] + [-1] * 6
+    _copy_rows(second, wide, 1, 0, 2)
+    idx, coords, gdist = _assemble(wide, sizes)
+    assert idx.tolist() == [[4, 7], [5, -1], [6, 8]]
+    assert coords[:, :, 0].tolist() == [[1, 1], [2, 0], [2, 2]]
+    assert gdist.tolist() == [[1, 2], [3, np.inf], [4, 5]]
+    assert idx.flags.c_contiguous and coords.flags.c_contiguous and gdist.flags.c_contiguous
+    empty_sizes = np.zeros(0, dtype=np.int64)
+    empty = _assemble(_store_for(None, 0, 0, empty_sizes, 64), empty_sizes)
     assert [a.shape for a in empty] == [(0, 0), (0, 0, 2), (0, 0)]
 
 
 def test_small_blocks_give_the_same_balls(make_cap, monkeypatch):
-    """Many blocks of different widths (run_blocks + assemble) match one block bit for bit."""
+    """Many blocks of different widths (run_blocks + assemble, the store widened) match one block bit for bit."""
     patch = make_cap(1.0, 1.0, 20, "jittered")
     graph = knn_graph(patch.points, 8)
     adj = symmetric_adjacency(graph)
