@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
@@ -179,14 +179,7 @@ class Ocp(Method):
                 lap = ocp_laplacian(front, params["energy"], params["area_factor"])
             front = front.without_balls()
             fronts.append(front)
-            if solver == "multilevel":
-                sol, counts, extra = _multilevel_solve(front, lap, timer, params["fine_solver"])
-            else:
-                with timer("solve"):
-                    problem = conformal_problem(front, lap)
-                    sol = problem.solve("scp", params["k_search"])
-                counts, extra = problem.counts, {}
-            return front, sol, counts, extra
+            return (front, *_solve_front(front, lap, solver, params, timer))
 
         def fill(work: MethodInput):
             if not fronts:  # holes="filled": the loops come from a front end of its own
@@ -198,11 +191,35 @@ class Ocp(Method):
         front = fronts[0]  # loops, spacing and neighbours of the points the user gave
         with timer("solve"):
             uv = scale_to_spacing(sol.uv[:surface.n_points], front)
-        diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, **extra, "energy": params["energy"],
-                "solver": solver, "solver_option": params["solver"], "k_opt": float(sol.k),
+        diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, "solver": solver, **extra,
+                "energy": params["energy"], "solver_option": params["solver"], "k_opt": float(sol.k),
                 "turning": np.asarray(sol.turning).tolist(), "holes_filled": int(n_filled),
                 "n_fill_points": int(work.n_points - surface.n_points)}
         return MethodOutput(uv, diag)
+
+
+def _solve_front(front, lap, solver: str, params: dict, timer: StageTimer):
+    """(solution, counts, diagnostics) of the conformal problem of ``front`` on the ``solver`` path.
+
+    With ``solver="auto"`` resolved to the two-level path, a ConvergenceError or
+    SolverError there falls back to the direct solve (measured at 100k points: the fold,
+    whose coarse interpolation bridges the gap between its sheets, found no k bracket on
+    two levels and a regular map on one); ``solver`` then reads ``"direct"`` and
+    ``multilevel_error`` says why. An explicit ``solver="multilevel"`` raises instead.
+    """
+    if solver == "multilevel":
+        try:
+            return _multilevel_solve(front, lap, timer, params["fine_solver"])
+        except (ConvergenceError, SolverError) as exc:
+            if params["solver"] != "auto":
+                raise
+            fallback = {"solver": "direct", "multilevel_error": f"{type(exc).__name__}: {exc}"}
+    else:
+        fallback = {}
+    with timer("solve"):
+        problem = conformal_problem(front, lap)
+        sol = problem.solve("scp", params["k_search"])
+    return sol, problem.counts, fallback
 
 
 def resolve_solver(option: str, n_points: int, k_search: str) -> str:

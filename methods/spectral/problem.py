@@ -109,7 +109,8 @@ class ConformalProblem:
     subspace_rounds : int
         Most k searches on the subspace, each after a refinement grew it (1: search once).
     subspace_ktol : float
-        Stop repeating the search once k_opt moves by less than this, relative.
+        Stop repeating the search once k_opt moves by less than this, relative; whether it
+        did within ``subspace_rounds`` is ``subspace_settled`` in the diagnostics.
     interior_solver : callable, optional
         Solves with the interior block of the boundary reduction instead of a sparse
         factorisation (``interior_solver(l_ii, interior)``, see
@@ -377,7 +378,7 @@ class ConformalProblem:
             ``state`` = (boundary values on the concatenated loops, Ritz value).
         info : dict
             ``subspace_size`` (the search basis), ``subspace_final_size`` (grown by the
-            refinements), ``subspace_rounds``, ``refine_steps``, ``boundary_residual``, ``regular``.
+            refinements), ``subspace_rounds``, ``subspace_settled``, ``refine_steps``, ``boundary_residual``, ``regular``.
 
         Raises
         ------
@@ -408,17 +409,19 @@ class ConformalProblem:
         result = self._search_first(sub, line_kwargs)
         evaluations, rounds = result.n_evaluations, 1
         point, info = sub.refine(result.best.k, absorb=True)
+        settled = self.subspace_rounds <= 1  # one search asked for: nothing to settle
         while rounds < self.subspace_rounds:
             again = self._search_near(sub, point.k, line_kwargs)
             evaluations, rounds = evaluations + again.n_evaluations, rounds + 1
             moved = abs(again.best.k - point.k) > self.subspace_ktol * abs(point.k)
             result = again
             if not moved:
+                settled = True
                 break
             point, info = sub.refine(again.best.k, absorb=True)
         self._counts["eigen_solves"] += evaluations + rounds
         return red, sub, result, point, {**info, "subspace_rounds": rounds, "subspace_size": initial,
-                                         "subspace_final_size": sub.size}
+                                         "subspace_final_size": sub.size, "subspace_settled": settled}
 
     def _scp_sparse_regular(self, k: float, max_steps: int = 6) -> KPoint:
         """Exact SCP at k, nudged upwards if it still spins just below the exact transition.

@@ -183,3 +183,45 @@ def test_auto_solver_takes_the_two_level_path_from_its_threshold(monkeypatch):
     assert direct_k.diagnostics["solver"] == "direct"
     assert ocp_plugin.resolve_solver("multilevel", 10, "line") == "multilevel"
     assert ocp_plugin.resolve_solver("auto", 10**6, "direct") == "direct"
+
+
+def test_bump_20k_needs_no_second_fine_search(bump_20k):
+    _, _, multi = bump_20k
+    assert multi.diagnostics["fine_enlarged"] is False
+
+
+def test_an_unsettled_fine_search_is_repeated_on_a_larger_subspace(monkeypatch, bump_20k):
+    import functools
+
+    import parambench.methods.spectral.multilevel as multilevel
+
+    surf, direct, first = bump_20k
+    # A k tolerance of 0 never settles and a residual limit of 0 is always exceeded: the
+    # second search on the enlarged subspace must run and still match the direct solve.
+    monkeypatch.setattr(multilevel, "MultilevelSettings",
+                        functools.partial(MultilevelSettings, fine_ktol=0.0, enlarge_residual=0.0))
+    again = get_method("ocp")(surf.points_only(), solver="multilevel")
+    diag = again.diagnostics
+    assert diag["fine_enlarged"] is True
+    assert diag["subspace_size"] >= 2 * MultilevelSettings().enlarged_modes > first.diagnostics["subspace_size"]
+    assert diag["triangular_solves"] > first.diagnostics["triangular_solves"]
+    assert abs(diag["k_opt"] - direct.diagnostics["k_opt"]) <= 1e-4
+    aligned = similarity_align(again.uv, direct.uv)
+    assert np.sqrt(np.mean(np.sum((aligned - direct.uv) ** 2, axis=1))) <= 1e-3 * surf.diameter
+
+
+def test_auto_falls_back_to_the_direct_solve_where_two_levels_fail(monkeypatch):
+    import parambench.methods.plugins.ocp as ocp_plugin
+    from parambench.datasets_gen.errors import ConvergenceError
+
+    # The fold's sheets lie 2-2.5 spacings apart: the coarse interpolation bridges them
+    # and the two-level k search finds no bracket at 5k points.
+    fold = make_surface("fold", 5000, sampling="jittered", seed=0)
+    monkeypatch.setattr(ocp_plugin, "MULTILEVEL_FROM", 1000)
+    ocp = get_method("ocp")
+    with pytest.raises(ConvergenceError):
+        ocp(fold.points_only(), solver="multilevel")
+    auto = ocp(fold.points_only())
+    assert auto.diagnostics["solver"] == "direct" and auto.diagnostics["solver_option"] == "auto"
+    assert auto.diagnostics["multilevel_error"].startswith("ConvergenceError")
+    assert np.array_equal(auto.uv, ocp(fold.points_only(), solver="direct").uv)
