@@ -153,7 +153,10 @@ def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.nda
     n, m = points.shape[0], coarse.size
     if m < k:
         raise InvalidInputError(f"the coarse level needs at least {k} points, got {m}.")
-    dist, near = cKDTree(points[coarse]).query(points, k=k, workers=-1)
+    kq = min(m, 2 * k) if normals is not None else k
+    dist, near = cKDTree(points[coarse]).query(points, k=kq, workers=-1)
+    if kq > k:
+        dist, near = _same_side(normals, coarse, dist, near, k)
     d2 = np.maximum(dist, 1e-12 * max(float(dist.max()), 1e-300)) ** 2
     w = 1.0 / d2
     w /= w.sum(axis=1, keepdims=True)
@@ -165,6 +168,21 @@ def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.nda
     is_coarse = np.zeros(n, dtype=bool)
     is_coarse[coarse] = True
     return (sp.diags((~is_coarse).astype(np.float64)) @ p + on).tocsr()
+
+
+def _same_side(normals: np.ndarray, coarse: np.ndarray, dist: np.ndarray, near: np.ndarray, k: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of the candidates whose normal agrees with the fine point's.
+
+    Where two sheets of the surface come within the coarse spacing (a fold), the nearest
+    coarse points include the facing sheet's, whose normals point the other way;
+    interpolating from them couples the sheets in the Galerkin Laplacian. Candidates with
+    ``n_i . n_j <= 0`` are ranked after every agreeing one (kept only when fewer than
+    ``k`` agree).
+    """
+    agree = np.einsum("nd,nkd->nk", normals, normals[coarse][near]) > 0.0
+    order = np.argsort(~agree, axis=1, kind="stable")[:, :k]
+    return np.take_along_axis(dist, order, axis=1), np.take_along_axis(near, order, axis=1)
 
 
 def _linear_exact_weights(points: np.ndarray, normals: np.ndarray, nbr_pts: np.ndarray, d2: np.ndarray,

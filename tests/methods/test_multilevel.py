@@ -214,14 +214,43 @@ def test_auto_falls_back_to_the_direct_solve_where_two_levels_fail(monkeypatch):
     import parambench.methods.plugins.ocp as ocp_plugin
     from parambench.datasets_gen.errors import ConvergenceError
 
-    # The fold's sheets lie 2-2.5 spacings apart: the coarse interpolation bridges them
-    # and the two-level k search finds no bracket at 5k points.
-    fold = make_surface("fold", 5000, sampling="jittered", seed=0)
+    surf = make_surface("bump", 3000, sampling="jittered", seed=0)
     monkeypatch.setattr(ocp_plugin, "MULTILEVEL_FROM", 1000)
+
+    def fails(*args, **kwargs):
+        raise ConvergenceError("no t = 1 crossing (two-level stand-in)")
+
+    monkeypatch.setattr(ocp_plugin, "_multilevel_solve", fails)
     ocp = get_method("ocp")
     with pytest.raises(ConvergenceError):
-        ocp(fold.points_only(), solver="multilevel")
-    auto = ocp(fold.points_only())
+        ocp(surf.points_only(), solver="multilevel")
+    auto = ocp(surf.points_only())
     assert auto.diagnostics["solver"] == "direct" and auto.diagnostics["solver_option"] == "auto"
     assert auto.diagnostics["multilevel_error"].startswith("ConvergenceError")
-    assert np.array_equal(auto.uv, ocp(fold.points_only(), solver="direct").uv)
+    assert np.array_equal(auto.uv, ocp(surf.points_only(), solver="direct").uv)
+
+
+def test_interpolation_stays_on_its_own_sheet():
+    # Two parallel sheets one coarse spacing apart, normals facing away from each other
+    # (a fold seen up close): every fine point must interpolate from its own sheet.
+    g = _grid(12)
+    lower, upper = g.copy(), g.copy()
+    upper[:, 2] = 0.8
+    pts = np.vstack([lower, upper])
+    normals = np.vstack([np.tile([0.0, 0.0, -1.0], (len(g), 1)), np.tile([0.0, 0.0, 1.0], (len(g), 1))])
+    coarse = np.flatnonzero((pts[:, 0] % 3 == 0) & (pts[:, 1] % 3 == 0))
+    p = interpolation_matrix(pts, coarse, normals).tocoo()
+    sheet = pts[:, 2] > 0.4
+    assert np.all(sheet[p.row] == sheet[coarse[p.col]])
+    # Linear functions on each sheet are still reproduced.
+    assert np.allclose(p @ pts[coarse][:, :2], pts[:, :2])
+
+
+def test_multilevel_maps_the_fold_it_used_to_bridge():
+    fold = make_surface("fold", 5000, sampling="jittered", seed=0)
+    ocp = get_method("ocp")
+    multi = ocp(fold.points_only(), solver="multilevel")
+    direct = ocp(fold.points_only(), solver="direct")
+    assert abs(multi.diagnostics["k_opt"] - direct.diagnostics["k_opt"]) <= 1e-3
+    q = evaluate(fold.points, fold.faces, multi.uv, boundary_loops=fold.boundary_loops, diameter=fold.diameter)
+    assert q["foldovers"] == 0
