@@ -55,7 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError
 
 from .problem import ConformalProblem, ConformalSolution
 from .sparse_eigen import SparseFactor
@@ -240,7 +240,9 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         :meth:`ConformalProblem.solve`).
     info : dict
         ``coarse_points``, ``coarse_k_opt``, ``coarse_regular`` (whether the coarse map was
-        a regular flattening; it need not be), ``coarse_triangular_solves`` and
+        a regular flattening; it need not be), ``coarse_triangular_solves``,
+        ``coarse_error`` (None, or why the coarse search failed: ``coarse_k_opt`` is then
+        None and the fine search runs on ``enlarged_modes`` frequencies), ``fine_enlarged`` and
         ``fine_counts`` (the fine problem's :attr:`ConformalProblem.counts`).
 
     Raises
@@ -274,22 +276,29 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         coarse_reduction = coarse_problem.reduction() if settings.fine_solver == "twogrid" else None
         # The coarse map only gives the fine subspace a direction: it need not be regular
         # (at 100k points the exact coarse map near the coarse k_opt still spun).
-        point, coarse_info = coarse_problem.scp_subspace_estimate()
-        z_b, coarse_k = point.state[0], point.k
+        try:
+            point, coarse_info = coarse_problem.scp_subspace_estimate()
+            z_b, coarse_k, coarse_error = point.state[0], point.k, None
+        except (ConvergenceError, SolverError) as exc:
+            # A coarse level too sparse for the geometry (the fold's bend, radius about one
+            # fine spacing, under a coarse spacing of two) finds no regular map at any k:
+            # the fine search then runs on the larger Fourier subspace alone.
+            z_b, coarse_k, coarse_info, coarse_error = None, None, {"regular": False}, exc
         del lap_c
     solvers: list = []
     interior_solver = None
     if coarse_reduction is not None:
         interior_solver = _two_grid_factory(prolong, coarse_reduction, settings, solvers)
-    extra = np.column_stack([z_b.real, z_b.imag])
+    extra = None if z_b is None else np.column_stack([z_b.real, z_b.imag])
     with single_threaded_blas(), stage("fine"):
-        fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points, subspace_modes=settings.fine_modes,
+        fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points,
+                                subspace_modes=settings.fine_modes if z_b is not None else settings.enlarged_modes,
                                 subspace_extra=extra, interior_solver=interior_solver, subspace_ktol=settings.fine_ktol)
         sol = fine.solve("scp", "line")
         counts = dict(fine.counts)
         enlarged = (not sol.diagnostics.get("subspace_settled", True)
                     and sol.diagnostics.get("boundary_residual", 0.0) > settings.enlarge_residual
-                    and settings.enlarged_modes > settings.fine_modes)
+                    and z_b is not None and settings.enlarged_modes > settings.fine_modes)
         if enlarged:
             # The fine k search neither settled nor refined its map (a jittered cylinder
             # at 100k points: residual 1.9e-5, k_opt 5e-4 and the map 6e-3 of the
@@ -302,10 +311,11 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
                                     interior_solver=interior_solver, subspace_ktol=settings.fine_ktol)
             sol = fine.solve("scp", "line")
             counts = {key: counts.get(key, 0) + value for key, value in fine.counts.items()}
-    info = {"coarse_points": int(coarse.size), "coarse_k_opt": float(coarse_k),
+    info = {"coarse_points": int(coarse.size), "coarse_k_opt": None if coarse_k is None else float(coarse_k),
             "coarse_regular": bool(coarse_info["regular"]),
             "coarse_triangular_solves": int(coarse_problem.counts["triangular_solves"]),
             "fine_solver": settings.fine_solver, "fine_enlarged": bool(enlarged),
+            "coarse_error": None if coarse_error is None else f"{type(coarse_error).__name__}: {coarse_error}",
             "fine_counts": counts}
     if solvers:
         info.update(twogrid_cycles=int(sum(s.n_cycles for s in solvers)),

@@ -254,3 +254,22 @@ def test_multilevel_maps_the_fold_it_used_to_bridge():
     assert abs(multi.diagnostics["k_opt"] - direct.diagnostics["k_opt"]) <= 1e-3
     q = evaluate(fold.points, fold.faces, multi.uv, boundary_loops=fold.boundary_loops, diameter=fold.diameter)
     assert q["foldovers"] == 0
+
+
+def test_a_failed_coarse_search_leaves_the_fine_level_to_fourier_modes(monkeypatch, bump_20k):
+    import parambench.methods.spectral.multilevel as multilevel
+    from parambench.datasets_gen.errors import ConvergenceError
+
+    surf, direct, _ = bump_20k
+
+    def fails(self, *args, **kwargs):  # only the coarse level asks for an estimate
+        raise ConvergenceError("no t = 1 crossing (coarse stand-in)")
+
+    monkeypatch.setattr(multilevel.ConformalProblem, "scp_subspace_estimate", fails)
+    multi = get_method("ocp")(surf.points_only(), solver="multilevel")
+    diag = multi.diagnostics
+    assert diag["coarse_error"].startswith("ConvergenceError") and diag["coarse_k_opt"] is None
+    assert diag["subspace_size"] >= 2 * MultilevelSettings().enlarged_modes - 2
+    assert abs(diag["k_opt"] - direct.diagnostics["k_opt"]) <= 1e-4
+    aligned = similarity_align(multi.uv, direct.uv)
+    assert np.sqrt(np.mean(np.sum((aligned - direct.uv) ** 2, axis=1))) <= 1e-3 * surf.diameter
