@@ -153,10 +153,10 @@ def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.nda
     n, m = points.shape[0], coarse.size
     if m < k:
         raise InvalidInputError(f"the coarse level needs at least {k} points, got {m}.")
-    kq = min(m, 2 * k) if normals is not None else k
-    dist, near = cKDTree(points[coarse]).query(points, k=kq, workers=-1)
-    if kq > k:
-        dist, near = _same_side(normals, coarse, dist, near, k)
+    tree = cKDTree(points[coarse])
+    dist, near = tree.query(points, k=k, workers=-1)
+    if normals is not None and m > k:
+        _keep_to_own_sheet(tree, points, normals, coarse, dist, near)
     d2 = np.maximum(dist, 1e-12 * max(float(dist.max()), 1e-300)) ** 2
     w = 1.0 / d2
     w /= w.sum(axis=1, keepdims=True)
@@ -170,19 +170,27 @@ def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.nda
     return (sp.diags((~is_coarse).astype(np.float64)) @ p + on).tocsr()
 
 
-def _same_side(normals: np.ndarray, coarse: np.ndarray, dist: np.ndarray, near: np.ndarray, k: int
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """The ``k`` nearest of the candidates whose normal agrees with the fine point's.
+def _keep_to_own_sheet(tree: cKDTree, points: np.ndarray, normals: np.ndarray, coarse: np.ndarray,
+                       dist: np.ndarray, near: np.ndarray) -> None:
+    """Replace, in place, coarse neighbours whose normal opposes the fine point's.
 
     Where two sheets of the surface come within the coarse spacing (a fold), the nearest
     coarse points include the facing sheet's, whose normals point the other way;
-    interpolating from them couples the sheets in the Galerkin Laplacian. Candidates with
-    ``n_i . n_j <= 0`` are ranked after every agreeing one (kept only when fewer than
-    ``k`` agree).
+    interpolating from them couples the sheets in the Galerkin Laplacian. Rows with such
+    a neighbour (none on a surface without close sheets, so the common case costs one
+    dot product per neighbour) take the ``k`` nearest of ``2 k`` candidates, agreeing
+    ones first (an opposed one is kept only when fewer than ``k`` agree).
     """
+    k = near.shape[1]
     agree = np.einsum("nd,nkd->nk", normals, normals[coarse][near]) > 0.0
-    order = np.argsort(~agree, axis=1, kind="stable")[:, :k]
-    return np.take_along_axis(dist, order, axis=1), np.take_along_axis(near, order, axis=1)
+    rows = np.flatnonzero(~agree.all(axis=1))
+    if rows.size == 0:
+        return
+    d_more, n_more = tree.query(points[rows], k=min(coarse.size, 2 * k), workers=-1)
+    agree_more = np.einsum("nd,nkd->nk", normals[rows], normals[coarse][n_more]) > 0.0
+    order = np.argsort(~agree_more, axis=1, kind="stable")[:, :k]
+    dist[rows] = np.take_along_axis(d_more, order, axis=1)
+    near[rows] = np.take_along_axis(n_more, order, axis=1)
 
 
 def _linear_exact_weights(points: np.ndarray, normals: np.ndarray, nbr_pts: np.ndarray, d2: np.ndarray,
