@@ -10,6 +10,13 @@ local spacing on a quadratic fitted to its loop, and the method runs again on th
 set, which has one boundary loop fewer per filled hole. The added points are dropped from
 the output; the caller keeps the original loops for the self-check, so the holes stay
 holes in the result's triangulation.
+
+Measured with ``holes="filled"`` against the free holes (QC mean on the ground-truth mesh):
+holes-bumped at 5k points, random sampling 1.0117 against 1.0069, jittered with normal
+noise of 0.3 spacings 1.2040 against 1.2033; holes at 20k, graded, 1.0000 against 1.0001;
+0 foldovers and every hole turning -1 in the self-check in each. On bunny10k (free holes
+fail) one hole took 17 points and the map has 9 foldovers, 8 of them on an ear far from
+any hole.
 """
 
 from __future__ import annotations
