@@ -22,7 +22,6 @@ any hole.
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.surface import MethodInput
@@ -111,6 +110,9 @@ def hole_fill_points(points: np.ndarray, normals: np.ndarray, loop: np.ndarray, 
     xy, z = local[:, :2], local[:, 2]
     if abs(abs(_turning(xy)) - 1.0) > 0.25:
         return np.empty((0, 3))
+    # Imported here: matplotlib costs ~80 ms at start-up and only a failed map needs it.
+    from matplotlib.path import Path as PolygonPath
+
     tree = cKDTree(points) if tree is None else tree
     polygon = PolygonPath(xy)
     inside = np.empty((0, 2))
