@@ -251,3 +251,15 @@ def test_command_line_flatten_ends_the_process_after_its_exit_handlers(tmp_path,
     assert (tmp_path / "cli.obj").read_text() == (tmp_path / "ref.obj").read_text()
     bad = command_line("flatten", str(tmp_path / "missing.obj"), "-o", str(tmp_path / "o.obj"))
     assert bad.returncode == 2 and "InputFileError" in bad.stderr and "exit handler ran" in bad.stdout
+
+
+def test_ocp_start_up_leaves_plotting_and_tables_unimported():
+    # flatten's start-up budget (issue #14: a 10k cloud in under 2 s) has no room for
+    # matplotlib (~80 ms) or pandas; they load only where a map needs them.
+    import subprocess
+    import sys
+
+    code = ("import sys, parambench.bench.cli; from parambench.methods.registry import get_method; "
+            "get_method('ocp'); print(sorted(m for m in ('matplotlib', 'pandas') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
