@@ -202,10 +202,11 @@ def _solve_front(front, lap, solver: str, params: dict, timer: StageTimer):
     """(solution, counts, diagnostics) of the conformal problem of ``front`` on the ``solver`` path.
 
     With ``solver="auto"`` resolved to the two-level path, a ConvergenceError or
-    SolverError there falls back to the direct solve (measured at 100k points: the fold,
-    whose coarse interpolation bridges the gap between its sheets, found no k bracket on
-    two levels and a regular map on one); ``solver`` then reads ``"direct"`` and
-    ``multilevel_error`` says why. An explicit ``solver="multilevel"`` raises instead.
+    SolverError there falls back to the direct solve: a safety net, since the two-level
+    path has failed where the direct one did not (the fold at 100k points, before its
+    coarse interpolation kept to each sheet and its fine search learned to do without a
+    coarse map). ``solver`` then reads ``"direct"`` and ``multilevel_error`` says why. An
+    explicit ``solver="multilevel"`` raises instead.
     """
     if solver == "multilevel":
         try:
