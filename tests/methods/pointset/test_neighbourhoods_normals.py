@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from parambench.datasets_gen.errors import DisconnectedError, InconsistentNormalsError, TooFewPointsError
-from parambench.methods.pointset.neighbourhoods import knn_graph, require_connected, symmetric_adjacency
+from parambench.methods.pointset.neighbourhoods import (
+    KnnGraph,
+    _symmetric_adjacency_scipy,
+    knn_graph,
+    require_connected,
+    symmetric_adjacency,
+)
 from parambench.methods.pointset.normals import (
     check_user_normals,
     consistent_signs,
@@ -45,6 +51,33 @@ def test_symmetric_adjacency_is_the_union_of_knn_edges():
         for j, d in zip(graph.indices[i], graph.distances[i]):
             assert adj[i, j] == pytest.approx(d) and adj[j, i] == pytest.approx(d)
     assert adj.nnz <= 2 * 60 * 5 and adj.diagonal().max() == 0
+
+
+def _same_csr(a, b):
+    return all(np.array_equal(x, y) and x.dtype == y.dtype
+               for x, y in ((a.data, b.data), (a.indices, b.indices), (a.indptr, b.indptr)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_symmetric_adjacency_kernel_equals_sparse_maximum(seed):
+    rng = np.random.default_rng(seed)
+    n, k = int(rng.integers(12, 300)), int(rng.integers(1, 10))
+    # Arbitrary distinct neighbours and lengths that differ by direction: the merge must
+    # take the larger, as scipy's maximum does.
+    idx = np.stack([rng.choice(np.delete(np.arange(n), i), size=k, replace=False) for i in range(n)])
+    graph = KnnGraph(indices=idx, distances=rng.uniform(0.1, 2.0, size=(n, k)), mean_spacing=1.0)
+    adj = symmetric_adjacency(graph)
+    assert _same_csr(adj, _symmetric_adjacency_scipy(graph)) and adj.has_sorted_indices
+    real = knn_graph(rng.normal(size=(n, 3)), min(k, n - 1))
+    assert _same_csr(symmetric_adjacency(real), _symmetric_adjacency_scipy(real))
+
+
+def test_symmetric_adjacency_of_odd_rows_takes_the_sparse_path():
+    # A repeated neighbour (summed by the COO conversion), a self loop, a zero length.
+    idx = np.array([[1, 1], [0, 1], [0, 1]])
+    dist = np.array([[1.0, 1.0], [1.0, 0.0], [2.0, 3.0]])
+    graph = KnnGraph(indices=idx, distances=dist, mean_spacing=1.0)
+    assert _same_csr(symmetric_adjacency(graph), _symmetric_adjacency_scipy(graph))
 
 
 def test_too_few_points_and_disconnected_graph():
