@@ -242,3 +242,30 @@ def test_balls_follow_local_density():
     assert sparse_global <= 10 and step_global == 1.0
     assert sparse_local >= 20
     assert 1.8 < step_local < 2.2
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_normals_do_not_depend_on_the_batching(monkeypatch, workers):
+    # The batches run on worker threads: every row's numbers must be those of one batch
+    # of all rows (bit for bit), whatever the batch size and the number of threads.
+    import parambench.methods.pointset.normals as nm
+    import numba
+
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(503, 3)) * [1.0, 1.0, 0.1]
+    graph = knn_graph(pts, 8)
+    valid = rng.random(graph.indices.shape) < 0.8
+    valid[:, :3] = True
+    normals = orient_normals(pts, pca_normals(pts, graph.indices), graph.indices)
+
+    def run():
+        return (pca_normals(pts, graph.indices), *nm.pca_fit(pts, graph.indices, valid),
+                *(smooth_normals(pts, normals, graph.indices, graph.distances, graph.mean_spacing, method=m)
+                  for m in ("linear", "average")))
+
+    monkeypatch.setattr(nm, "_PCA_CHUNK", 10**6)
+    whole = run()
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(nm, "_PCA_CHUNK", 37)
+    for a, b in zip(whole, run()):
+        assert np.array_equal(a, b)
