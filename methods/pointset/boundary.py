@@ -206,6 +206,18 @@ def angular_gaps(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.n
     return gap, np.stack([np.cos(mid), np.sin(mid)], axis=1)
 
 
+def _ball_radii(coords: np.ndarray) -> np.ndarray:
+    """Largest tangent-coordinate length per ball (0 at padding), in batches on worker threads."""
+    out = np.empty(coords.shape[0])
+
+    def radii(sl: slice) -> None:
+        c = coords[sl]
+        out[sl] = np.sqrt(np.einsum("nbi,nbi->nb", c, c)).max(axis=1)
+
+    for_each_chunk(radii, coords.shape[0], _GAP_CHUNK)
+    return out
+
+
 def _angular_gaps_numpy(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`angular_gaps` on whole padded arrays in numpy (the reference of the kernel's tests)."""
     n, b = mask.shape
@@ -623,7 +635,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     gap, bisector = angular_gaps(coords, mask)
     candidates = gap > np.deg2rad(angle_deg)
     e1, e2 = tangent_frames(normals)
-    ball_radius = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
+    ball_radius = _ball_radii(coords)
     # Bridges span up to twice the typical ball radius, or twice the point's own ball
     # radius where the sampling is coarser (graded samplings: a small hole in a sparse
     # region, 3 spacings of 0.093 between two of its candidates, against a median ball

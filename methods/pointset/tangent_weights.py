@@ -31,6 +31,8 @@ import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import InvalidInputError
 
+from .row_chunks import for_each_chunk
+
 __all__ = [
     "DEFAULT_REG_EPS",
     "tangent_weights",
@@ -44,7 +46,8 @@ __all__ = [
 
 DEFAULT_REG_EPS = 1e-2
 
-#: Centres per vectorised batch (bounds temporaries to a few hundred MB).
+#: Centres per vectorised batch (bounds temporaries to a few hundred MB; batches run on
+#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`).
 _CHUNK = 65536
 
 
@@ -75,8 +78,9 @@ def lle_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAULT_
         raise InvalidInputError(f"reg_eps must be > 0, got {reg_eps}; the paper's value is 1e-2.")
     n, b, d = offsets.shape
     out = np.empty((n, b))
-    for start in range(0, n, _CHUNK):
-        stop = min(start + _CHUNK, n)
+
+    def solve(sl: slice) -> None:
+        start, stop = sl.start, sl.stop
         m = mask[start:stop]
         x = np.where(m[:, :, None], offsets[start:stop], 0.0)
         # X^T X and X^T 1 by explicit column sums: several times faster than einsum for d <= 3.
@@ -94,6 +98,9 @@ def lle_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAULT_
         y = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
         w = m - sum(cols[i] * y[:, i:i + 1] for i in range(d))
         out[start:stop] = w / w.sum(axis=1, keepdims=True)
+
+    # Batches on worker threads (the first degenerate point in row order is reported).
+    for_each_chunk(solve, n, _CHUNK)
     return out
 
 
@@ -210,8 +217,15 @@ def reconstruction_error(offsets: np.ndarray, weights: np.ndarray) -> np.ndarray
     -------
     (N,) numpy.ndarray of float64
     """
-    r = np.einsum("nb,nbi->ni", weights, offsets)
-    return np.einsum("ni,ni->n", r, r)
+    out = np.empty(weights.shape[0])
+
+    def error(sl: slice) -> None:
+        r = np.einsum("nb,nbi->ni", weights[sl], offsets[sl])
+        out[sl] = np.einsum("ni,ni->n", r, r)
+
+    # Batches on worker threads; each row's einsum is the same as on all rows at once.
+    for_each_chunk(error, weights.shape[0], _CHUNK)
+    return out
 
 
 def negative_weight_stats(weights: np.ndarray, mask: np.ndarray, boundary_mask: np.ndarray, *,

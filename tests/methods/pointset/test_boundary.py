@@ -115,6 +115,8 @@ def test_angular_gaps_kernel_equals_the_numpy_expressions(monkeypatch, seed):
         np.testing.assert_array_equal(np.isnan(a), np.isnan(c))
         ok = ~np.isnan(a)
         np.testing.assert_array_equal(a[ok].view(np.int64), c[ok].view(np.int64))  # bit for bit, signed zeros too
+    radii = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
+    assert np.array_equal(bm._ball_radii(coords), radii)
 
 
 def test_successor_walks_with_the_surface_on_the_left():

@@ -151,3 +151,31 @@ def test_fewer_negative_interior_weights_than_cotangent(make_height_patch, kind)
     # More negative weights on the boundary than inside (W^tan still minimises R_x there).
     frac = fe.diagnostics["negative_weights"]["negative_fraction"]
     assert frac["boundary"] > frac["interior"]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_weights_do_not_depend_on_the_batching(monkeypatch, workers):
+    # Batches run on worker threads: each row's numbers must be those of one batch of
+    # all rows, bit for bit.
+    import numba
+
+    import parambench.methods.pointset.tangent_weights as tw
+
+    rng = np.random.default_rng(3)
+    n, b = 301, 17
+    coords = rng.normal(size=(n, b, 2))
+    mask = rng.random((n, b)) < 0.8
+    mask[:, :3] = True
+    coords[~mask] = 0.0
+    monkeypatch.setattr(tw, "_CHUNK", 10**6)
+    w0 = tw.tangent_weights(coords, mask)
+    r0 = tw.reconstruction_error(coords, w0)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(tw, "_CHUNK", 23)
+    w1 = tw.tangent_weights(coords, mask)
+    assert np.array_equal(w0, w1)
+    assert np.array_equal(r0, tw.reconstruction_error(coords, w1))
+    bad = coords.copy()
+    bad[[40, 200]] = 0.0
+    with pytest.raises(InvalidInputError, match="point 40 is degenerate"):
+        tw.tangent_weights(bad, mask)
