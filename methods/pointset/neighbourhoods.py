@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError
 
 from ..numba_cache import configure_numba_cache
+from .row_chunks import for_each_chunk
 
 __all__ = ["local_spacing", "KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order",
            "far_along_graph"]
@@ -109,9 +110,25 @@ def local_spacing(graph: KnnGraph, passes: int = 1) -> np.ndarray:
         Length units of the points; its mean is close to ``graph.mean_spacing``.
     """
     h = graph.distances.mean(axis=1)
+    nxt = np.empty_like(h)
     for _ in range(int(passes)):
-        h = (h + h[graph.indices].sum(axis=1)) / (graph.k + 1)
+        _neighbourhood_mean(h, graph.indices, nxt)
+        h, nxt = nxt, h
     return h
+
+
+#: Rows per batch of :func:`local_spacing`'s averages (batches run on worker threads).
+_SPACING_CHUNK = 65536
+
+
+def _neighbourhood_mean(h: np.ndarray, knn: np.ndarray, out: np.ndarray) -> None:
+    """``out = (h + h[knn].sum(axis=1)) / (K + 1)``, in row batches on worker threads (same per-row sums)."""
+    k = knn.shape[1]
+
+    def batch(sl: slice) -> None:
+        out[sl] = (h[sl] + h[knn[sl]].sum(axis=1)) / (k + 1)
+
+    for_each_chunk(batch, h.shape[0], _SPACING_CHUNK)
 
 
 #: Chunks of rows the parallel kernels share out (each allocates its scratch once).
@@ -295,14 +312,59 @@ def require_connected(adjacency: sp.spmatrix, k: int) -> None:
     DisconnectedError
         With the component sizes, largest first.
     """
-    n_comp, labels = connected_components(adjacency, directed=False)
+    sizes = _component_sizes(adjacency)
+    n_comp = sizes.size
     if n_comp > 1:
-        sizes = np.sort(np.bincount(labels))[::-1]
         shown = ", ".join(str(int(s)) for s in sizes[:8]) + (", ..." if n_comp > 8 else "")
         raise DisconnectedError(
             f"the {k}-nearest-neighbour graph has several components: {shown} points; "
             "flatten each separately or increase k_nn."
         )
+
+
+def _component_sizes(adjacency: sp.spmatrix) -> np.ndarray:
+    """Sizes of the connected components of an undirected graph, largest first.
+
+    A CSR matrix without stored zeros is merged by a compiled union-find over its
+    entries (either direction joins: the components of ``connected_components(...,
+    directed=False)``, whose transposed copy of the graph took most of a second at a
+    million points); anything else goes to scipy.
+    """
+    if sp.issparse(adjacency) and adjacency.format == "csr" and adjacency.data.all():
+        n = adjacency.shape[0]
+        roots = _union_find_roots(np.asarray(adjacency.indptr), np.asarray(adjacency.indices), n)
+        counts = np.bincount(roots, minlength=n)
+        sizes = counts[counts > 0]
+    else:
+        _, labels = connected_components(adjacency, directed=False)
+        sizes = np.bincount(labels)
+    return np.sort(sizes)[::-1]
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _union_find_roots(indptr, indices, n):
+    """Root (lowest index) of each point's component under the edges of the CSR rows."""
+    parent = np.arange(n)
+    for i in range(n):
+        for e in range(indptr[i], indptr[i + 1]):
+            a = _find(parent, i)
+            b = _find(parent, indices[e])
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+    for i in range(n):
+        parent[i] = _find(parent, i)
+    return parent
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _find(parent, v):
+    """Root of v, halving the path on the way."""
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
 
 
 def spatial_order(points: np.ndarray) -> np.ndarray:

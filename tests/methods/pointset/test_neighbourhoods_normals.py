@@ -90,6 +90,24 @@ def test_too_few_points_and_disconnected_graph():
         require_connected(symmetric_adjacency(graph), 8)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_component_sizes_equal_scipy_components(seed):
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from parambench.methods.pointset.neighbourhoods import _component_sizes
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    m = int(rng.integers(0, 2 * n))
+    # Directed, unsymmetric entries: the undirected components join either direction.
+    a = sp.csr_matrix((rng.uniform(0.5, 1.0, m), (rng.integers(0, n, m), rng.integers(0, n, m))), shape=(n, n))
+    _, labels = connected_components(a, directed=False)
+    want = np.sort(np.bincount(labels))[::-1]
+    np.testing.assert_array_equal(_component_sizes(a), want)
+    np.testing.assert_array_equal(_component_sizes(a.tocoo()), want)  # the scipy path
+
+
 def test_pca_normals_on_plane_and_sphere(make_sphere):
     rng = np.random.default_rng(2)
     plane = np.c_[rng.uniform(size=(300, 2)), np.zeros(300)]
@@ -269,3 +287,32 @@ def test_normals_do_not_depend_on_the_batching(monkeypatch, workers):
     monkeypatch.setattr(nm, "_PCA_CHUNK", 37)
     for a, b in zip(whole, run()):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_spacing_and_noise_level_do_not_depend_on_the_batching(monkeypatch, workers):
+    import numba
+
+    import parambench.methods.pointset.neighbourhoods as nbm
+    import parambench.methods.pointset.surface_neighbours as snm
+    from parambench.methods.pointset.neighbourhoods import local_spacing
+
+    rng = np.random.default_rng(11)
+    pts = rng.normal(size=(401, 3)) * [1.0, 1.0, 0.05]
+    graph = knn_graph(pts, 8)
+    normals = pca_normals(pts, graph.indices)
+    monkeypatch.setattr(nbm, "_SPACING_CHUNK", 10**6)
+    monkeypatch.setattr(snm, "_NOISE_CHUNK", 10**6)
+    whole = local_spacing(graph, 10), snm._noise_level(pts, graph.indices, normals)
+    # The numpy expressions on all rows at once, as before the batching.
+    h = graph.distances.mean(axis=1)
+    for _ in range(10):
+        h = (h + h[graph.indices].sum(axis=1)) / 9
+    d = pts[graph.indices[:, :6]] - pts[:, None, :]
+    noise = 3.0 * 1.4826 * float(np.median(np.abs(np.einsum("nki,ni->nk", d, normals))))
+    assert np.array_equal(whole[0], h) and whole[1] == noise
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(nbm, "_SPACING_CHUNK", 50)  # the last batch has one row
+    monkeypatch.setattr(snm, "_NOISE_CHUNK", 50)
+    assert np.array_equal(local_spacing(graph, 10), h)
+    assert snm._noise_level(pts, graph.indices, normals) == noise
