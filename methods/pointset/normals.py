@@ -39,10 +39,11 @@ __all__ = [
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
-#: Rows per batch of covariance matrices (~25 MB of temporaries per batch; batches run on
-#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`). Each row's
-#: arithmetic does not depend on the batch size (tested).
-_PCA_CHUNK = 50_000
+#: Rows per batch of covariance matrices (~15 MB of temporaries per batch; batches run on
+#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`, two at a time: half
+#: the single-threaded code's 200k-row batches' memory in all). Each row's arithmetic
+#: does not depend on the batch size (tested).
+_PCA_CHUNK = 25_000
 
 #: Weight of the off-tangent-plane term of the orientation tree's edge weights.
 _OFF_PLANE_WEIGHT = 3.0

@@ -3,9 +3,10 @@
 Most of the front end's vectorised steps work on consecutive rows (points) in chunks to
 bound temporary memory. numpy releases the GIL inside its loops (gathers, einsum,
 ufuncs), so two threads each taking a chunk use both cores on that work, and each row's
-arithmetic is unchanged (the same numpy calls on fewer rows at a time). LAPACK calls
-(``eigh``, ``solve``) release the GIL too but were measured not to run faster on two
-threads here (OpenBLAS serialises them); the rest of a chunk overlaps with them.
+arithmetic is unchanged (the same numpy calls on fewer rows at a time; the tests check
+this bit for bit). The batched 3x3 LAPACK calls (``eigh``, ``solve``) release the GIL
+too but were measured not to run faster on two threads here (numpy 2.x with its
+bundled OpenBLAS); the rest of each batch overlaps with them.
 """
 
 from __future__ import annotations
