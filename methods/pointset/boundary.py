@@ -31,13 +31,17 @@ comes first.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 
+from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
+from .row_chunks import for_each_chunk
 
 __all__ = [
     "BoundaryLoops",
@@ -52,7 +56,13 @@ __all__ = [
     "DEFAULT_MIN_LOOP_SIZE",
 ]
 
+# On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
 DEFAULT_MIN_LOOP_SIZE = 8
+
+#: Balls per batch of :func:`angular_gaps` (batches run on worker threads).
+_GAP_CHUNK = 32768
 
 #: Successors lie within this angle of the walking direction.
 _COS_CONE = np.cos(np.deg2rad(80.0))
@@ -170,7 +180,46 @@ def angular_gaps(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.n
     bisector : (N, 2) numpy.ndarray of float64
         Unit vector in the tangent frame pointing into the middle of the gap (out of the
         surface at a boundary point).
+
+    Notes
+    -----
+    In batches of balls on worker threads: numpy's ``arctan2`` gives the spoke angles,
+    a compiled kernel sorts each row's members and finds the gap (the arithmetic of
+    :func:`_angular_gaps_numpy`, which sorted the whole padded (N, B) array; equal
+    angles of opposite zero sign are the only values whose order may differ, and they
+    cannot change a gap), numpy's ``cos``/``sin`` give the bisector.
     """
+    n, b = mask.shape
+    if b == 0:
+        return _angular_gaps_numpy(coords, mask)
+    gap = np.empty(n)
+    mid = np.empty(n)
+    mask = np.ascontiguousarray(mask)
+
+    def batch(sl: slice) -> None:
+        # arctan2 stays numpy's (its float64 loop is SIMD on this hardware: a compiled
+        # libm atan2 need not give the same last bit).
+        ang = np.arctan2(coords[sl, :, 1], coords[sl, :, 0])
+        _largest_gaps(ang, mask[sl], gap[sl], mid[sl])
+
+    for_each_chunk(batch, n, _GAP_CHUNK)
+    return gap, np.stack([np.cos(mid), np.sin(mid)], axis=1)
+
+
+def _ball_radii(coords: np.ndarray) -> np.ndarray:
+    """Largest tangent-coordinate length per ball (0 at padding), in batches on worker threads."""
+    out = np.empty(coords.shape[0])
+
+    def radii(sl: slice) -> None:
+        c = coords[sl]
+        out[sl] = np.sqrt(np.einsum("nbi,nbi->nb", c, c)).max(axis=1)
+
+    for_each_chunk(radii, coords.shape[0], _GAP_CHUNK)
+    return out
+
+
+def _angular_gaps_numpy(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`angular_gaps` on whole padded arrays in numpy (the reference of the kernel's tests)."""
     n, b = mask.shape
     ang = np.where(mask, np.arctan2(coords[..., 1], coords[..., 0]), np.inf)
     ang.sort(axis=1)
@@ -192,6 +241,47 @@ def angular_gaps(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.n
     gap = np.where(use_wrap, wrap, inner)
     mid = np.where(use_wrap, last + 0.5 * wrap, ang[rows, j] + 0.5 * np.where(use_wrap, 0.0, inner))
     return gap, np.stack([np.cos(mid), np.sin(mid)], axis=1)
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _largest_gaps(ang, mask, gap, mid):
+    """Per row: the largest gap between the sorted angles of the members (wrapping round), and its middle angle.
+
+    Ties go to the wrap-around gap, then to the first inner gap (``argmax``'s rule). A
+    row without members gets ``-inf`` and NaN, as the numpy expressions gave.
+    """
+    n, b = ang.shape
+    a = np.empty(b)
+    for r in range(n):
+        m = 0
+        for c in range(b):  # the members' angles, insertion-sorted (B is at most a few dozen)
+            if not mask[r, c]:
+                continue
+            x = ang[r, c]
+            pos = m
+            while pos > 0 and a[pos - 1] > x:
+                a[pos] = a[pos - 1]
+                pos -= 1
+            a[pos] = x
+            m += 1
+        if m == 0:
+            gap[r] = -np.inf
+            mid[r] = np.nan
+            continue
+        wrap = a[0] + 2.0 * np.pi - a[m - 1]
+        j = 0
+        inner = -np.inf
+        for t in range(m - 1):
+            d = a[t + 1] - a[t]
+            if d > inner:
+                inner = d
+                j = t
+        if wrap >= inner:
+            gap[r] = wrap
+            mid[r] = a[m - 1] + 0.5 * wrap
+        else:
+            gap[r] = inner
+            mid[r] = a[j] + 0.5 * inner
 
 
 def successors(ball_indices: np.ndarray, coords: np.ndarray, candidates: np.ndarray,
@@ -545,7 +635,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     gap, bisector = angular_gaps(coords, mask)
     candidates = gap > np.deg2rad(angle_deg)
     e1, e2 = tangent_frames(normals)
-    ball_radius = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
+    ball_radius = _ball_radii(coords)
     # Bridges span up to twice the typical ball radius, or twice the point's own ball
     # radius where the sampling is coarser (graded samplings: a small hole in a sparse
     # region, 3 spacings of 0.093 between two of its candidates, against a median ball

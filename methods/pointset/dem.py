@@ -46,6 +46,7 @@ diagnostics). Points are stored nearest first.
 
 from __future__ import annotations
 
+import queue
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,6 +75,9 @@ DEFAULT_MAX_BALL = 64
 
 #: Centres processed per call of the compiled kernel (bounds the temporary output).
 _BLOCK = 32768
+
+#: Pieces per worker each block of centres is cut into (handed out dynamically).
+_PIECES_PER_WORKER = 8
 
 #: Relative offset of the upwind weights, in units of l^2.
 _UPWIND_EPS = 1e-6
@@ -474,7 +478,7 @@ def _scratch(workers: int, n: int, cap: int) -> list[_Scratch]:
 
 def _run_blocks(centre_ids: np.ndarray, cloud: _Cloud, rule: _BallRule, scratch: list[_Scratch],
                 sizes: np.ndarray) -> tuple[_BallBlock, int]:
-    """Run the kernel over blocks of ``_BLOCK`` centres, each block split evenly between the workers.
+    """Run the kernel over blocks of ``_BLOCK`` centres, each block's pieces shared out between the workers.
 
     Fills ``sizes``; returns the balls (the rows of :func:`_store_for`, padded with -1,
     0 and +inf) and the number of truncated balls.
@@ -488,14 +492,29 @@ def _run_blocks(centre_ids: np.ndarray, cloud: _Cloud, rule: _BallRule, scratch:
     block = _BallBlock(idx=np.empty((m0, rule.max_ball), dtype=np.int64), uv=np.empty((m0, rule.max_ball, 2)),
                        dist=np.empty((m0, rule.max_ball)), size=sizes[:m0])
     store = None
+    # Each task borrows a free worker's scratch (never more tasks run than scratches):
+    # the stamps of _dem_range make any scratch valid for any centre.
+    free = queue.SimpleQueue()
+    for work in scratch:
+        free.put(work)
+
+    def run(block: _BallBlock, start: int, lo: int, hi: int) -> int:
+        work = free.get()
+        try:
+            return int(_dem_range(centre_ids, lo, hi, start, cloud, rule, block, work))
+        finally:
+            free.put(work)
+
     with ThreadPoolExecutor(max_workers=workers) as pool:
         for start in range(0, n_out, _BLOCK):
             stop = min(start + _BLOCK, n_out)
             bounds = np.linspace(start, stop, workers + 1).astype(np.int64)
             block = block._replace(size=sizes[start:stop])
-            args = [(centre_ids, int(bounds[t]), int(bounds[t + 1]), start, cloud, rule, block, scratch[t])
-                    for t in range(workers)]
-            n_trunc += sum(int(r) for r in pool.map(lambda a: _dem_range(*a), args))
+            # Balls cost unevenly (and a core may be busy elsewhere): small pieces handed
+            # out as workers free up keep both busy until the block's end.
+            pieces = np.linspace(start, stop, workers * _PIECES_PER_WORKER + 1).astype(np.int64)
+            n_trunc += sum(pool.map(lambda ab, b=block, s0=start: run(b, s0, int(ab[0]), int(ab[1])),
+                                    zip(pieces[:-1], pieces[1:])))
             store = _store_for(store, int(block.size.max()), start, sizes, rule.max_ball)
             parts = [(int(bounds[t]) - start, int(bounds[t + 1]) - start) for t in range(workers)]
             list(pool.map(lambda part: _copy_rows(block, store, start, *part), parts))

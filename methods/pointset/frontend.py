@@ -30,6 +30,7 @@ from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
 from .params import FrontEndParams
+from .reorder import renumbered_rows, take_rows
 from .tangent_weights import (
     DEFAULT_REG_EPS,
     lle3d_weights,
@@ -605,11 +606,11 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     # Kept inline (not a stage function) so each big array is released as soon as its
     # input-order copy exists: at 1M points the balls and weights are ~1 GB.
     with timer("weights"):  # back to the input order, then the sparse matrices
-        ball_indices = _from_sorted(balls.indices[inv], order)
-        coords = balls.coords[inv]
+        ball_indices = renumbered_rows(balls.indices, inv, order)
+        coords = take_rows(balls.coords, inv)
         del balls
-        w = w[inv]
-        w_mat = weight_matrix(ball_indices, w)
+        # Row i of W takes the weights of sorted row inv[i]: no reordered copy of w.
+        w_mat = weight_matrix(ball_indices, w, weight_rows=inv)
         del w
 
     recorded = {"k_nn": k_nn, "ball_k": int(params.ball_k), "ball_eps_factor": float(params.ball_eps_factor),
@@ -619,7 +620,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
                 "max_ball": int(params.max_ball), "min_loop_size": int(params.min_loop_size),
                 "dem_variant": params.dem_variant, "spacing": params.spacing, "neighbours": params.neighbours,
                 "boundary_method": params.boundary_method}
-    return FrontEnd(points=pts, normals=oriented[inv], knn_indices=_from_sorted(nb.graph.indices[inv], order),
+    return FrontEnd(points=pts, normals=oriented[inv], knn_indices=renumbered_rows(nb.graph.indices, inv, order),
                     mean_spacing=float(nb.spacing),
                     local_spacing=_interior_spacing(nb.h_local, nb.graph.indices, bnd.mask)[inv],
                     ball_indices=ball_indices, tangent_coords=coords, W=w_mat,

@@ -21,6 +21,7 @@ from scipy.sparse.csgraph import minimum_spanning_tree
 from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInputError
 
 from ..numba_cache import configure_numba_cache
+from .row_chunks import for_each_chunk
 
 __all__ = [
     "pca_normals",
@@ -38,8 +39,11 @@ __all__ = [
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
-#: Rows per batch of covariance matrices (bounds temporary memory to ~100 MB).
-_PCA_CHUNK = 200_000
+#: Rows per batch of covariance matrices (~15 MB of temporaries per batch; batches run on
+#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`, two at a time: half
+#: the single-threaded code's 200k-row batches' memory in all). Each row's arithmetic
+#: does not depend on the batch size (tested).
+_PCA_CHUNK = 25_000
 
 #: Weight of the off-tangent-plane term of the orientation tree's edge weights.
 _OFF_PLANE_WEIGHT = 3.0
@@ -64,13 +68,15 @@ def pca_normals(points: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
     """
     n = points.shape[0]
     out = np.empty((n, 3))
-    for start in range(0, n, _PCA_CHUNK):
-        stop = min(start + _PCA_CHUNK, n)
-        nbh = np.concatenate([points[start:stop, None, :], points[knn_indices[start:stop]]], axis=1)
+
+    def fit(sl: slice) -> None:
+        nbh = np.concatenate([points[sl, None, :], points[knn_indices[sl]]], axis=1)
         nbh = nbh - nbh.mean(axis=1, keepdims=True)
         cov = np.einsum("nki,nkj->nij", nbh, nbh)
         _, vecs = np.linalg.eigh(cov)  # eigenvalues ascending
-        out[start:stop] = vecs[:, :, 0]
+        out[sl] = vecs[:, :, 0]
+
+    for_each_chunk(fit, n, _PCA_CHUNK)
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
@@ -108,9 +114,8 @@ def pca_fit(points: np.ndarray, nbh_indices: np.ndarray, valid: np.ndarray | Non
         valid = np.ones(nbh_indices.shape, dtype=bool)
     normals = np.empty((m, 3))
     lam = np.empty((m, 3))
-    chunk = max(1, _PCA_CHUNK * 9 // (nbh_indices.shape[1] + 1))  # pca_normals' memory at K = 8
-    for start in range(0, m, chunk):
-        sl = slice(start, min(start + chunk, m))
+
+    def fit(sl: slice) -> None:
         w = np.concatenate([np.ones((sl.stop - sl.start, 1)), valid[sl].astype(np.float64)], axis=1)
         nbh = np.concatenate([points[sl, None, :], points[nbh_indices[sl]]], axis=1)
         count = w.sum(axis=1)
@@ -119,6 +124,8 @@ def pca_fit(points: np.ndarray, nbh_indices: np.ndarray, valid: np.ndarray | Non
         vals, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", d, d))
         normals[sl] = vecs[:, :, 0]
         lam[sl] = np.maximum(vals, 0.0)
+
+    for_each_chunk(fit, m, max(1, _PCA_CHUNK * 9 // (nbh_indices.shape[1] + 1)))  # pca_normals' memory at K = 8
     count = 1.0 + valid.sum(axis=1)
     s2 = lam[:, 0] / np.maximum(count - 3.0, 1.0)
     tiny = np.finfo(np.float64).tiny
@@ -467,14 +474,14 @@ def smooth_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
         raise InvalidInputError(f"normal smoothing must be one of {', '.join(SMOOTHING_KINDS)}, got {method!r}.")
     n = normals.shape[0]
     avg = np.empty_like(normals)
-    for start in range(0, n, _PCA_CHUNK):
-        sl = slice(start, min(start + _PCA_CHUNK, n))
+
+    def smooth(sl: slice) -> None:
         idx = knn_indices[sl]
         w = 1.0 / (knn_distances[sl] + 1e-4 * mean_spacing)
         nbr = normals[idx]
         if method == "average":
             avg[sl] = np.einsum("nk,nkj->nj", w, nbr)
-            continue
+            return
         e1, e2 = tangent_frames(normals[sl])
         d = points[idx] - points[sl, None, :]
         design = np.stack([np.ones(idx.shape), np.einsum("nki,ni->nk", d, e1), np.einsum("nki,ni->nk", d, e2)],
@@ -485,6 +492,8 @@ def smooth_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
         ridge = 1e-9 * np.einsum("nii->n", lhs)[:, None, None] * np.diag([0.0, 1.0, 1.0])
         rhs = np.einsum("nk,nki,nkj->nij", w, design, nbr)
         avg[sl] = np.linalg.solve(lhs + ridge, rhs)[:, 0, :]
+
+    for_each_chunk(smooth, n, _PCA_CHUNK)
     norm = np.linalg.norm(avg, axis=1, keepdims=True)
     # A neighbourhood whose normals cancel exactly cannot be averaged: keep the original.
     bad = norm[:, 0] < 1e-12

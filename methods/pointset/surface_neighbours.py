@@ -36,6 +36,7 @@ from scipy.spatial import cKDTree
 from ..numba_cache import configure_numba_cache
 from .neighbourhoods import KnnGraph, far_along_graph, knn_graph, symmetric_adjacency
 from .normals import _dot3, consistent_signs, pca_fit, pca_normals
+from .row_chunks import for_each_chunk
 
 __all__ = ["surface_knn_graph", "pruned_knn_graph", "gap_aware_knn_graph", "gap_suspected", "CANDIDATE_FACTOR", "MAX_SLOPE",
            "FACING_TOL", "GAP_HOPS", "BORROW_RATIO"]
@@ -65,11 +66,21 @@ def _keep_mask(points, cand, normals, noise_level):
     return along <= np.maximum(MAX_SLOPE * in_plane, noise_level)
 
 
+#: Rows per batch of :func:`_noise_level`.
+_NOISE_CHUNK = 65536
+
+
 def _noise_level(points, cand, normals):
     # Robust scale of the out-of-plane offsets of the nearest neighbours: curvature and
     # noise, not gaps (a gap affects few points).
-    d = points[cand[:, :_FIT_K]] - points[:, None, :]
-    along = np.abs(np.einsum("nki,ni->nk", d, normals))
+    near = cand[:, :_FIT_K]
+    along = np.empty(near.shape)
+
+    def batch(sl: slice) -> None:  # row batches on worker threads: the same per-row einsum
+        d = points[near[sl]] - points[sl, None, :]
+        along[sl] = np.abs(np.einsum("nki,ni->nk", d, normals[sl]))
+
+    for_each_chunk(batch, points.shape[0], _NOISE_CHUNK)
     return _NOISE_SIGMAS * 1.4826 * float(np.median(along))
 
 

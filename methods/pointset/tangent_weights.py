@@ -26,10 +26,16 @@ The default eps is 1e-2: the paper writes "10e-3" and the authors' code uses
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numba
 import numpy as np
 import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import InvalidInputError
+
+from ..numba_cache import configure_numba_cache
+from .row_chunks import for_each_chunk
 
 __all__ = [
     "DEFAULT_REG_EPS",
@@ -42,9 +48,13 @@ __all__ = [
     "negative_weight_stats",
 ]
 
+# On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
 DEFAULT_REG_EPS = 1e-2
 
-#: Centres per vectorised batch (bounds temporaries to a few hundred MB).
+#: Centres per vectorised batch (bounds temporaries to a few hundred MB; batches run on
+#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`).
 _CHUNK = 65536
 
 
@@ -75,8 +85,9 @@ def lle_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAULT_
         raise InvalidInputError(f"reg_eps must be > 0, got {reg_eps}; the paper's value is 1e-2.")
     n, b, d = offsets.shape
     out = np.empty((n, b))
-    for start in range(0, n, _CHUNK):
-        stop = min(start + _CHUNK, n)
+
+    def solve(sl: slice) -> None:
+        start, stop = sl.start, sl.stop
         m = mask[start:stop]
         x = np.where(m[:, :, None], offsets[start:stop], 0.0)
         # X^T X and X^T 1 by explicit column sums: several times faster than einsum for d <= 3.
@@ -94,6 +105,9 @@ def lle_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAULT_
         y = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
         w = m - sum(cols[i] * y[:, i:i + 1] for i in range(d))
         out[start:stop] = w / w.sum(axis=1, keepdims=True)
+
+    # Batches on worker threads (the first degenerate point in row order is reported).
+    for_each_chunk(solve, n, _CHUNK)
     return out
 
 
@@ -166,23 +180,50 @@ def dense_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAUL
     return w / w.sum(axis=1, keepdims=True)
 
 
-def weight_matrix(ball_indices: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
+def weight_matrix(ball_indices: np.ndarray, weights: np.ndarray, *,
+                  weight_rows: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse (N, N) weight matrix from padded per-ball weights.
 
-    Built directly in CSR form (rows are already grouped), so no sort or COO pass is
-    needed even at millions of points.
+    Built directly in CSR form (rows are already grouped) by compiled kernels on all
+    cores: each row's members are sorted by column in place, so no COO pass or sparse
+    sort is needed even at millions of points.
 
     Parameters
     ----------
     ball_indices : (N, B) numpy.ndarray of int64
-        -1 at padding.
-    weights : (N, B) numpy.ndarray of float64
+        -1 at padding; distinct members per row.
+    weights : (M, B) numpy.ndarray of float64
+    weight_rows : (N,) numpy.ndarray of int, optional
+        Row r's weights are ``weights[weight_rows[r]]`` (default: ``weights[r]``), so
+        weights kept in another row order need no reordered copy.
 
     Returns
     -------
     (N, N) scipy.sparse.csr_matrix of float64
         ``W[i, j]`` = weight of member j in i's ball; no diagonal; sorted indices.
+        The same arrays as :func:`_weight_matrix_scipy`.
     """
+    n = ball_indices.shape[0]
+    idx = np.ascontiguousarray(ball_indices, dtype=np.int64)
+    w = np.ascontiguousarray(weights, dtype=np.float64)
+    rows = (np.arange(n, dtype=np.int64) if weight_rows is None
+            else np.ascontiguousarray(weight_rows, dtype=np.int64))
+    counts = np.empty(n, dtype=np.int64)
+    _member_counts(idx, counts)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    nnz = int(indptr[-1])
+    idx_dtype = np.int32 if n < 2**31 - 1 and nnz < 2**31 - 1 else np.int64
+    indices = np.empty(nnz, dtype=idx_dtype)
+    data = np.empty(nnz)
+    _sorted_members(idx, w, rows, indptr, indices, data)
+    mat = sp.csr_matrix((data, indices, indptr.astype(idx_dtype)), shape=(n, n))
+    mat.has_sorted_indices = True  # each row written in column order by _sorted_members
+    return mat
+
+
+def _weight_matrix_scipy(ball_indices: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
+    """:func:`weight_matrix` by boolean gathers and scipy's sort (the reference of its tests)."""
     n = ball_indices.shape[0]
     mask = ball_indices >= 0
     counts = mask.sum(axis=1)
@@ -193,6 +234,55 @@ def weight_matrix(ball_indices: np.ndarray, weights: np.ndarray) -> sp.csr_matri
                       shape=(n, n))
     w.sort_indices()
     return w
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _member_counts(ball_indices, counts):
+    """Real members (index >= 0) per row."""
+    n, b = ball_indices.shape
+    for r in numba.prange(n):
+        m = 0
+        for c in range(b):
+            if ball_indices[r, c] >= 0:
+                m += 1
+        counts[r] = m
+
+
+#: Chunks of rows :func:`_sorted_members` shares out (each allocates its scratch once).
+_ROW_CHUNKS = 256
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _sorted_members(ball_indices, weights, weight_rows, indptr, indices, data):
+    """CSR rows: row r's members (``ball_indices[r]``) in column order with ``weights[weight_rows[r]]``.
+
+    Insertion sort per row (a few dozen members); members are distinct, so the order is
+    the one scipy's ``sort_indices`` gives.
+    """
+    n, b = ball_indices.shape
+    n_chunks = min(n, _ROW_CHUNKS)
+    for ch in numba.prange(n_chunks):
+        cols = np.empty(b, dtype=np.int64)
+        vals = np.empty(b)
+        for r in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
+            src = weight_rows[r]
+            m = 0
+            for c in range(b):
+                j = ball_indices[r, c]
+                if j < 0:
+                    continue
+                pos = m
+                while pos > 0 and cols[pos - 1] > j:
+                    cols[pos] = cols[pos - 1]
+                    vals[pos] = vals[pos - 1]
+                    pos -= 1
+                cols[pos] = j
+                vals[pos] = weights[src, c]
+                m += 1
+            at = indptr[r]
+            for t in range(m):
+                indices[at + t] = cols[t]
+                data[at + t] = vals[t]
 
 
 def reconstruction_error(offsets: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -210,8 +300,15 @@ def reconstruction_error(offsets: np.ndarray, weights: np.ndarray) -> np.ndarray
     -------
     (N,) numpy.ndarray of float64
     """
-    r = np.einsum("nb,nbi->ni", weights, offsets)
-    return np.einsum("ni,ni->n", r, r)
+    out = np.empty(weights.shape[0])
+
+    def error(sl: slice) -> None:
+        r = np.einsum("nb,nbi->ni", weights[sl], offsets[sl])
+        out[sl] = np.einsum("ni,ni->n", r, r)
+
+    # Batches on worker threads; each row's einsum is the same as on all rows at once.
+    for_each_chunk(error, weights.shape[0], _CHUNK)
+    return out
 
 
 def negative_weight_stats(weights: np.ndarray, mask: np.ndarray, boundary_mask: np.ndarray, *,
@@ -235,7 +332,69 @@ def negative_weight_stats(weights: np.ndarray, mask: np.ndarray, boundary_mask: 
         ``min_weight``: {"interior", "boundary"};
         ``histogram``: {"edges": list, "interior": counts, "boundary": counts}.
         JSON-serialisable; NaN-free (empty groups report 0).
+
+    Notes
+    -----
+    Two passes over batches of rows on worker threads (range and counts, then the
+    histograms over the common range), instead of copying each group's weights whole
+    (~1 GB of temporaries at a million points). Counts, minima and maxima do not depend
+    on the batching, and neither does a value's histogram bin (numpy's uniform-bin rule
+    uses the range only), so the result equals :func:`_negative_weight_stats_whole`'s.
     """
+    n = weights.shape[0]
+    n_chunks = -(-n // _CHUNK)
+    groups = (("interior", ~boundary_mask), ("boundary", boundary_mask))
+    # Per batch: range of all real weights; per group: real weights, negative ones, rows,
+    # rows with a negative weight, smallest weight (NaN-propagating, as ndarray.min).
+    ranges = np.full((n_chunks, 2), np.nan)
+    counts = np.zeros((2, n_chunks, 4), dtype=np.int64)
+    minima = np.full((2, n_chunks), np.nan)
+
+    def tally(sl: slice) -> None:
+        c = sl.start // _CHUNK
+        w, m = weights[sl], mask[sl]
+        real = w[m]
+        if real.size:
+            ranges[c] = real.min(), real.max()
+        for g, (_, rows) in enumerate(groups):
+            sub_w, sub_m = w[rows[sl]], m[rows[sl]]
+            vals = sub_w[sub_m]
+            neg = (sub_w < 0) & sub_m
+            counts[g, c] = vals.size, neg.sum(), sub_w.shape[0], neg.any(axis=1).sum()
+            if vals.size:
+                minima[g, c] = vals.min()
+
+    for_each_chunk(tally, n, _CHUNK)
+    some = counts[:, :, 0].sum(axis=0) > 0  # batches with real weights
+    lo, hi = ((float(ranges[some, 0].min()), float(ranges[some, 1].max())) if some.any() else (0.0, 1.0))
+    if hi <= lo:
+        hi = lo + 1.0
+    edges = np.histogram_bin_edges([], bins=bins, range=(lo, hi))
+    hist = np.zeros((2, n_chunks, int(bins)), dtype=np.int64)
+
+    def histogram(sl: slice) -> None:
+        c = sl.start // _CHUNK
+        w, m = weights[sl], mask[sl]
+        for g, (_, rows) in enumerate(groups):
+            # An int bin count with a range takes numpy's fast path for uniform bins.
+            hist[g, c] = np.histogram(w[rows[sl]][m[rows[sl]]], bins=bins, range=(lo, hi))[0]
+
+    for_each_chunk(histogram, n, _CHUNK)
+    out: dict = {"negative_fraction": {}, "points_with_negative": {}, "min_weight": {},
+                 "histogram": {"edges": edges.tolist()}}
+    for g, (key, _) in enumerate(groups):
+        n_vals, n_neg, n_rows, n_rows_neg = (int(v) for v in counts[g].sum(axis=0))
+        has = counts[g, :, 0] > 0
+        out["negative_fraction"][key] = float(np.int64(n_neg) / n_vals) if n_vals else 0.0
+        out["points_with_negative"][key] = float(np.float64(n_rows_neg) / n_rows) if n_rows else 0.0
+        out["min_weight"][key] = float(minima[g, has].min()) if n_vals else 0.0
+        out["histogram"][key] = hist[g].sum(axis=0).tolist()
+    return out
+
+
+def _negative_weight_stats_whole(weights: np.ndarray, mask: np.ndarray, boundary_mask: np.ndarray, *,
+                                 bins: int = 40) -> dict:
+    """:func:`negative_weight_stats` on whole arrays (the reference of its tests)."""
     finite = weights[mask]
     lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
     if hi <= lo:

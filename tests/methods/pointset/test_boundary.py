@@ -91,6 +91,34 @@ def test_angular_gaps_by_hand():
     np.testing.assert_allclose(gap, [np.pi / 4])
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_angular_gaps_kernel_equals_the_numpy_expressions(monkeypatch, seed):
+    import parambench.methods.pointset.boundary as bm
+
+    rng = np.random.default_rng(seed)
+    n, b = 700, int(rng.integers(1, 40))
+    coords = rng.normal(size=(n, b, 2))
+    mask = rng.random((n, b)) < rng.uniform(0.2, 1.0)
+    mask[:, 0] = True
+    mask[:5] = False  # no member: -inf and NaN, as the numpy expressions give
+    mask[5:10] = np.arange(b) < 1  # one member: the whole circle
+    coords[10] = [1.0, 0.0]  # all spokes along one direction, ties everywhere
+    coords[11, ::2] = [0.0, -0.0]  # spokes of angle -0 and +0
+    coords[11, 1::2] = [0.0, 0.0]
+    coords[12, :, 1] = 0.0  # angles 0 and pi only
+    coords[12, :, 0] = np.where(np.arange(b) % 3 == 0, -1.0, 2.0)
+    monkeypatch.setattr(bm, "_GAP_CHUNK", 64)  # several batches on the threads
+    with np.errstate(invalid="ignore"):
+        want = bm._angular_gaps_numpy(coords, mask)
+        got = angular_gaps(coords, mask)
+    for a, c in zip(want, got):
+        np.testing.assert_array_equal(np.isnan(a), np.isnan(c))
+        ok = ~np.isnan(a)
+        np.testing.assert_array_equal(a[ok].view(np.int64), c[ok].view(np.int64))  # bit for bit, signed zeros too
+    radii = np.sqrt(np.einsum("nbi,nbi->nb", coords, coords)).max(axis=1)
+    assert np.array_equal(bm._ball_radii(coords), radii)
+
+
 def test_successor_walks_with_the_surface_on_the_left():
     # Points on the x axis, surface above (y > 0): outward is -y, so walking goes +x.
     idx = np.array([[1, 2], [0, 2], [1, 0]])

@@ -142,3 +142,23 @@ def test_small_blocks_give_the_same_balls(make_cap, monkeypatch):
     assert one.n_truncated == many.n_truncated
     for f in ("indices", "coords", "sizes", "graph_dist"):
         np.testing.assert_array_equal(getattr(one, f), getattr(many, f))
+
+
+@pytest.mark.parametrize("workers,pieces", [(1, 1), (2, 1), (2, 8), (3, 5)])
+def test_pieces_shared_out_to_workers_give_the_same_balls(make_cap, monkeypatch, workers, pieces):
+    """Any split of the centres between workers (scratch borrowed per piece) matches one worker bit for bit."""
+    import numba
+
+    patch = make_cap(1.0, 1.0, 20, "jittered")
+    graph = knn_graph(patch.points, 8)
+    adj = symmetric_adjacency(graph)
+    normals = orient_normals(patch.points, pca_normals(patch.points, graph.indices), graph.indices)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 1)
+    one = dem_balls(patch.points, normals, adj, graph.mean_spacing, ball_eps_factor=2.0)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(dem, "_PIECES_PER_WORKER", pieces)
+    monkeypatch.setattr(dem, "_BLOCK", 50)
+    many = dem_balls(patch.points, normals, adj, graph.mean_spacing, ball_eps_factor=2.0)
+    assert one.n_truncated == many.n_truncated
+    for f in ("indices", "coords", "sizes", "graph_dist"):
+        np.testing.assert_array_equal(getattr(one, f), getattr(many, f))

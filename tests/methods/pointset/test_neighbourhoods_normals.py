@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from parambench.datasets_gen.errors import DisconnectedError, InconsistentNormalsError, TooFewPointsError
-from parambench.methods.pointset.neighbourhoods import knn_graph, require_connected, symmetric_adjacency
+from parambench.methods.pointset.neighbourhoods import (
+    KnnGraph,
+    _symmetric_adjacency_scipy,
+    knn_graph,
+    require_connected,
+    symmetric_adjacency,
+)
 from parambench.methods.pointset.normals import (
     check_user_normals,
     consistent_signs,
@@ -47,6 +53,33 @@ def test_symmetric_adjacency_is_the_union_of_knn_edges():
     assert adj.nnz <= 2 * 60 * 5 and adj.diagonal().max() == 0
 
 
+def _same_csr(a, b):
+    return all(np.array_equal(x, y) and x.dtype == y.dtype
+               for x, y in ((a.data, b.data), (a.indices, b.indices), (a.indptr, b.indptr)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_symmetric_adjacency_kernel_equals_sparse_maximum(seed):
+    rng = np.random.default_rng(seed)
+    n, k = int(rng.integers(12, 300)), int(rng.integers(1, 10))
+    # Arbitrary distinct neighbours and lengths that differ by direction: the merge must
+    # take the larger, as scipy's maximum does.
+    idx = np.stack([rng.choice(np.delete(np.arange(n), i), size=k, replace=False) for i in range(n)])
+    graph = KnnGraph(indices=idx, distances=rng.uniform(0.1, 2.0, size=(n, k)), mean_spacing=1.0)
+    adj = symmetric_adjacency(graph)
+    assert _same_csr(adj, _symmetric_adjacency_scipy(graph)) and adj.has_sorted_indices
+    real = knn_graph(rng.normal(size=(n, 3)), min(k, n - 1))
+    assert _same_csr(symmetric_adjacency(real), _symmetric_adjacency_scipy(real))
+
+
+def test_symmetric_adjacency_of_odd_rows_takes_the_sparse_path():
+    # A repeated neighbour (summed by the COO conversion), a self loop, a zero length.
+    idx = np.array([[1, 1], [0, 1], [0, 1]])
+    dist = np.array([[1.0, 1.0], [1.0, 0.0], [2.0, 3.0]])
+    graph = KnnGraph(indices=idx, distances=dist, mean_spacing=1.0)
+    assert _same_csr(symmetric_adjacency(graph), _symmetric_adjacency_scipy(graph))
+
+
 def test_too_few_points_and_disconnected_graph():
     with pytest.raises(TooFewPointsError):
         knn_graph(np.random.default_rng(1).normal(size=(8, 3)), 8)
@@ -55,6 +88,24 @@ def test_too_few_points_and_disconnected_graph():
     graph = knn_graph(np.vstack([a, b]), 8)
     with pytest.raises(DisconnectedError, match=r"several components: 100, 36 points.*increase k_nn"):
         require_connected(symmetric_adjacency(graph), 8)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_component_sizes_equal_scipy_components(seed):
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from parambench.methods.pointset.neighbourhoods import _component_sizes
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    m = int(rng.integers(0, 2 * n))
+    # Directed, unsymmetric entries: the undirected components join either direction.
+    a = sp.csr_matrix((rng.uniform(0.5, 1.0, m), (rng.integers(0, n, m), rng.integers(0, n, m))), shape=(n, n))
+    _, labels = connected_components(a, directed=False)
+    want = np.sort(np.bincount(labels))[::-1]
+    np.testing.assert_array_equal(_component_sizes(a), want)
+    np.testing.assert_array_equal(_component_sizes(a.tocoo()), want)  # the scipy path
 
 
 def test_pca_normals_on_plane_and_sphere(make_sphere):
@@ -209,3 +260,59 @@ def test_balls_follow_local_density():
     assert sparse_global <= 10 and step_global == 1.0
     assert sparse_local >= 20
     assert 1.8 < step_local < 2.2
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_normals_do_not_depend_on_the_batching(monkeypatch, workers):
+    # The batches run on worker threads: every row's numbers must be those of one batch
+    # of all rows (bit for bit), whatever the batch size and the number of threads.
+    import parambench.methods.pointset.normals as nm
+    import numba
+
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(503, 3)) * [1.0, 1.0, 0.1]
+    graph = knn_graph(pts, 8)
+    valid = rng.random(graph.indices.shape) < 0.8
+    valid[:, :3] = True
+    normals = orient_normals(pts, pca_normals(pts, graph.indices), graph.indices)
+
+    def run():
+        return (pca_normals(pts, graph.indices), *nm.pca_fit(pts, graph.indices, valid),
+                *(smooth_normals(pts, normals, graph.indices, graph.distances, graph.mean_spacing, method=m)
+                  for m in ("linear", "average")))
+
+    monkeypatch.setattr(nm, "_PCA_CHUNK", 10**6)
+    whole = run()
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(nm, "_PCA_CHUNK", 37)
+    for a, b in zip(whole, run()):
+        assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_spacing_and_noise_level_do_not_depend_on_the_batching(monkeypatch, workers):
+    import numba
+
+    import parambench.methods.pointset.neighbourhoods as nbm
+    import parambench.methods.pointset.surface_neighbours as snm
+    from parambench.methods.pointset.neighbourhoods import local_spacing
+
+    rng = np.random.default_rng(11)
+    pts = rng.normal(size=(401, 3)) * [1.0, 1.0, 0.05]
+    graph = knn_graph(pts, 8)
+    normals = pca_normals(pts, graph.indices)
+    monkeypatch.setattr(nbm, "_SPACING_CHUNK", 10**6)
+    monkeypatch.setattr(snm, "_NOISE_CHUNK", 10**6)
+    whole = local_spacing(graph, 10), snm._noise_level(pts, graph.indices, normals)
+    # The numpy expressions on all rows at once, as before the batching.
+    h = graph.distances.mean(axis=1)
+    for _ in range(10):
+        h = (h + h[graph.indices].sum(axis=1)) / 9
+    d = pts[graph.indices[:, :6]] - pts[:, None, :]
+    noise = 3.0 * 1.4826 * float(np.median(np.abs(np.einsum("nki,ni->nk", d, normals))))
+    assert np.array_equal(whole[0], h) and whole[1] == noise
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(nbm, "_SPACING_CHUNK", 50)  # the last batch has one row
+    monkeypatch.setattr(snm, "_NOISE_CHUNK", 50)
+    assert np.array_equal(local_spacing(graph, 10), h)
+    assert snm._noise_level(pts, graph.indices, normals) == noise

@@ -129,6 +129,27 @@ def test_negative_weight_stats_by_hand():
     assert stats["histogram"]["edges"][0] == -0.5 and stats["histogram"]["edges"][-1] == 1.5
 
 
+@pytest.mark.parametrize("case", ["random", "no boundary", "all boundary", "constant", "no weights"])
+def test_negative_weight_stats_in_batches_equal_the_whole_arrays(monkeypatch, case):
+    import parambench.methods.pointset.tangent_weights as tw
+
+    rng = np.random.default_rng(7)
+    n, b = 500, 13
+    w = rng.normal(0.1, 0.2, size=(n, b))
+    mask = rng.random((n, b)) < 0.7
+    bnd = rng.random(n) < 0.1
+    if case == "no boundary":
+        bnd[:] = False
+    elif case == "all boundary":
+        bnd[:] = True
+    elif case == "constant":
+        w[:] = 0.25
+    elif case == "no weights":
+        mask[:] = False
+    monkeypatch.setattr(tw, "_CHUNK", 37)  # batches with and without boundary rows
+    assert tw.negative_weight_stats(w, mask, bnd) == tw._negative_weight_stats_whole(w, mask, bnd)
+
+
 @pytest.mark.parametrize("kind", ["bump", "saddle"])
 def test_fewer_negative_interior_weights_than_cotangent(make_height_patch, kind):
     """Paper Sec. 3.2 / Fig. 5 on an irregular mesh: the Delaunay triangulation of random
@@ -151,3 +172,52 @@ def test_fewer_negative_interior_weights_than_cotangent(make_height_patch, kind)
     # More negative weights on the boundary than inside (W^tan still minimises R_x there).
     frac = fe.diagnostics["negative_weights"]["negative_fraction"]
     assert frac["boundary"] > frac["interior"]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_weights_do_not_depend_on_the_batching(monkeypatch, workers):
+    # Batches run on worker threads: each row's numbers must be those of one batch of
+    # all rows, bit for bit.
+    import numba
+
+    import parambench.methods.pointset.tangent_weights as tw
+
+    rng = np.random.default_rng(3)
+    n, b = 301, 17
+    coords = rng.normal(size=(n, b, 2))
+    mask = rng.random((n, b)) < 0.8
+    mask[:, :3] = True
+    coords[~mask] = 0.0
+    monkeypatch.setattr(tw, "_CHUNK", 10**6)
+    w0 = tw.tangent_weights(coords, mask)
+    r0 = tw.reconstruction_error(coords, w0)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", workers)
+    monkeypatch.setattr(tw, "_CHUNK", 23)
+    w1 = tw.tangent_weights(coords, mask)
+    assert np.array_equal(w0, w1)
+    assert np.array_equal(r0, tw.reconstruction_error(coords, w1))
+    bad = coords.copy()
+    bad[[40, 200]] = 0.0
+    with pytest.raises(InvalidInputError, match="point 40 is degenerate"):
+        tw.tangent_weights(bad, mask)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_weight_matrix_kernel_equals_the_scipy_build(seed):
+    from parambench.methods.pointset.tangent_weights import _weight_matrix_scipy
+
+    rng = np.random.default_rng(seed)
+    n, b = int(rng.integers(5, 200)), int(rng.integers(1, 30))
+    idx = np.full((n, b), -1, dtype=np.int64)
+    for i in range(n):  # distinct members in arbitrary order, padding anywhere
+        m = int(rng.integers(0, min(b, n) + 1))
+        cols = rng.choice(n, size=m, replace=False)
+        idx[i, np.sort(rng.choice(b, size=m, replace=False))] = cols
+    w = rng.normal(size=(n, b))
+    w[rng.random((n, b)) < 0.1] = 0.0  # explicit zeros stay entries
+    ref = _weight_matrix_scipy(idx, w)
+    perm = rng.permutation(n)
+    for got in (weight_matrix(idx, w), weight_matrix(idx, w[perm], weight_rows=np.argsort(perm))):
+        assert got.has_sorted_indices
+        for x, y in ((got.data, ref.data), (got.indices, ref.indices), (got.indptr, ref.indptr)):
+            assert x.dtype == y.dtype and np.array_equal(x, y)

@@ -1,0 +1,95 @@
+"""Moving per-point rows between the kd-tree order of the front end's stages and the input order.
+
+The stages work on the points in kd-tree order and :func:`parambench.methods.pointset.frontend.build_frontend`
+hands back every array in the caller's order. At a million points the ball arrays are
+~1 GB; numpy's fancy indexing copies them on one core and ``np.where`` on renumbered
+indices makes three temporaries of the same size. These compiled kernels do each in
+one pass over the rows on all cores (copies and integer lookups: the values are the
+same).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from ..numba_cache import configure_numba_cache
+
+__all__ = ["take_rows", "renumbered_rows"]
+
+# On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
+
+def take_rows(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``a[rows]`` for a C-contiguous array of one or more dimensions, copied on all cores.
+
+    Parameters
+    ----------
+    a : (N, ...) numpy.ndarray
+    rows : (M,) numpy.ndarray of int
+        Row indices into ``a`` (non-negative).
+
+    Returns
+    -------
+    (M, ...) numpy.ndarray
+        Same dtype as ``a``.
+    """
+    a = np.ascontiguousarray(a)
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    if rows.size and (rows.min() < 0 or rows.max() >= a.shape[0]):
+        raise IndexError(f"row indices must lie in [0, {a.shape[0] - 1}].")
+    out = np.empty((rows.size,) + a.shape[1:], dtype=a.dtype)
+    width = int(np.prod(a.shape[1:], dtype=np.int64))
+    if out.size:
+        _take_rows(a.reshape(a.shape[0], width), rows, out.reshape(rows.size, width))
+    return out
+
+
+def renumbered_rows(indices: np.ndarray, rows: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """``indices[rows]`` with every entry ``v >= 0`` replaced by ``order[v]`` (-1 padding kept).
+
+    Parameters
+    ----------
+    indices : (N, B) numpy.ndarray of int64
+        Point indices of the reordered set, -1 at padding.
+    rows : (M,) numpy.ndarray of int
+        Rows to take.
+    order : (N,) numpy.ndarray of int64
+        Input index of each reordered point.
+
+    Returns
+    -------
+    (M, B) numpy.ndarray of int64
+    """
+    indices = np.ascontiguousarray(indices, dtype=np.int64)
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    order = np.ascontiguousarray(order, dtype=np.int64)
+    if rows.size and (rows.min() < 0 or rows.max() >= indices.shape[0]):
+        raise IndexError(f"row indices must lie in [0, {indices.shape[0] - 1}].")
+    out = np.empty((rows.size, indices.shape[1]), dtype=np.int64)
+    _renumbered_rows(indices, rows, order, out)
+    return out
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _take_rows(a, rows, out):
+    """``out[r] = a[rows[r]]`` (2-D views)."""
+    width = a.shape[1]
+    for r in numba.prange(rows.size):
+        src = rows[r]
+        for c in range(width):
+            out[r, c] = a[src, c]
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _renumbered_rows(indices, rows, order, out):
+    """``out[r, c] = order[indices[rows[r], c]]``, or -1 where that entry is negative."""
+    width = indices.shape[1]
+    for r in numba.prange(rows.size):
+        src = rows[r]
+        for c in range(width):
+            v = indices[src, c]
+            out[r, c] = order[v] if v >= 0 else -1
