@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError
 
 from ..numba_cache import configure_numba_cache
+from .reorder import insert_sorted
 from .row_chunks import for_each_chunk
 
 __all__ = ["local_spacing", "KnnGraph", "knn_graph", "symmetric_adjacency", "require_connected", "spatial_order",
@@ -245,14 +246,7 @@ def _merge_row(knn, lengths, i, t_ptr, t_src, t_len, cols, lens, out_idx, out_va
     """
     k = knn.shape[1]
     for c in range(k):  # the row in column order (insertion sort: K is small)
-        j = knn[i, c]
-        pos = c
-        while pos > 0 and cols[pos - 1] > j:
-            cols[pos] = cols[pos - 1]
-            lens[pos] = lens[pos - 1]
-            pos -= 1
-        cols[pos] = j
-        lens[pos] = lengths[i, c]
+        insert_sorted(cols, lens, c, knn[i, c], lengths[i, c])
     a, b, end, m = 0, t_ptr[i], t_ptr[i + 1], 0
     while a < k or b < end:
         if b == end or (a < k and cols[a] < t_src[b]):

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..numba_cache import configure_numba_cache
 
-__all__ = ["take_rows", "renumbered_rows"]
+__all__ = ["take_rows", "renumbered_rows", "insert_sorted"]
 
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
@@ -93,3 +93,19 @@ def _renumbered_rows(indices, rows, order, out):
         for c in range(width):
             v = indices[src, c]
             out[r, c] = order[v] if v >= 0 else -1
+
+
+@numba.njit(cache=_CACHE, nogil=True, inline="always")
+def insert_sorted(cols, vals, m, j, v):  # pragma: no cover - compiled
+    """Insert column ``j`` with value ``v`` into the first ``m`` entries of a row kept sorted by column.
+
+    ``cols`` and ``vals`` need room for ``m + 1`` entries; equal columns keep their
+    insertion order (the CSR builds of the front end reproduce scipy's layouts with it).
+    """
+    pos = m
+    while pos > 0 and cols[pos - 1] > j:
+        cols[pos] = cols[pos - 1]
+        vals[pos] = vals[pos - 1]
+        pos -= 1
+    cols[pos] = j
+    vals[pos] = v

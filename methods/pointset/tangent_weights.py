@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
+from .reorder import insert_sorted
 from .row_chunks import for_each_chunk
 
 __all__ = [
@@ -271,13 +272,7 @@ def _sorted_members(ball_indices, weights, weight_rows, indptr, indices, data):
                 j = ball_indices[r, c]
                 if j < 0:
                     continue
-                pos = m
-                while pos > 0 and cols[pos - 1] > j:
-                    cols[pos] = cols[pos - 1]
-                    vals[pos] = vals[pos - 1]
-                    pos -= 1
-                cols[pos] = j
-                vals[pos] = weights[src, c]
+                insert_sorted(cols, vals, m, j, weights[src, c])
                 m += 1
             at = indptr[r]
             for t in range(m):
