@@ -104,9 +104,10 @@ class MultilevelSettings:
         above; bump at 20k, unsettled by 1.2e-5 in k after 4 rounds with a map 1.8e-7
         from converged, is left alone).
     enlarged_modes : int
-        Fourier frequencies of that second fine search (``fine_enlarged`` in the diagnostics); measured at 300k points (bump), 32
-        frequencies from the start would cost 69 instead of 21 interior solves (fine level
-        32 s instead of 12.5 s), so they are used only where the small subspace fails.
+        Fourier frequencies of that second fine search (``fine_enlarged`` in the
+        diagnostics). Measured at 300k points (bump): 32 frequencies from the start
+        would cost 69 instead of 21 interior solves (fine level 32 s instead of 12.5 s),
+        so they are used only where the small subspace fails.
     """
 
     radius_factor: float = 2.0
@@ -250,7 +251,8 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         ``coarse_points``, ``coarse_k_opt``, ``coarse_regular`` (whether the coarse map was
         a regular flattening; it need not be), ``coarse_triangular_solves``,
         ``coarse_error`` (None, or why the coarse search failed: ``coarse_k_opt`` is then
-        None and the fine search runs on ``enlarged_modes`` frequencies), ``fine_enlarged`` and
+        None and the fine search runs on ``enlarged_modes`` frequencies),
+        ``fine_enlarged`` and
         ``fine_counts`` (the fine problem's :attr:`ConformalProblem.counts`).
 
     Raises
