@@ -11,12 +11,19 @@ operations, about log n rounds.
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError
 
+from ..numba_cache import configure_numba_cache
+
 __all__ = ["poisson_disk_subsample"]
+
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 #: Neighbours examined per point; with a radius of a few spacings the disk holds fewer.
 _MAX_NEIGHBOURS = 24
@@ -69,14 +76,49 @@ def poisson_disk_subsample(points: np.ndarray, radius: float, keep: np.ndarray |
     state = np.zeros(n + 1, dtype=np.int8)
     state[kept] = 1
     priority = np.append(np.random.default_rng(seed).random(n), -1.0)
-    while True:
-        undecided = np.flatnonzero(state[:n] == 0)
-        near_sampled = (state[nbr[undecided]] == 1).any(axis=1)
-        state[undecided[near_sampled]] = -1
-        undecided = undecided[~near_sampled]
-        if undecided.size == 0:
-            break
-        rows = nbr[undecided]
-        rival = np.where(state[rows] == 0, priority[rows], -1.0).max(axis=1)
-        state[undecided[priority[undecided] > rival]] = 1
+    _luby_rounds(np.ascontiguousarray(nbr, dtype=np.int64), state, priority)
     return np.flatnonzero(state[:n] == 1)
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _luby_rounds(nbr, state, priority):  # pragma: no cover - compiled
+    """Settle every undecided point of ``state`` in place by rounds of Luby's rule.
+
+    Each round first excludes the undecided points with a sampled neighbour, then samples
+    those whose priority beats every still-undecided neighbour's, all judged on the state
+    at the start of that step (the neighbour lists need not be symmetric, so the order of
+    the updates within a step would otherwise change the sample). Compiled because at a
+    million points the whole-array rounds took ~5 s, the kd-tree query 1.4 s.
+    """
+    n = nbr.shape[0]
+    undecided = np.flatnonzero(state[:n] == 0)
+    winners = np.empty(undecided.size, dtype=np.int64)
+    while undecided.size:
+        m = 0
+        for i in undecided:
+            if state[i] != 0:  # sampled in the previous round
+                continue
+            near_sampled = False
+            for j in nbr[i]:
+                if state[j] == 1:
+                    near_sampled = True
+                    break
+            if near_sampled:
+                state[i] = -1
+            else:
+                undecided[m] = i
+                m += 1
+        undecided = undecided[:m]
+        w = 0
+        for i in undecided:
+            rival = -1.0
+            for j in nbr[i]:
+                # j == i only with coincident points (listed in another's place); it
+                # must not block itself, or the rounds would never end.
+                if state[j] == 0 and priority[j] > rival and j != i:
+                    rival = priority[j]
+            if priority[i] > rival:
+                winners[w] = i
+                w += 1
+        for t in range(w):
+            state[winners[t]] = 1

@@ -56,6 +56,39 @@ def test_subsample_is_deterministic_per_seed():
     assert not np.array_equal(a, c)
 
 
+def _luby_reference(nbr: np.ndarray, state: np.ndarray, priority: np.ndarray) -> None:
+    """Whole-array Luby rounds (the form the compiled kernel replaced), in place."""
+    n = nbr.shape[0]
+    while True:
+        undecided = np.flatnonzero(state[:n] == 0)
+        near_sampled = (state[nbr[undecided]] == 1).any(axis=1)
+        state[undecided[near_sampled]] = -1
+        undecided = undecided[~near_sampled]
+        if undecided.size == 0:
+            return
+        rival = np.where(state[nbr[undecided]] == 0, priority[nbr[undecided]], -1.0).max(axis=1)
+        state[undecided[priority[undecided] > rival]] = 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_luby_rounds_equal_the_whole_array_rounds(seed):
+    from parambench.methods.pointset.subsample import _luby_rounds
+
+    rng = np.random.default_rng(seed)
+    n, k = 3000, 7
+    # Asymmetric lists with misses (index n), as a bounded kNN query gives them.
+    nbr = rng.integers(0, n + 1, size=(n, k))
+    nbr[nbr == np.arange(n)[:, None]] = n  # a query never lists the point itself
+    state = np.zeros(n + 1, dtype=np.int8)
+    state[rng.choice(n, 40, replace=False)] = 1
+    priority = np.append(rng.random(n), -1.0)
+    expected = state.copy()
+    _luby_reference(nbr, expected, priority)
+    _luby_rounds(nbr, state, priority)
+    np.testing.assert_array_equal(state, expected)
+    assert not np.any(state[:n] == 0)
+
+
 @pytest.mark.parametrize("kwargs", [dict(radius=0.0), dict(radius=1.0, keep=[400])])
 def test_subsample_rejects_bad_input(kwargs):
     with pytest.raises(InvalidInputError):
