@@ -298,7 +298,7 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     solvers: list = []
     interior_solver = None
     if coarse_reduction is not None:
-        interior_solver = _two_grid_factory(prolong, coarse_reduction, settings, solvers)
+        interior_solver = _two_grid_factory(prolong, coarse_reduction, settings, solvers, points)
     extra = None if z_b is None else np.column_stack([z_b.real, z_b.imag])
     with single_threaded_blas(), stage("fine"):
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points,
@@ -333,14 +333,21 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     return sol, info
 
 
-def _two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: MultilevelSettings, made: list):
+def _leaf_order(points: np.ndarray) -> np.ndarray:
+    """Kd-tree leaf order of ``points``: neighbours close in memory for the smoother's sweeps."""
+    return np.asarray(cKDTree(points, leafsize=16).indices, dtype=np.int64)
+
+
+def _two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: MultilevelSettings, made: list,
+                      points: np.ndarray):
     """``interior_solver`` for the fine problem: two-grid cycles on the coarse interior factorisation.
 
     The fine interior rows of P restricted to the coarse interior columns interpolate
     interior values (coarse boundary columns only feed boundary rows' Dirichlet values,
     zero in a correction); ``P_II^T L_II P_II`` is then the coarse problem's interior
     block up to the rounding residue removed from its row sums. Each solver made is
-    appended to ``made`` (its cycle counts go to the diagnostics).
+    appended to ``made`` (its cycle counts go to the diagnostics). The sweeps run in the
+    interior points' spatial order.
     """
     coarse_factor = coarse_reduction.interior_factor
     coarse_interior = coarse_reduction.interior
@@ -350,7 +357,8 @@ def _two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: Multil
             solver = SparseFactor(l_ii)
         else:
             p_ii = prolong[interior][:, coarse_interior]
-            solver = TwoGridSolver(l_ii, p_ii, coarse_factor.solve, rtol=settings.fine_rtol)
+            solver = TwoGridSolver(l_ii, p_ii, coarse_factor.solve, rtol=settings.fine_rtol,
+                                   order=_leaf_order(points[interior]))
             made.append(solver)
         return solver
 

@@ -145,3 +145,42 @@ def test_refinement_on_iterative_solves_stops_at_their_accuracy(cap_problem):
     again, info = sub.refine(1.0)
     assert info["refine_steps"] == 0 and red.n_solves == before
     assert abs(again.energy - first.energy) <= 1e-12 * max(abs(first.energy), 1.0)
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_the_same_solution_whatever_the_workers_and_the_row_order(cap_problem, workers):
+    """Columns shared out among workers, and a caller's order, change no digit that matters."""
+    _, interior, _, l_ii, p_ii = cap_problem
+    b = np.random.default_rng(2).standard_normal((l_ii.shape[0], 7))
+    exact = sla.spsolve(sp.csc_matrix(l_ii), b)
+    order = np.random.default_rng(3).permutation(l_ii.shape[0])
+    for kwargs in (dict(workers=workers), dict(workers=workers, order=order)):
+        solver = TwoGridSolver(l_ii, p_ii, _coarse_solver(l_ii, p_ii), rtol=1e-10, **kwargs)
+        x = solver.solve(b)
+        assert np.linalg.norm(x - exact) <= 1e-8 * np.linalg.norm(exact)
+        assert not solver.fell_back
+
+
+def test_an_order_that_is_not_a_permutation_is_refused(cap_problem):
+    _, _, _, l_ii, p_ii = cap_problem
+    with pytest.raises(ValueError, match="permutation"):
+        TwoGridSolver(l_ii, p_ii, _coarse_solver(l_ii, p_ii), order=np.zeros(l_ii.shape[0], dtype=int))
+
+
+def test_compiled_residual_and_permutation_match_scipy(cap_problem):
+    from parambench.methods.spectral.twogrid import _residual, _symmetric_permutation
+
+    _, _, _, l_ii, _ = cap_problem
+    rng = np.random.default_rng(4)
+    x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 5))
+    r = np.empty_like(b)
+    _residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, r)
+    np.testing.assert_allclose(r, b - l_ii @ x, rtol=0, atol=1e-12 * np.abs(b - l_ii @ x).max())
+    order = rng.permutation(l_ii.shape[0])
+    permuted = _symmetric_permutation(l_ii, order)
+    expected = sp.csr_matrix(l_ii[order][:, order])
+    expected.sort_indices()
+    assert permuted.has_sorted_indices
+    np.testing.assert_array_equal(permuted.indptr, expected.indptr)
+    np.testing.assert_array_equal(permuted.indices, expected.indices)
+    np.testing.assert_array_equal(permuted.data, expected.data)
