@@ -15,6 +15,7 @@ eigenvalues below sigma, which detects an indefinite energy without searching fo
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,6 +70,9 @@ class SparseFactor:
         real = not np.issubdtype(matrix.dtype, np.complexfloating)
         self.perm = perm
         self.n_solves = 0
+        # Solves may come from several threads (the two-grid workers' coarse corrections):
+        # the counter and the switch to double precision are guarded.
+        self._lock = threading.Lock()
         self.mixed = real and (precision == "mixed" or (precision == "auto" and matrix.shape[0] >= MIXED_PRECISION_FROM))
         # Refinement computes residuals with the caller's matrix in its own order: a
         # reference, not a permuted double-precision copy (340 MB at 1M points).
@@ -121,7 +125,8 @@ class SparseFactor:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``A x = rhs`` for a vector or an (V, m) block of right-hand sides."""
-        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
+        with self._lock:
+            self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         return self._solve_mixed(rhs) if self.mixed else self._lu_solve(rhs)
 
     def _solve_mixed(self, rhs: np.ndarray) -> np.ndarray:
@@ -138,7 +143,9 @@ class SparseFactor:
         if np.all(np.linalg.norm(rhs - self._matrix @ x, axis=0) <= 1e-8 * norm_b):
             return x
         # Refinement stalls when the matrix is too ill-conditioned for single precision.
-        self._fall_back_to_double()
+        with self._lock:
+            if self.mixed:  # another thread may have switched already
+                self._fall_back_to_double()
         return self._lu_solve(rhs)
 
     def _lu_solve(self, rhs: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..numba_cache import configure_numba_cache
+from .ordering import symmetric_permutation
 from .sparse_eigen import SparseFactor
 
 __all__ = ["TwoGridSolver"]
@@ -76,7 +77,8 @@ class TwoGridSolver:
         Coarse-to-fine interpolation of interior values.
     coarse_solve : callable
         ``coarse_solve(r)`` for an (m, c) float64 block returns ``(P^T A P)^{-1} r``
-        (a :class:`~parambench.methods.spectral.sparse_eigen.SparseFactor`'s ``solve``).
+        (a :class:`~parambench.methods.spectral.sparse_eigen.SparseFactor`'s ``solve``);
+        called from several threads at once, on different blocks.
     rtol : float
         Stop when every column's residual 2-norm is at most ``rtol`` times its right-hand side's.
     max_cycles : int
@@ -128,8 +130,11 @@ class TwoGridSolver:
         self._order = np.asarray(order, dtype=np.int64)
         if not np.array_equal(np.sort(self._order), np.arange(a.shape[0])):
             raise ValueError("order must be a permutation of the matrix's rows.")
-        self._a = _symmetric_permutation(a, self._order)
-        self._p = sp.csr_matrix(sp.csr_matrix(prolong, dtype=np.float64)[self._order])
+        self._identity = bool(np.array_equal(self._order, np.arange(a.shape[0])))
+        self._a = a if self._identity else symmetric_permutation(a, self._order)
+        self._a.sort_indices()
+        prolong = sp.csr_matrix(prolong, dtype=np.float64)
+        self._p = prolong if self._identity else sp.csr_matrix(prolong[self._order])
         self._pt = sp.csr_matrix(self._p.T)
         self._coarse_solve = coarse_solve
         self._diag = self._a.diagonal()
@@ -167,6 +172,8 @@ class TwoGridSolver:
 
     def _solve_real(self, b: np.ndarray) -> np.ndarray:
         """Solve for an (n, c) real block in the caller's order."""
+        if self._identity:
+            return self._solve_ordered(np.asarray(b, dtype=np.float64))
         x = np.empty((b.shape[0], b.shape[1]), dtype=np.float64)
         x[self._order] = self._solve_ordered(np.ascontiguousarray(b[self._order], dtype=np.float64))
         return x
@@ -180,35 +187,44 @@ class TwoGridSolver:
         # writing neighbouring columns of one (n, c) array share its cache lines, which
         # made two threads slower than one (measured at 1M points, 21 columns: one
         # Gauss-Seidel sweep 0.22-0.37 s on two threads sharing the array, 0.16 s on one
-        # thread, 0.13 s on two threads with their own arrays).
+        # thread, 0.13 s on two threads with their own arrays). The workers also restrict
+        # their residual and add their share of the coarse correction, so no (n, c)
+        # array is gathered or formed per cycle.
         cols = b.shape[1]
         chunks = max(1, min(self.workers, cols))
         bounds = [(c * cols // chunks, (c + 1) * cols // chunks) for c in range(chunks)]
         bs = [np.ascontiguousarray(b[:, lo:hi]) for lo, hi in bounds]
         xs = [np.zeros_like(part) for part in bs]
         rs = [np.empty_like(part) for part in bs]
+        m = self._p.shape[1]
+        restricted = [np.empty((m, hi - lo)) for lo, hi in bounds]
+        squares = [np.empty(hi - lo) for lo, hi in bounds]
+        a, p, pt = self._a, self._p, self._pt
         previous = np.inf
         with ThreadPoolExecutor(max_workers=chunks) as pool:
             def each(task):
                 list(pool.map(task, range(chunks)))
 
+            def pre(t):
+                # The residual after the pre-smoothing both feeds the coarse correction
+                # and decides convergence: one product with A per cycle instead of two.
+                self._sweep(bs[t], xs[t], backward=False)
+                _residual(a.indptr, a.indices, a.data, bs[t], xs[t], rs[t], squares[t])
+                _csr_product(pt.indptr, pt.indices, pt.data, rs[t], restricted[t])
+
             for cycle in range(self.max_cycles):
-                # The residual after the pre-smoothing both feeds the coarse correction and
-                # decides convergence: one product with A per cycle instead of two.
-                each(lambda t: self._smooth_residual(bs[t], xs[t], rs[t]))
-                r = np.hstack(rs)
-                rel = float((np.linalg.norm(r, axis=0) / norm_b).max())
+                each(pre)
+                rel = float((np.sqrt(np.concatenate(squares)) / norm_b).max())
                 if rel <= self.rtol:
                     return np.hstack(xs)
                 if cycle >= 3 and rel > self.stall * previous:
                     break
                 previous = rel
-                correction = self._p @ self._coarse_solve(np.ascontiguousarray(self._pt @ r))
-                del r
 
                 def post(t):
-                    lo, hi = bounds[t]
-                    xs[t] += correction[:, lo:hi]
+                    # The coarse solves run in the workers too (SuperLU releases the GIL).
+                    coarse = np.ascontiguousarray(self._coarse_solve(restricted[t]))
+                    _add_csr_product(p.indptr, p.indices, p.data, coarse, xs[t])
                     self._sweep(bs[t], xs[t], backward=True)
 
                 each(post)
@@ -220,34 +236,14 @@ class TwoGridSolver:
         a = self._a
         _gauss_seidel(a.indptr, a.indices, a.data, self._diag, b, x, 0, x.shape[1], self.sweeps, backward)
 
-    def _smooth_residual(self, b: np.ndarray, x: np.ndarray, r: np.ndarray) -> None:
-        """Forward sweeps on one column block, then its residual ``b - A x`` into ``r``."""
-        self._sweep(b, x, backward=False)
-        a = self._a
-        _residual(a.indptr, a.indices, a.data, b, x, r)
-
-
-def _symmetric_permutation(a: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
-    """``a[order][:, order]`` with sorted indices: a row gather, then the column indices renumbered.
-
-    Cheaper than scipy's general column selection, which counts and copies every column
-    (at 1M points ~1 s of the solver's set-up).
-    """
-    rows = a[order]
-    inverse = np.empty_like(order)
-    inverse[order] = np.arange(order.size, dtype=order.dtype)
-    out = sp.csr_matrix((rows.data, inverse[rows.indices].astype(rows.indices.dtype), rows.indptr), shape=a.shape)
-    out.sort_indices()
-    return out
-
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _residual(indptr, indices, data, b, x, r):  # pragma: no cover - compiled
-    """``r = b - A x`` for a column block, row by row in CSR order (scipy's summation order).
-
-    Compiled so that each worker computes its own block's residual without the GIL.
-    """
+def _residual(indptr, indices, data, b, x, r, squares):  # pragma: no cover - compiled
+    """``r = b - A x`` for a column block, row by row in CSR order (scipy's summation order),
+    and each column's squared 2-norm into ``squares``."""
     width = x.shape[1]
+    for c in range(width):
+        squares[c] = 0.0
     for i in range(x.shape[0]):
         ri = r[i]
         for c in range(width):
@@ -260,3 +256,32 @@ def _residual(indptr, indices, data, b, x, r):  # pragma: no cover - compiled
         bi = b[i]
         for c in range(width):
             ri[c] = bi[c] - ri[c]
+            squares[c] += ri[c] * ri[c]
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _csr_product(indptr, indices, data, x, out):  # pragma: no cover - compiled
+    """``out = M x`` for a CSR matrix M and a column block x."""
+    width = x.shape[1]
+    for i in range(out.shape[0]):
+        oi = out[i]
+        for c in range(width):
+            oi[c] = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            a = data[p]
+            xj = x[indices[p]]
+            for c in range(width):
+                oi[c] += a * xj[c]
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _add_csr_product(indptr, indices, data, x, out):  # pragma: no cover - compiled
+    """``out += M x`` for a CSR matrix M and a column block x."""
+    width = x.shape[1]
+    for i in range(out.shape[0]):
+        oi = out[i]
+        for p in range(indptr[i], indptr[i + 1]):
+            a = data[p]
+            xj = x[indices[p]]
+            for c in range(width):
+                oi[c] += a * xj[c]

@@ -168,16 +168,23 @@ def test_an_order_that_is_not_a_permutation_is_refused(cap_problem):
 
 
 def test_compiled_residual_and_permutation_match_scipy(cap_problem):
-    from parambench.methods.spectral.twogrid import _residual, _symmetric_permutation
+    from parambench.methods.spectral.ordering import symmetric_permutation
+    from parambench.methods.spectral.twogrid import _add_csr_product, _csr_product, _residual
 
     _, _, _, l_ii, _ = cap_problem
     rng = np.random.default_rng(4)
     x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 5))
-    r = np.empty_like(b)
-    _residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, r)
+    r, squares = np.empty_like(b), np.empty(b.shape[1])
+    _residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, r, squares)
     np.testing.assert_allclose(r, b - l_ii @ x, rtol=0, atol=1e-12 * np.abs(b - l_ii @ x).max())
+    np.testing.assert_allclose(np.sqrt(squares), np.linalg.norm(b - l_ii @ x, axis=0), rtol=1e-12)
+    product, total = np.empty_like(x), x.copy()
+    _csr_product(l_ii.indptr, l_ii.indices, l_ii.data, x, product)
+    _add_csr_product(l_ii.indptr, l_ii.indices, l_ii.data, x, total)
+    np.testing.assert_allclose(product, l_ii @ x, rtol=0, atol=1e-12 * np.abs(l_ii @ x).max())
+    np.testing.assert_allclose(total, x + l_ii @ x, rtol=0, atol=1e-12 * np.abs(x + l_ii @ x).max())
     order = rng.permutation(l_ii.shape[0])
-    permuted = _symmetric_permutation(l_ii, order)
+    permuted = symmetric_permutation(l_ii, order)
     expected = sp.csr_matrix(l_ii[order][:, order])
     expected.sort_indices()
     assert permuted.has_sorted_indices
