@@ -150,7 +150,9 @@ class BoundaryReduction:
         if self._factor is None:
             return out
         arrays_per_column = self._factor.arrays_per_column
-        block = max(8, int(self._max_block_bytes // (8 * arrays_per_column * self.interior.size)))
+        # An iterative solver may ask for larger blocks (each block costs it a full solve).
+        budget = max(self._max_block_bytes, int(getattr(self._factor, "max_block_bytes", 0)))
+        block = max(8, int(budget // (8 * arrays_per_column * self.interior.size)))
         with single_threaded_blas():  # see parambench.methods.spectral.threads
             for start in range(0, x.shape[1], block):
                 cols = slice(start, min(start + block, x.shape[1]))

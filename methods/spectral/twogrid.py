@@ -106,14 +106,21 @@ class TwoGridSolver:
     mixed : bool
         Always False (the attribute :class:`~parambench.methods.spectral.reduction.BoundaryReduction` reads).
     arrays_per_column : int
-        Work arrays of the matrix's size per right-hand side (block-size budget).
+        Work arrays of the matrix's size per right-hand side (block-size budget): the
+        right-hand side, the solution and the returned copy.
+    max_block_bytes : int
+        The block-size budget this solver asks for (larger than a factorisation's).
     iterative : bool
         Always True: every solve costs cycles, so callers keep solutions they may reuse
         (:meth:`~parambench.methods.spectral.reduction.BoundaryReduction.apply_schur_extended`).
     """
 
     mixed = False
-    arrays_per_column = 4
+    arrays_per_column = 3
+    #: Column blocks up to this size (:class:`~parambench.methods.spectral.reduction.BoundaryReduction`):
+    #: every block costs its own cycles (at 1M points 9 per block: 21 columns in one
+    #: block took 21 s, in three blocks of at most 8 columns 44 s).
+    max_block_bytes = 640 * 2**20
     iterative = True
 
     def __init__(self, matrix: sp.spmatrix, prolong: sp.spmatrix, coarse_solve: Callable[[np.ndarray], np.ndarray],
@@ -135,7 +142,6 @@ class TwoGridSolver:
         self._a.sort_indices()
         prolong = sp.csr_matrix(prolong, dtype=np.float64)
         self._p = prolong if self._identity else sp.csr_matrix(prolong[self._order])
-        self._pt = sp.csr_matrix(self._p.T)
         self._coarse_solve = coarse_solve
         self._diag = self._a.diagonal()
         self.rtol, self.max_cycles, self.sweeps, self.stall = float(rtol), int(max_cycles), int(sweeps), float(stall)
@@ -195,11 +201,10 @@ class TwoGridSolver:
         bounds = [(c * cols // chunks, (c + 1) * cols // chunks) for c in range(chunks)]
         bs = [np.ascontiguousarray(b[:, lo:hi]) for lo, hi in bounds]
         xs = [np.zeros_like(part) for part in bs]
-        rs = [np.empty_like(part) for part in bs]
         m = self._p.shape[1]
         restricted = [np.empty((m, hi - lo)) for lo, hi in bounds]
         squares = [np.empty(hi - lo) for lo, hi in bounds]
-        a, p, pt = self._a, self._p, self._pt
+        a, p = self._a, self._p
         previous = np.inf
         with ThreadPoolExecutor(max_workers=chunks) as pool:
             def each(task):
@@ -209,8 +214,8 @@ class TwoGridSolver:
                 # The residual after the pre-smoothing both feeds the coarse correction
                 # and decides convergence: one product with A per cycle instead of two.
                 self._sweep(bs[t], xs[t], backward=False)
-                _residual(a.indptr, a.indices, a.data, bs[t], xs[t], rs[t], squares[t])
-                _csr_product(pt.indptr, pt.indices, pt.data, rs[t], restricted[t])
+                _restricted_residual(a.indptr, a.indices, a.data, bs[t], xs[t], p.indptr, p.indices, p.data,
+                                     restricted[t], squares[t])
 
             for cycle in range(self.max_cycles):
                 each(pre)
@@ -238,14 +243,17 @@ class TwoGridSolver:
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _residual(indptr, indices, data, b, x, r, squares):  # pragma: no cover - compiled
-    """``r = b - A x`` for a column block, row by row in CSR order (scipy's summation order),
-    and each column's squared 2-norm into ``squares``."""
+def _restricted_residual(indptr, indices, data, b, x, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
+    """``out = P^T (b - A x)`` for a column block, and each column's squared residual norm.
+
+    Each row's residual (summed in CSR order, as scipy's product) is scattered through
+    its row of P and never stored: no (n, c) residual array.
+    """
     width = x.shape[1]
-    for c in range(width):
-        squares[c] = 0.0
+    ri = np.empty(width)
+    out[:] = 0.0
+    squares[:] = 0.0
     for i in range(x.shape[0]):
-        ri = r[i]
         for c in range(width):
             ri[c] = 0.0
         for p in range(indptr[i], indptr[i + 1]):
@@ -257,21 +265,11 @@ def _residual(indptr, indices, data, b, x, r, squares):  # pragma: no cover - co
         for c in range(width):
             ri[c] = bi[c] - ri[c]
             squares[c] += ri[c] * ri[c]
-
-
-@numba.njit(cache=_CACHE, nogil=True)
-def _csr_product(indptr, indices, data, x, out):  # pragma: no cover - compiled
-    """``out = M x`` for a CSR matrix M and a column block x."""
-    width = x.shape[1]
-    for i in range(out.shape[0]):
-        oi = out[i]
-        for c in range(width):
-            oi[c] = 0.0
-        for p in range(indptr[i], indptr[i + 1]):
-            a = data[p]
-            xj = x[indices[p]]
+        for q in range(p_ptr[i], p_ptr[i + 1]):
+            w = p_val[q]
+            oq = out[p_idx[q]]
             for c in range(width):
-                oi[c] += a * xj[c]
+                oq[c] += w * ri[c]
 
 
 @numba.njit(cache=_CACHE, nogil=True)

@@ -167,22 +167,25 @@ def test_an_order_that_is_not_a_permutation_is_refused(cap_problem):
         TwoGridSolver(l_ii, p_ii, _coarse_solver(l_ii, p_ii), order=np.zeros(l_ii.shape[0], dtype=int))
 
 
-def test_compiled_residual_and_permutation_match_scipy(cap_problem):
+def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     from parambench.methods.spectral.ordering import symmetric_permutation
-    from parambench.methods.spectral.twogrid import _add_csr_product, _csr_product, _residual
+    from parambench.methods.spectral.twogrid import _add_csr_product, _restricted_residual
 
-    _, _, _, l_ii, _ = cap_problem
+    _, _, _, l_ii, p_ii = cap_problem
+    p_ii = sp.csr_matrix(p_ii)
     rng = np.random.default_rng(4)
     x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 5))
-    r, squares = np.empty_like(b), np.empty(b.shape[1])
-    _residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, r, squares)
-    np.testing.assert_allclose(r, b - l_ii @ x, rtol=0, atol=1e-12 * np.abs(b - l_ii @ x).max())
-    np.testing.assert_allclose(np.sqrt(squares), np.linalg.norm(b - l_ii @ x, axis=0), rtol=1e-12)
-    product, total = np.empty_like(x), x.copy()
-    _csr_product(l_ii.indptr, l_ii.indices, l_ii.data, x, product)
-    _add_csr_product(l_ii.indptr, l_ii.indices, l_ii.data, x, total)
-    np.testing.assert_allclose(product, l_ii @ x, rtol=0, atol=1e-12 * np.abs(l_ii @ x).max())
-    np.testing.assert_allclose(total, x + l_ii @ x, rtol=0, atol=1e-12 * np.abs(x + l_ii @ x).max())
+    residual = b - l_ii @ x
+    restricted, squares = np.empty((p_ii.shape[1], 5)), np.empty(5)
+    _restricted_residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, p_ii.indptr, p_ii.indices, p_ii.data,
+                         restricted, squares)
+    expected = p_ii.T @ residual
+    np.testing.assert_allclose(restricted, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    np.testing.assert_allclose(np.sqrt(squares), np.linalg.norm(residual, axis=0), rtol=1e-12)
+    e = rng.standard_normal((p_ii.shape[1], 5))
+    total = x.copy()
+    _add_csr_product(p_ii.indptr, p_ii.indices, p_ii.data, e, total)
+    np.testing.assert_allclose(total, x + p_ii @ e, rtol=0, atol=1e-12 * np.abs(x + p_ii @ e).max())
     order = rng.permutation(l_ii.shape[0])
     permuted = symmetric_permutation(l_ii, order)
     expected = sp.csr_matrix(l_ii[order][:, order])
