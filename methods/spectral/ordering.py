@@ -10,7 +10,7 @@ minimum-degree order.
 Point clouds come in any order; sparse products, extractions and sweeps over a
 Laplacian in that order miss the cache at every neighbour. :func:`leaf_order` (kd-tree
 leaves) and :func:`symmetric_permutation` put a problem into an order where neighbours
-are close in memory.
+are close in memory; :func:`submatrix` extracts blocks in one compiled pass.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from ..numba_cache import configure_numba_cache
 from ..pointset.reorder import insert_sorted
 
-__all__ = ["nested_dissection", "leaf_order", "symmetric_permutation"]
+__all__ = ["nested_dissection", "leaf_order", "symmetric_permutation", "submatrix"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -46,7 +46,7 @@ def leaf_order(points: np.ndarray) -> np.ndarray:
 
 
 def symmetric_permutation(a: sp.spmatrix, order: np.ndarray) -> sp.csr_matrix:
-    """``a[order][:, order]`` as CSR with sorted indices, in one compiled pass on all cores.
+    """``a[order][:, order]`` as CSR with sorted indices (see :func:`submatrix`).
 
     Parameters
     ----------
@@ -57,34 +57,81 @@ def symmetric_permutation(a: sp.spmatrix, order: np.ndarray) -> sp.csr_matrix:
     Returns
     -------
     (N, N) scipy.sparse.csr_matrix
-        Same dtype as ``a``. (scipy's row gather and column renumbering took 3.7 s at a
-        million points and 29 nonzeros per row.)
+        Same dtype as ``a``.
+    """
+    return submatrix(a, order, order)
+
+
+def submatrix(a: sp.spmatrix, rows: np.ndarray, cols: np.ndarray) -> sp.csr_matrix:
+    """``a[rows][:, cols]`` as CSR with sorted indices, in two compiled passes on all cores.
+
+    scipy gathers the rows, then selects the columns by counting through every row
+    again; at a million points (29 nonzeros per row) a permutation took 3.7 s that way,
+    and the four blocks of a boundary reduction 1.8 s.
+
+    Parameters
+    ----------
+    a : (N, M) scipy.sparse matrix
+    rows : (R,) numpy.ndarray of int
+        Row indices (may repeat).
+    cols : (C,) numpy.ndarray of int
+        Distinct column indices.
+
+    Returns
+    -------
+    (R, C) scipy.sparse.csr_matrix
+        Same dtype as ``a``.
+
+    Raises
+    ------
+    ValueError
+        ``cols`` repeats an index.
     """
     a = sp.csr_matrix(a)
-    order = np.ascontiguousarray(order, dtype=np.int64)
-    inverse = np.empty_like(order)
-    inverse[order] = np.arange(order.size)
-    lengths = np.diff(a.indptr)[order]
-    indptr = np.zeros(order.size + 1, dtype=a.indptr.dtype)
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    column_of = np.full(a.shape[1], -1, dtype=np.int64)
+    column_of[cols] = np.arange(cols.size)
+    if np.count_nonzero(column_of >= 0) != cols.size:
+        raise ValueError("submatrix columns must be distinct.")
+    lengths = np.empty(rows.size, dtype=np.int64)
+    _count_kept(a.indptr, a.indices, rows, column_of, lengths)
+    total = int(lengths.sum())
+    index_type = np.int32 if max(total, cols.size) < np.iinfo(np.int32).max else np.int64
+    indptr = np.zeros(rows.size + 1, dtype=index_type)
     np.cumsum(lengths, out=indptr[1:])
-    indices = np.empty_like(a.indices)
-    data = np.empty_like(a.data)
-    _permute_rows(a.indptr, a.indices, a.data, order, inverse, indptr, indices, data)
-    out = sp.csr_matrix((data, indices, indptr), shape=a.shape)
+    indices = np.empty(total, dtype=index_type)
+    data = np.empty(total, dtype=a.dtype)
+    _fill_kept(a.indptr, a.indices, a.data, rows, column_of, indptr, indices, data)
+    out = sp.csr_matrix((data, indices, indptr), shape=(rows.size, cols.size))
     out.has_sorted_indices = True
     return out
 
 
 @numba.njit(cache=_CACHE, nogil=True, parallel=True)
-def _permute_rows(indptr, indices, data, order, inverse, out_ptr, out_idx, out_val):  # pragma: no cover
-    """Row r of the output is row ``order[r]`` of the input, columns renumbered by ``inverse`` and sorted."""
-    for r in numba.prange(order.size):
-        src = order[r]
+def _count_kept(indptr, indices, rows, column_of, out):  # pragma: no cover - compiled
+    """Entries of each selected row that fall in a selected column."""
+    for r in numba.prange(rows.size):
+        src = rows[r]
+        m = 0
+        for p in range(indptr[src], indptr[src + 1]):
+            if column_of[indices[p]] >= 0:
+                m += 1
+        out[r] = m
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _fill_kept(indptr, indices, data, rows, column_of, out_ptr, out_idx, out_val):  # pragma: no cover
+    """Row r of the output: the selected columns of row ``rows[r]``, renumbered and sorted."""
+    for r in numba.prange(rows.size):
+        src = rows[r]
         start = out_ptr[r]
         m = 0
         for p in range(indptr[src], indptr[src + 1]):
-            insert_sorted(out_idx[start:], out_val[start:], m, inverse[indices[p]], data[p])
-            m += 1
+            c = column_of[indices[p]]
+            if c >= 0:
+                insert_sorted(out_idx[start:], out_val[start:], m, c, data[p])
+                m += 1
 
 
 def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int = 64) -> np.ndarray:

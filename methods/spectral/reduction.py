@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import SolverError
 
 from ..hints import Hint, hinted
+from .ordering import submatrix
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 
@@ -70,16 +71,16 @@ class BoundaryReduction:
         mask = np.ones(n, dtype=bool)
         mask[self.keep] = False
         self.interior = np.flatnonzero(mask)
-        self._l_ik = sp.csc_matrix(lap[self.interior][:, self.keep])
-        self._l_ki = sp.csr_matrix(lap[self.keep][:, self.interior])
-        self._l_kk = sp.csr_matrix(lap[self.keep][:, self.keep])
+        self._l_ik = sp.csc_matrix(submatrix(lap, self.interior, self.keep))
+        self._l_ki = submatrix(lap, self.keep, self.interior)
+        self._l_kk = submatrix(lap, self.keep, self.keep)
         self._max_block_bytes = int(max_block_bytes)
         self._schur: np.ndarray | None = None
         if self.interior.size and interior_solver is not None:
-            self._factor = interior_solver(sp.csr_matrix(lap[self.interior][:, self.interior]), self.interior)
+            self._factor = interior_solver(submatrix(lap, self.interior, self.interior), self.interior)
         elif self.interior.size:
             with single_threaded_blas():
-                self._factor = SparseFactor(lap[self.interior][:, self.interior], perm_interior)
+                self._factor = SparseFactor(submatrix(lap, self.interior, self.interior), perm_interior)
         else:
             self._factor = None
 

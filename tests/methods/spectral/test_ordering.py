@@ -1,0 +1,58 @@
+"""Block extraction and reordering of sparse matrices against scipy's indexing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from parambench.methods.spectral.ordering import leaf_order, submatrix, symmetric_permutation
+
+
+def _random_matrix(n: int, m: int, seed: int) -> sp.csr_matrix:
+    a = sp.random(n, m, density=0.05, random_state=seed, format="csr")
+    a.data -= 0.5
+    # Unsorted indices inside rows, as products leave them.
+    perm = np.random.default_rng(seed).permutation(a.nnz)
+    rows = np.repeat(np.arange(n), np.diff(a.indptr))
+    order = np.lexsort((perm, rows))
+    return sp.csr_matrix((a.data[order], a.indices[order], a.indptr), shape=a.shape)
+
+
+def _expect_equal(got: sp.csr_matrix, want: sp.csr_matrix) -> None:
+    want = sp.csr_matrix(want)
+    want.sort_indices()
+    assert got.has_sorted_indices and got.shape == want.shape
+    np.testing.assert_array_equal(got.indptr, want.indptr)
+    np.testing.assert_array_equal(got.indices, want.indices)
+    np.testing.assert_array_equal(got.data, want.data)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_submatrix_equals_scipy_indexing(seed):
+    a = _random_matrix(300, 250, seed)
+    rng = np.random.default_rng(seed)
+    rows = rng.integers(0, 300, size=120)  # repeats allowed
+    cols = rng.permutation(250)[:90]  # any order
+    _expect_equal(submatrix(a, rows, cols), a[rows][:, cols])
+    _expect_equal(submatrix(a, np.arange(0), cols), a[np.arange(0)][:, cols])
+
+
+def test_symmetric_permutation_equals_scipy_indexing():
+    a = _random_matrix(400, 400, 7)
+    order = np.random.default_rng(7).permutation(400)
+    _expect_equal(symmetric_permutation(a, order), a[order][:, order])
+
+
+def test_repeated_columns_are_refused():
+    with pytest.raises(ValueError, match="distinct"):
+        submatrix(_random_matrix(10, 10, 0), np.arange(3), np.array([1, 1]))
+
+
+def test_leaf_order_is_a_permutation_that_keeps_neighbours_close():
+    pts = np.random.default_rng(0).random((5000, 3))
+    order = leaf_order(pts)
+    np.testing.assert_array_equal(np.sort(order), np.arange(5000))
+    step = np.linalg.norm(np.diff(pts[order], axis=0), axis=1)
+    shuffled = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    assert np.median(step) < 0.25 * np.median(shuffled)
