@@ -348,3 +348,19 @@ def test_spanning_forest_is_scipys_tree(seed):
     bad[0] = np.nan  # not positive and finite: scipy's path
     for a, b in zip(spanning_forest(cols.ravel(), bad, k), _spanning_forest_scipy(cols.ravel(), bad, k)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_spanning_forest_leaves_out_later_twins_as_scipy_rejects_them():
+    """A kNN graph with symmetric, heavily tied weights: both directions of mutual edges, scipy's tree."""
+    from parambench.methods.pointset.normals import _first_of_twins, _spanning_forest_scipy, spanning_forest
+
+    pts = np.c_[np.random.default_rng(5).uniform(size=(2000, 2)), np.zeros(2000)]
+    graph = knn_graph(pts, 6)
+    cols = np.sort(graph.indices, axis=1).ravel()
+    rows = np.repeat(np.arange(2000), 6)
+    weights = np.round(np.linalg.norm(pts[rows] - pts[cols], axis=1) * 40) + 1.0  # the same both ways
+    first = np.empty(cols.size, dtype=np.bool_)
+    _first_of_twins(cols, weights, 6, first)
+    assert 0 < (~first).sum() < cols.size // 2 and (cols[~first] < rows[~first]).all()
+    for a, b in zip(spanning_forest(cols, weights, 6), _spanning_forest_scipy(cols, weights, 6)):
+        np.testing.assert_array_equal(a, b)
