@@ -248,6 +248,8 @@ class _Scratch(NamedTuple):
 
     ``seen[v] == k``: v has a tentative distance ``dist[v]`` (via ``pred[v]``) in this
     row's front; ``frozen[v] == k``: v is final and ``uv[v]`` holds its ``T_s v``.
+    ``ball_idx``/``ball_uv``/``ball_dist`` (``max_ball`` entries) collect the current
+    row's members until its size says where the row goes.
     """
 
     seen: np.ndarray
@@ -257,12 +259,20 @@ class _Scratch(NamedTuple):
     uv: np.ndarray
     heap_keys: np.ndarray
     heap_vals: np.ndarray
+    ball_idx: np.ndarray
+    ball_uv: np.ndarray
+    ball_dist: np.ndarray
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _dem_range(centres, start, stop, out_offset, cloud, rule, out, work):
-    """DEM balls of centres[start:stop] into rows ``k - out_offset`` of ``out``; returns the truncated count.
+def _dem_range(centres, start, stop, cloud, rule, store, spill, spill_offset, work):
+    """DEM balls of centres[start:stop] into rows k of ``store``; returns the truncated count.
 
+    A ball that fits the store's width is written to its row, padded; a wider one goes
+    to row ``k - spill_offset`` of ``spill`` instead (unpadded) and :func:`_run_blocks`
+    widens the store. ``store.size[k]`` gets every ball's size. Writing the rows here,
+    on the workers, instead of copying a block buffer over afterwards saves a pass over
+    the balls (~1.3 GB at a million points) and a wait for the slower worker per block.
     The scratch arrays of ``work`` are stamped with the row number k, unique per call
     even when a centre repeats, so they never need resetting.
     """
@@ -271,12 +281,13 @@ def _dem_range(centres, start, stop, out_offset, cloud, rule, out, work):
     # measured 1.3-1.6x slower in CPU time (bump, 20k points).
     points, normals, e1, e2, indptr, nbrs, lens = cloud
     ball_k, radii, max_ball, upwind, w_eps, midpoint, front_weight = rule
-    out_idx, out_uv, out_dist, out_size = out
-    seen, frozen, dist, pred, uv, heap_keys, heap_vals = work
+    s_idx, s_uv, s_dist, sizes = store
+    p_idx, p_uv, p_dist, _ = spill
+    width = s_idx.shape[1]
+    seen, frozen, dist, pred, uv, heap_keys, heap_vals, ball_idx, ball_uv, ball_dist = work
     n_trunc = 0
     for k in range(start, stop):
         s = centres[k]
-        row = k - out_offset
         radius = radii[s]
         ns = normals[s]
         e1s = e1[s]
@@ -333,10 +344,10 @@ def _dem_range(centres, start, stop, out_offset, cloud, rule, out, work):
                 tv *= f
             uv[v, 0] = tu
             uv[v, 1] = tv
-            out_idx[row, nb] = v
-            out_uv[row, nb, 0] = tu
-            out_uv[row, nb, 1] = tv
-            out_dist[row, nb] = d
+            ball_idx[nb] = v
+            ball_uv[nb, 0] = tu
+            ball_uv[nb, 1] = tv
+            ball_dist[nb] = d
             nb += 1
             for e in range(indptr[v], indptr[v + 1]):
                 u = nbrs[e]
@@ -350,8 +361,27 @@ def _dem_range(centres, start, stop, out_offset, cloud, rule, out, work):
                     dist[u] = nd
                     pred[u] = v
                     size = _heap_push(heap_keys, heap_vals, size, nd, u)
-        out_size[row] = nb
+        sizes[k] = nb
+        if nb <= width:
+            _put_row(s_idx, s_uv, s_dist, k, ball_idx, ball_uv, ball_dist, nb, width)
+        else:
+            _put_row(p_idx, p_uv, p_dist, k - spill_offset, ball_idx, ball_uv, ball_dist, nb, nb)
     return n_trunc
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _put_row(d_idx, d_uv, d_dist, row, b_idx, b_uv, b_dist, m, width):
+    """The m members ``b_*`` (1-D, and (m, 2) coordinates) into row ``row`` of ``d_*``, padded to ``width`` columns."""
+    for j in range(m):
+        d_idx[row, j] = b_idx[j]
+        d_uv[row, j, 0] = b_uv[j, 0]
+        d_uv[row, j, 1] = b_uv[j, 1]
+        d_dist[row, j] = b_dist[j]
+    for j in range(m, width):
+        d_idx[row, j] = -1
+        d_uv[row, j, 0] = 0.0
+        d_uv[row, j, 1] = 0.0
+        d_dist[row, j] = np.inf
 
 
 def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix, mean_spacing: float, *,
@@ -417,7 +447,7 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     # numba.get_num_threads(), which would start a threading layer this code never uses
     # (and print a warning about TBB's version on every run).
     workers = max(1, int(numba.config.NUMBA_NUM_THREADS))
-    scratch = _scratch(workers, n, _heap_capacity(cloud.indptr, rule.max_ball))
+    scratch = _scratch(workers, n, _heap_capacity(cloud.indptr, rule.max_ball), rule.max_ball)
     sizes = np.zeros(centre_ids.size, dtype=np.int64)
     store, n_trunc = _run_blocks(centre_ids, cloud, rule, scratch, sizes)
     idx, coords, gdist = _assemble(store, sizes)
@@ -464,7 +494,7 @@ def _heap_capacity(indptr: np.ndarray, max_ball: int) -> int:
     return (max_ball + 2) * int(np.diff(indptr).max()) + 1
 
 
-def _scratch(workers: int, n: int, cap: int) -> list[_Scratch]:
+def _scratch(workers: int, n: int, cap: int, max_ball: int) -> list[_Scratch]:
     """Dijkstra scratch per worker, stamped -1 (no row yet) so it never needs resetting (see _dem_range)."""
     seen = np.full((workers, n), -1, dtype=np.int64)
     frozen = np.full((workers, n), -1, dtype=np.int64)
@@ -473,7 +503,11 @@ def _scratch(workers: int, n: int, cap: int) -> list[_Scratch]:
     uv = np.empty((workers, n, 2))
     heap_keys = np.empty((workers, cap))
     heap_vals = np.empty((workers, cap), dtype=np.int64)
-    return [_Scratch(seen[t], frozen[t], dist[t], pred[t], uv[t], heap_keys[t], heap_vals[t]) for t in range(workers)]
+    ball_idx = np.empty((workers, max_ball), dtype=np.int64)
+    ball_uv = np.empty((workers, max_ball, 2))
+    ball_dist = np.empty((workers, max_ball))
+    return [_Scratch(seen[t], frozen[t], dist[t], pred[t], uv[t], heap_keys[t], heap_vals[t], ball_idx[t],
+                     ball_uv[t], ball_dist[t]) for t in range(workers)]
 
 
 def _run_blocks(centre_ids: np.ndarray, cloud: _Cloud, rule: _BallRule, scratch: list[_Scratch],
@@ -481,45 +515,47 @@ def _run_blocks(centre_ids: np.ndarray, cloud: _Cloud, rule: _BallRule, scratch:
     """Run the kernel over blocks of ``_BLOCK`` centres, each block's pieces shared out between the workers.
 
     Fills ``sizes``; returns the balls (the rows of :func:`_store_for`, padded with -1,
-    0 and +inf) and the number of truncated balls.
+    0 and +inf) and the number of truncated balls. The store starts 0 columns wide, so
+    the first block's balls all go to the spill rows and its widest ball sizes the
+    store; a later block with a wider ball widens it again.
     """
     workers = len(scratch)
     n_out = centre_ids.size
     n_trunc = 0
-    # One block buffer, reused: a fresh full-width buffer per block was ~1 GB of newly
-    # touched pages at a million points (slow first touches on this kind of VM).
+    # One spill buffer, reused: a fresh full-width buffer per block was ~1 GB of newly
+    # touched pages at a million points (slow first touches on this kind of VM). Only
+    # the rows of balls wider than the store are written (all of the first block's).
     m0 = min(_BLOCK, n_out)
-    block = _BallBlock(idx=np.empty((m0, rule.max_ball), dtype=np.int64), uv=np.empty((m0, rule.max_ball, 2)),
-                       dist=np.empty((m0, rule.max_ball)), size=sizes[:m0])
-    store = None
+    spill = _BallBlock(idx=np.empty((m0, rule.max_ball), dtype=np.int64), uv=np.empty((m0, rule.max_ball, 2)),
+                       dist=np.empty((m0, rule.max_ball)), size=sizes)
+    store = _store_for(None, 0, 0, sizes, rule.max_ball)
     # Each task borrows a free worker's scratch (never more tasks run than scratches):
     # the stamps of _dem_range make any scratch valid for any centre.
     free = queue.SimpleQueue()
     for work in scratch:
         free.put(work)
 
-    def run(block: _BallBlock, start: int, lo: int, hi: int) -> int:
+    def run(store: _BallBlock, start: int, lo: int, hi: int) -> int:
         work = free.get()
         try:
-            return int(_dem_range(centre_ids, lo, hi, start, cloud, rule, block, work))
+            return int(_dem_range(centre_ids, lo, hi, cloud, rule, store, spill, start, work))
         finally:
             free.put(work)
 
     with ThreadPoolExecutor(max_workers=workers) as pool:
         for start in range(0, n_out, _BLOCK):
             stop = min(start + _BLOCK, n_out)
-            bounds = np.linspace(start, stop, workers + 1).astype(np.int64)
-            block = block._replace(size=sizes[start:stop])
             # Balls cost unevenly (and a core may be busy elsewhere): small pieces handed
             # out as workers free up keep both busy until the block's end.
             pieces = np.linspace(start, stop, workers * _PIECES_PER_WORKER + 1).astype(np.int64)
-            n_trunc += sum(pool.map(lambda ab, b=block, s0=start: run(b, s0, int(ab[0]), int(ab[1])),
+            n_trunc += sum(pool.map(lambda ab, st=store, s0=start: run(st, s0, int(ab[0]), int(ab[1])),
                                     zip(pieces[:-1], pieces[1:])))
-            store = _store_for(store, int(block.size.max()), start, sizes, rule.max_ball)
-            parts = [(int(bounds[t]) - start, int(bounds[t + 1]) - start) for t in range(workers)]
-            list(pool.map(lambda part: _copy_rows(block, store, start, *part), parts))
-    if store is None:  # no centres
-        store = _store_for(None, 0, 0, sizes, rule.max_ball)
+            wider = _store_for(store, int(sizes[start:stop].max()), start, sizes, rule.max_ball)
+            if wider is not store:  # some balls spilled: this block's rows into the wider store
+                bounds = np.linspace(0, stop - start, workers + 1).astype(np.int64)
+                list(pool.map(lambda t, old=store, s0=start: _copy_rows(old, spill, wider, s0, int(bounds[t]),
+                                                                         int(bounds[t + 1])), range(workers)))
+                store = wider
     return store, n_trunc
 
 
@@ -531,14 +567,15 @@ _WIDTH_MARGIN = 0.25
 def _store_for(store: _BallBlock | None, width: int, filled: int, sizes: np.ndarray, max_ball: int) -> _BallBlock:
     """The output rows, at least ``width`` columns wide: ``store`` itself, or a wider copy of its first ``filled`` rows.
 
-    Allocated uninitialised (pages are touched only as rows are copied in) with
+    Allocated uninitialised (pages are touched only as rows are written) with
     ``_WIDTH_MARGIN`` spare columns, at most ``max_ball``; :func:`_assemble` cuts the
-    spare columns off at the end.
+    spare columns off at the end. Without ``store``, a width of 0 gives a store of 0
+    columns (every ball spills, see :func:`_run_blocks`).
     """
     if store is not None and width <= store.idx.shape[1]:
         return store
     n_out = sizes.size
-    cols = min(max_ball, width + max(4, int(np.ceil(_WIDTH_MARGIN * width))))
+    cols = 0 if store is None and width == 0 else min(max_ball, width + max(4, int(np.ceil(_WIDTH_MARGIN * width))))
     wider = _BallBlock(idx=np.empty((n_out, cols), dtype=np.int64), uv=np.empty((n_out, cols, 2)),
                        dist=np.empty((n_out, cols)), size=sizes)
     if store is not None and filled:
@@ -550,27 +587,24 @@ def _store_for(store: _BallBlock | None, width: int, filled: int, sizes: np.ndar
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _copy_rows(block, store, offset, lo, hi):
-    """Rows lo:hi of ``block`` (members only) into rows ``offset + lo:offset + hi`` of ``store``, padded.
+def _copy_rows(old, spill, store, offset, lo, hi):
+    """Rows ``offset + lo:offset + hi`` into the wider ``store``, padded: from ``spill`` (rows lo:hi) where
+    the ball was wider than ``old``, the store they were written to, else from ``old``.
 
-    ``block.size`` holds the block's rows' sizes.
+    ``store.size`` holds the balls' sizes.
     """
-    b_idx, b_uv, b_dist, size = block
-    s_idx, s_uv, s_dist, _ = store
+    o_idx, o_uv, o_dist, _ = old
+    p_idx, p_uv, p_dist, _ = spill
+    s_idx, s_uv, s_dist, size = store
+    narrow = o_idx.shape[1]
     width = s_idx.shape[1]
     for r in range(lo, hi):
         row = offset + r
-        m = size[r]
-        for j in range(m):
-            s_idx[row, j] = b_idx[r, j]
-            s_uv[row, j, 0] = b_uv[r, j, 0]
-            s_uv[row, j, 1] = b_uv[r, j, 1]
-            s_dist[row, j] = b_dist[r, j]
-        for j in range(m, width):
-            s_idx[row, j] = -1
-            s_uv[row, j, 0] = 0.0
-            s_uv[row, j, 1] = 0.0
-            s_dist[row, j] = np.inf
+        m = size[row]
+        if m > narrow:
+            _put_row(s_idx, s_uv, s_dist, row, p_idx[r], p_uv[r], p_dist[r], m, width)
+        else:
+            _put_row(s_idx, s_uv, s_dist, row, o_idx[row], o_uv[row], o_dist[row], m, width)
 
 
 @numba.njit(cache=_CACHE, nogil=True)

@@ -9,7 +9,8 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.methods.pointset import dem
 from parambench.methods.pointset.dem import (_assemble, _BallBlock, _BallRule, _centre_ids, _check_options, _copy_rows,
-                                  _dem_range, _graph_cloud, _heap_capacity, _scratch, _store_for, dem_balls)
+                                  _dem_range, _graph_cloud, _heap_capacity, _put_row, _scratch, _store_for,
+                                  dem_balls)
 from parambench.methods.pointset.neighbourhoods import knn_graph, symmetric_adjacency
 from parambench.methods.pointset.normals import orient_normals, pca_normals
 
@@ -71,8 +72,10 @@ def test_kernel_on_a_straight_path_gives_signed_arc_length(upwind):
     centres = np.array([2, 0, 2], dtype=np.int64)  # a repeated centre: stamps must still separate rows
     out = _BallBlock(idx=np.full((3, 4), -1, dtype=np.int64), uv=np.zeros((3, 4, 2)),
                      dist=np.full((3, 4), np.inf), size=np.zeros(3, dtype=np.int64))
-    work = _scratch(1, n, _heap_capacity(cloud.indptr, rule.max_ball))[0]
-    assert _dem_range(centres, 0, 3, 0, cloud, rule, out, work) == 0
+    spill = _BallBlock(idx=np.empty((3, 4), dtype=np.int64), uv=np.empty((3, 4, 2)), dist=np.empty((3, 4)),
+                       size=out.size)
+    work = _scratch(1, n, _heap_capacity(cloud.indptr, rule.max_ball), rule.max_ball)[0]
+    assert _dem_range(centres, 0, 3, cloud, rule, out, spill, 0, work) == 0
     assert out.size.tolist() == [4, 2, 4]
     # Ties in distance pop in either order; compare as sets keyed by the member.
     for row, c in enumerate(centres):
@@ -93,9 +96,10 @@ def test_kernel_counts_truncated_balls():
                      front_weight=True)
     out = _BallBlock(idx=np.full((2, 2), -1, dtype=np.int64), uv=np.zeros((2, 2, 2)), dist=np.full((2, 2), np.inf),
                      size=np.zeros(2, dtype=np.int64))
-    work = _scratch(1, 6, _heap_capacity(cloud.indptr, 2))[0]
+    spill = out._replace(idx=np.empty((2, 2), dtype=np.int64))
+    work = _scratch(1, 6, _heap_capacity(cloud.indptr, 2), 2)[0]
     # centre 0 reaches 5 points within the radius, centre 5 also: both cut at 2
-    assert _dem_range(np.array([0, 5]), 0, 2, 0, cloud, rule, out, work) == 2
+    assert _dem_range(np.array([0, 5]), 0, 2, cloud, rule, out, spill, 0, work) == 2
     assert out.idx.tolist() == [[1, 2], [4, 3]]
 
 
@@ -104,33 +108,61 @@ def _block(idx, uv, dist):
                       dist=np.array(dist, dtype=np.float64), size=(np.array(idx) >= 0).sum(axis=1))
 
 
+def test_kernel_spills_balls_wider_than_the_store():
+    points, normals, adj = _path(step=0.5)
+    cloud = _graph_cloud(points, normals, adj)
+    rule = _BallRule(ball_k=1, radii=np.full(6, 1.1), max_ball=4, upwind=True, w_eps=1e-6 * 0.25, midpoint=True,
+                     front_weight=True)
+    sizes = np.zeros(2, dtype=np.int64)
+    store = _BallBlock(idx=np.full((2, 3), 7, dtype=np.int64), uv=np.full((2, 3, 2), 7.0), dist=np.full((2, 3), 7.0),
+                       size=sizes)
+    spill = _BallBlock(idx=np.full((1, 4), 9, dtype=np.int64), uv=np.zeros((1, 4, 2)), dist=np.zeros((1, 4)),
+                       size=sizes)
+    work = _scratch(1, 6, _heap_capacity(cloud.indptr, 4), 4)[0]
+    # centre 0 has 2 members (fits the 3 columns: padded), centre 2 has 4 (spilled to row 2 - 1 of spill)
+    _dem_range(np.array([0, 2]), 0, 2, cloud, rule, store, spill, 1, work)
+    assert sizes.tolist() == [2, 4]
+    assert store.idx[0].tolist() == [1, 2, -1] and store.dist[0, 2] == np.inf and store.uv[0, 2].tolist() == [0, 0]
+    assert store.idx[1].tolist() == [7, 7, 7]  # untouched
+    assert sorted(spill.idx[0].tolist()) == [0, 1, 3, 4]
+
+
+def _block(idx, uv, dist, sizes):
+    return _BallBlock(idx=np.array(idx, dtype=np.int64), uv=np.array(uv, dtype=np.float64),
+                      dist=np.array(dist, dtype=np.float64), size=sizes)
+
+
 def test_blocks_are_copied_padded_widened_and_narrowed_to_the_widest_ball():
     sizes = np.zeros(3, dtype=np.int64)
-    first = _block([[4, 7, 9]], np.ones((1, 3, 2)), [[1.0, 2.0, 9.0]])
-    first = first._replace(size=np.array([2]))  # column 2 is stale data beyond the ball: not copied
-    sizes[:1] = first.size
-    store = _store_for(None, 2, 0, sizes, max_ball=64)
-    _copy_rows(first, store, 0, 0, 1)
+    empty = _store_for(None, 0, 0, sizes, max_ball=64)
+    assert empty.idx.shape == (3, 0)  # the first block's balls all spill
+    first = _block([[4, 7, 9]], np.ones((1, 3, 2)), [[1.0, 2.0, 9.0]], sizes)
+    sizes[0] = 2  # column 2 is stale data beyond the ball: not copied
+    store = _store_for(empty, 2, 0, sizes, max_ball=64)
     assert store.idx.shape[1] == 2 + 4  # the first block's width plus the margin
-    second = _block([[5, -1], [6, 8]], 2 * np.ones((2, 2, 2)), [[3.0, 0.0], [4.0, 5.0]])
-    second = second._replace(size=np.array([1, 2]))
-    sizes[1:] = second.size
-    assert _store_for(store, 2, 1, sizes, 64) is store
+    _copy_rows(empty, first, store, 0, 0, 1)
+    # second block: row 1 fits the store (the kernel wrote it there), row 2 is 7 wide and spilled
+    sizes[1:] = [1, 7]
+    _put_row(store.idx, store.uv, store.dist, 1, np.array([5]), 2 * np.ones((1, 2)), np.array([3.0]), 1, 6)
+    second = _block([[-1] * 8, [6, 8, 10, 11, 12, 13, 14, -1]], 2 * np.ones((2, 8, 2)),
+                    [[0.0] * 8, [4.0, 5.0, 6.0, 6.0, 6.0, 6.0, 6.0, 0.0]], sizes)
+    assert _store_for(store, 6, 1, sizes, 64) is store
     wide = _store_for(store, 7, 1, sizes, max_ball=8)  # wider than the store: rows so far copied over
     assert wide.idx.shape[1] == 8
     assert wide.idx[0].tolist() == [4, 7] + [-1] * 6
-    _copy_rows(second, wide, 1, 0, 2)
+    _copy_rows(store, second, wide, 1, 0, 2)
     idx, coords, gdist = _assemble(wide, sizes)
-    assert idx.tolist() == [[4, 7], [5, -1], [6, 8]]
-    assert coords[:, :, 0].tolist() == [[1, 1], [2, 0], [2, 2]]
-    assert gdist.tolist() == [[1, 2], [3, np.inf], [4, 5]]
+    assert idx.tolist() == [[4, 7] + [-1] * 5, [5] + [-1] * 6, [6, 8, 10, 11, 12, 13, 14]]
+    assert coords[:, :3, 0].tolist() == [[1, 1, 0], [2, 0, 0], [2, 2, 2]]
+    assert gdist[:, :3].tolist() == [[1, 2, np.inf], [3, np.inf, np.inf], [4, 5, 6]]
     assert idx.flags.c_contiguous and coords.flags.c_contiguous and gdist.flags.c_contiguous
     empty_sizes = np.zeros(0, dtype=np.int64)
     empty = _assemble(_store_for(None, 0, 0, empty_sizes, 64), empty_sizes)
     assert [a.shape for a in empty] == [(0, 0), (0, 0, 2), (0, 0)]
 
 
-def test_small_blocks_give_the_same_balls(make_cap, monkeypatch):
+@pytest.mark.parametrize("margin", [0.25, 0.0])
+def test_small_blocks_give_the_same_balls(make_cap, monkeypatch, margin):
     """Many blocks of different widths (run_blocks + assemble, the store widened) match one block bit for bit."""
     patch = make_cap(1.0, 1.0, 20, "jittered")
     graph = knn_graph(patch.points, 8)
@@ -138,6 +170,7 @@ def test_small_blocks_give_the_same_balls(make_cap, monkeypatch):
     normals = orient_normals(patch.points, pca_normals(patch.points, graph.indices), graph.indices)
     one = dem_balls(patch.points, normals, adj, graph.mean_spacing, ball_eps_factor=2.0)
     monkeypatch.setattr(dem, "_BLOCK", 7)
+    monkeypatch.setattr(dem, "_WIDTH_MARGIN", margin)  # fewer spare columns: more blocks widen
     many = dem_balls(patch.points, normals, adj, graph.mean_spacing, ball_eps_factor=2.0)
     assert one.n_truncated == many.n_truncated
     for f in ("indices", "coords", "sizes", "graph_dist"):

@@ -316,3 +316,51 @@ def test_spacing_and_noise_level_do_not_depend_on_the_batching(monkeypatch, work
     monkeypatch.setattr(snm, "_NOISE_CHUNK", 50)
     assert np.array_equal(local_spacing(graph, 10), h)
     assert snm._noise_level(pts, graph.indices, normals) == noise
+
+
+@pytest.mark.parametrize("parts", [1, 2, 3, 5])
+def test_stable_order_is_numpys_stable_argsort(monkeypatch, parts):
+    from parambench.methods.pointset import normals
+
+    monkeypatch.setattr(normals, "worker_count", lambda: parts)
+    keys = np.random.default_rng(parts).integers(0, 7, 1001).astype(np.float64)  # many ties
+    np.testing.assert_array_equal(normals._stable_order(keys), np.argsort(keys, kind="stable"))
+    keys = np.random.default_rng(parts).random(999)
+    np.testing.assert_array_equal(normals._stable_order(keys), np.argsort(keys, kind="stable"))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_spanning_forest_is_scipys_tree(seed):
+    """The compiled Kruskal keeps exactly scipy's entries, ties included, on one or several components."""
+    from parambench.methods.pointset.normals import _spanning_forest_scipy, spanning_forest
+
+    rng = np.random.default_rng(seed)
+    n, k = 3000, 4
+    # two blocks of points never joined (a forest), columns distinct and sorted per row
+    cols = np.sort(np.stack([rng.choice(n // 2, k, replace=False) for _ in range(n)]), axis=1)
+    cols[n // 2:] += n // 2
+    weights = rng.integers(1, 5, n * k).astype(np.float64) * 0.25  # heavy ties
+    got = spanning_forest(cols.ravel(), weights, k)
+    want = _spanning_forest_scipy(cols.ravel(), weights, k)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    bad = weights.copy()
+    bad[0] = np.nan  # not positive and finite: scipy's path
+    for a, b in zip(spanning_forest(cols.ravel(), bad, k), _spanning_forest_scipy(cols.ravel(), bad, k)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_spanning_forest_leaves_out_later_twins_as_scipy_rejects_them():
+    """A kNN graph with symmetric, heavily tied weights: both directions of mutual edges, scipy's tree."""
+    from parambench.methods.pointset.normals import _first_of_twins, _spanning_forest_scipy, spanning_forest
+
+    pts = np.c_[np.random.default_rng(5).uniform(size=(2000, 2)), np.zeros(2000)]
+    graph = knn_graph(pts, 6)
+    cols = np.sort(graph.indices, axis=1).ravel()
+    rows = np.repeat(np.arange(2000), 6)
+    weights = np.round(np.linalg.norm(pts[rows] - pts[cols], axis=1) * 40) + 1.0  # the same both ways
+    first = np.empty(cols.size, dtype=np.bool_)
+    _first_of_twins(cols, weights, 6, first)
+    assert 0 < (~first).sum() < cols.size // 2 and (cols[~first] < rows[~first]).all()
+    for a, b in zip(spanning_forest(cols, weights, 6), _spanning_forest_scipy(cols, weights, 6)):
+        np.testing.assert_array_equal(a, b)
