@@ -179,7 +179,10 @@ class Ocp(Method):
                 lap = ocp_laplacian(front, params["energy"], params["area_factor"])
             front = front.without_balls()
             fronts.append(front)
-            return (front, *_solve_front(front, lap, solver, params, timer))
+            # Handed over in a list: the two-level path reorders it and drops this copy.
+            box = [lap]
+            del lap
+            return (front, *_solve_front(front, box, solver, params, timer))
 
         def fill(work: MethodInput):
             if not fronts:  # holes="filled": the loops come from a front end of its own
@@ -198,8 +201,10 @@ class Ocp(Method):
         return MethodOutput(uv, diag)
 
 
-def _solve_front(front, lap, solver: str, params: dict, timer: StageTimer):
+def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer):
     """(solution, counts, diagnostics) of the conformal problem of ``front`` on the ``solver`` path.
+
+    ``box`` holds the Laplacian (see :func:`~parambench.methods.spectral.multilevel.multilevel_scp`).
 
     With ``solver="auto"`` resolved to the two-level path, a ConvergenceError or
     SolverError there falls back to the direct solve: a safety net, since the two-level
@@ -210,7 +215,7 @@ def _solve_front(front, lap, solver: str, params: dict, timer: StageTimer):
     """
     if solver == "multilevel":
         try:
-            return _multilevel_solve(front, lap, timer, params["fine_solver"])
+            return _multilevel_solve(front, box, timer, params["fine_solver"])
         except (ConvergenceError, SolverError) as exc:
             if params["solver"] != "auto":
                 raise
@@ -218,7 +223,7 @@ def _solve_front(front, lap, solver: str, params: dict, timer: StageTimer):
     else:
         fallback = {}
     with timer("solve"):
-        problem = conformal_problem(front, lap)
+        problem = conformal_problem(front, box.pop())
         sol = problem.solve("scp", params["k_search"])
     return sol, problem.counts, fallback
 
@@ -234,7 +239,7 @@ def resolve_solver(option: str, n_points: int, k_search: str) -> str:
     return "multilevel" if n_points >= MULTILEVEL_FROM and k_search == "line" else "direct"
 
 
-def _multilevel_solve(front, lap, timer: StageTimer, fine_solver: str = "twogrid"):
+def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "twogrid"):
     """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics).
 
     Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
@@ -247,7 +252,7 @@ def _multilevel_solve(front, lap, timer: StageTimer, fine_solver: str = "twogrid
     with timer("subsample"):
         coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
                                         np.concatenate(front.boundary_loops), seed=settings.seed)
-    sol, info = multilevel_scp(lap, front.boundary_loops, front.points, coarse, normals=front.normals,
+    sol, info = multilevel_scp(box, front.boundary_loops, front.points, coarse, normals=front.normals,
                                settings=settings, stage=lambda name: timer("solve" if name == "fine" else name))
     counts = info.pop("fine_counts")
     return sol, counts, info

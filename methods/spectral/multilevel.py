@@ -60,7 +60,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError
 
 from ..numba_cache import configure_numba_cache
-from .ordering import leaf_order, symmetric_permutation
+from .ordering import leaf_order, submatrix, symmetric_permutation
 from .problem import ConformalProblem, ConformalSolution
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
@@ -262,7 +262,7 @@ def _linear_exact_rows(points, normals, coarse, near, d2, out):  # pragma: no co
             out[i, j] = dinv[j] * (l0 + l1 * u[j] + l2 * v[j])
 
 
-def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: np.ndarray, coarse: np.ndarray,
+def multilevel_scp(laplacian: sp.spmatrix | list, loops: Sequence[np.ndarray], points: np.ndarray, coarse: np.ndarray,
                    *, normals: np.ndarray | None = None, settings: MultilevelSettings = MultilevelSettings(),
                    stage: Callable[[str], AbstractContextManager] | None = None
                    ) -> tuple[ConformalSolution, dict]:
@@ -270,8 +270,11 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
 
     Parameters
     ----------
-    laplacian : (N, N) scipy.sparse matrix of float64
-        Rows sum to zero.
+    laplacian : (N, N) scipy.sparse matrix of float64, or a list holding one
+        Rows sum to zero. Both levels work on a copy in the points' kd-tree order; a
+        one-element list is emptied once that copy is made, so a caller that keeps no
+        other reference frees the matrix for the rest of the solve (at a million points
+        ~320 MB of the peak). If the solve raises, the matrix is put back in the list.
     loops : sequence of (L_i,) numpy.ndarray of int64
         Oriented boundary loops of the fine problem.
     points : (N, 3) numpy.ndarray of float64
@@ -308,8 +311,10 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     """
     if settings.fine_solver not in FINE_SOLVERS:
         raise InvalidInputError(f"fine_solver must be one of {', '.join(FINE_SOLVERS)}, got {settings.fine_solver!r}.")
+    handed_over = isinstance(laplacian, list)
+    matrix = laplacian[0] if handed_over else laplacian
     coarse = np.unique(np.asarray(coarse, dtype=np.int64))
-    n = laplacian.shape[0]
+    n = matrix.shape[0]
     pos = np.full(n, -1, dtype=np.int64)
     pos[coarse] = np.arange(coarse.size)
     boundary = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in loops])
@@ -324,9 +329,17 @@ def multilevel_scp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
         order = leaf_order(points)
         inverse = np.empty_like(order)
         inverse[order] = np.arange(order.size)
-        lap = symmetric_permutation(sp.csr_matrix(laplacian, dtype=np.float64), order)
-    sol, info = _two_levels(lap, [inverse[np.asarray(lp, dtype=np.int64)] for lp in loops], points[order],
-                            np.sort(inverse[coarse]), None if normals is None else normals[order], settings, stage)
+        lap = symmetric_permutation(sp.csr_matrix(matrix, dtype=np.float64), order)
+        del matrix
+        if handed_over:
+            laplacian.clear()
+    try:
+        sol, info = _two_levels(lap, [inverse[np.asarray(lp, dtype=np.int64)] for lp in loops], points[order],
+                                np.sort(inverse[coarse]), None if normals is None else normals[order], settings, stage)
+    except Exception:
+        if handed_over:  # the caller may fall back to another solver on the same matrix
+            laplacian.append(symmetric_permutation(lap, inverse))
+        raise
     z = np.empty_like(sol.z)
     z[order] = sol.z
     return replace(sol, z=z), info
@@ -415,7 +428,7 @@ def _two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: Multil
         if coarse_factor is None:  # no coarse interior: nothing to correct on
             solver = SparseFactor(l_ii)
         else:
-            p_ii = prolong[interior][:, coarse_interior]
+            p_ii = submatrix(prolong, interior, coarse_interior)
             solver = TwoGridSolver(l_ii, p_ii, coarse_factor.solve, rtol=settings.fine_rtol,
                                    order=np.arange(interior.size))
             made.append(solver)

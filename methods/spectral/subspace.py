@@ -110,6 +110,16 @@ def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None
     return u[:, sv > 1e-10 * sv[0]]
 
 
+def _combine(blocks: Sequence[np.ndarray], y: np.ndarray) -> np.ndarray:
+    """``np.hstack(blocks) @ y`` without forming the concatenation."""
+    out, start = None, 0
+    for block in blocks:
+        part = block @ y[start:start + block.shape[1]]
+        out = part if out is None else out + part
+        start += block.shape[1]
+    return out
+
+
 def _inverse_iteration(op: np.ndarray, lam: complex, steps: int = 3, rtol: float = 1e-10) -> np.ndarray | None:
     """Unit eigenvector of the small dense ``op`` for its eigenvalue ``lam``, or None if it does not converge."""
     m = op.shape[0]
@@ -168,9 +178,10 @@ class BoundarySubspace:
         # With an iterative interior solver every solve costs cycles: the interior values
         # the Schur products compute anyway are kept, so the final map's harmonic
         # extension is a combination of them (:meth:`extend`), not two more solves.
-        self._interior = None
+        self._interior: list[np.ndarray] | None = None  # column blocks, never concatenated (see refine)
         if reduction.solves_are_iterative:
-            self._sq, self._interior = reduction.apply_schur_extended(self.basis)
+            self._sq, interior = reduction.apply_schur_extended(self.basis)
+            self._interior = [interior]
         else:
             self._sq = reduction.apply_schur(self.basis)
         self.n_solves = reduction.n_solves - before
@@ -286,7 +297,10 @@ class BoundarySubspace:
         """
         red = self._reduction
         rtol = max(float(rtol), self.SOLVE_FLOOR * red.solve_rtol)
-        basis, sq, interior = self.basis, self._sq, self._interior
+        basis, sq = self.basis, self._sq
+        # The interior values grow by blocks: concatenating them at each step copied the
+        # whole (V, m) array (at 1M points with 41 columns, 330 MB twice over at the peak).
+        interior = None if self._interior is None else list(self._interior)
         l_kk = red.boundary_block
         scale = 0.5 * abs(k) * float(np.abs(l_kk.diagonal()).max())
         eye = sp.identity(basis.shape[0], format="csc")
@@ -319,7 +333,8 @@ class BoundarySubspace:
                 sq = np.hstack([sq, red.apply_schur(q)])
             else:
                 sq_q, interior_q = red.apply_schur_extended(q)
-                sq, interior = np.hstack([sq, sq_q]), np.hstack([interior, interior_q])
+                sq = np.hstack([sq, sq_q])
+                interior.append(interior_q)
             steps += 1
         if absorb and basis is not self.basis:
             self.basis, self._sq, self._interior = basis, sq, interior
@@ -348,5 +363,5 @@ class BoundarySubspace:
             y = self.basis.T @ z_keep  # the basis is orthonormal
             off = np.linalg.norm(z_keep - self.basis @ y)
             if off <= self.SPAN_RTOL * max(np.linalg.norm(z_keep), np.finfo(float).tiny):
-                return self._reduction.extend(z_keep, interior=self._interior @ y)
+                return self._reduction.extend(z_keep, interior=_combine(self._interior, y))
         return self._reduction.extend(z_keep)

@@ -137,6 +137,36 @@ def test_multilevel_refuses_a_coarse_level_without_the_boundary():
         multilevel_scp(lap, [loop], pts, np.array([0, 7, 14]))
 
 
+def test_a_handed_over_laplacian_is_released_and_put_back_on_failure(monkeypatch):
+    import parambench.methods.spectral.multilevel as multilevel_module
+    from parambench.datasets_gen.errors import ConvergenceError
+    from parambench.methods.plugins.ocp import ocp_laplacian
+    from parambench.methods.pointset.frontend import build_frontend
+
+    front = build_frontend(make_surface("bump", 3000, sampling="jittered", seed=0).points)
+    lap = ocp_laplacian(front)
+    coarse = poisson_disk_subsample(front.points, 2.0 * front.mean_spacing, np.concatenate(front.boundary_loops))
+    box = [lap.copy()]
+    sol, _ = multilevel_scp(box, front.boundary_loops, front.points, coarse, normals=front.normals)
+    assert box == []  # released: the solver keeps only its reordered copy
+    direct, _ = multilevel_scp(lap, front.boundary_loops, front.points, coarse, normals=front.normals)
+    np.testing.assert_array_equal(sol.z, direct.z)
+
+    def fails(*args, **kwargs):
+        raise ConvergenceError("two-level stand-in")
+
+    monkeypatch.setattr(multilevel_module, "_two_levels", fails)
+    box = [lap.copy()]
+    with pytest.raises(ConvergenceError):
+        multilevel_scp(box, front.boundary_loops, front.points, coarse, normals=front.normals)
+    assert len(box) == 1 and (box[0] != lap).nnz == 0  # back, in the caller's order
+    # A refusal before any work leaves the list as it was.
+    box = [lap]
+    with pytest.raises(InvalidInputError):
+        multilevel_scp(box, front.boundary_loops, front.points, coarse[:10], normals=front.normals)
+    assert len(box) == 1 and box[0] is lap
+
+
 def test_unknown_solver_is_refused_with_the_choices():
     surf = make_surface("bump", 600, sampling="jittered", seed=0)
     with pytest.raises(UnknownNameError, match="multilevel"):
