@@ -45,6 +45,9 @@ OCP_SOLVERS = ("auto", "direct", "multilevel")
 #: against direct 48.1 / 42.7 / 46.9 s on bump / holes / cap, k_opt equal to 4e-6, QC to
 #: 4e-6, uv to 4.7e-4 of the diameter, 0 foldovers both; at 100k (bump) the two within
 #: 10 % of each other (fine level 3.7 s against 4.0 s); below that the direct path wins.
+#: Since the two-grid workers and the leaf order (one run each, quiet): at 100k bump /
+#: holes / cap multilevel 5.4 / 4.6 / 8.6 s against direct 7.9 / 6.2 / 8.3 s (the cap's
+#: Davidson steps take 62 cycles), so the threshold stays until the cap's steps are cheaper.
 MULTILEVEL_FROM = 200_000
 
 
@@ -121,9 +124,9 @@ class Ocp(Method):
     at 20k-300k points: the same k_opt to 3e-5 and map to 8.3e-4 of the diameter
     (1e-4 or better except on a random sampling). ``fine_solver``: ``"twogrid"``
     (default) solves the fine interior by two-grid cycles on the coarse factorisation
-    (no fine factorisation: 1M points 4.9 GB peak instead of 6.3 GB), ``"direct"``
-    factorises it. End to end at 300k points multilevel takes 0.5-0.8x the time of
-    ``"direct"`` (see :data:`MULTILEVEL_FROM`); the path is not near-linear yet.
+    (no fine factorisation), ``"direct"`` factorises it. End to end at 1M points
+    (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
+    the time of ``scp-igl`` on the true mesh (see README's Measured table).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
     ``k_nn`` is smaller, ocp runs once more with this ``k_nn`` and keeps that map if it
     passes (:meth:`retry_params`); 0 turns the retry off. ``holes``: ``"auto"`` (default)
