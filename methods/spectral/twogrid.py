@@ -116,7 +116,7 @@ class TwoGridSolver:
         Always False (the attribute :class:`~parambench.methods.spectral.reduction.BoundaryReduction` reads).
     arrays_per_column : int
         Work arrays of the matrix's size per right-hand side (block-size budget): the
-        right-hand side, the solution and the returned copy.
+        right-hand side's copy per worker, the solution and the returned copy.
     max_block_bytes : int
         The block-size budget this solver asks for (larger than a factorisation's).
     iterative : bool
