@@ -7,6 +7,9 @@ from scipy.spatial.distance import cdist
 
 __all__ = ["farthest_pair", "opposite_pairs"]
 
+#: Relative difference under which two distances count as the same (see farthest_pair).
+_TIE_RTOL = 1e-9
+
 
 def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048) -> tuple[int, int]:
     """The two candidate vertices farthest apart in 3D.
@@ -22,20 +25,25 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
     Returns
     -------
     (i, j) : tuple of int
-        Indices into ``points``, ``i < j`` by position in ``candidates``; ties go to the
-        first pair found, so the choice is deterministic.
+        Indices into ``points``, ``i < j`` by position in ``candidates``. Distances within
+        a relative 1e-9 of the largest are ties; they go to the first pair in candidate
+        order (row by row), so the choice does not depend on the last bits of rounding.
     """
     cand = np.asarray(candidates, dtype=np.int64)
     pts = points[cand]
-    best, best_pair = -1.0, (0, 1)
+    best = max(float(cdist(pts[start:start + chunk], pts).max()) for start in range(0, len(cand), chunk))
+    # Symmetric shapes have exact ties (a square's two diagonals) that rounding splits
+    # differently from one scipy release to the next: distances within rounding of the
+    # maximum count as equal, and the first such pair in candidate order wins.
+    floor = best * (1.0 - _TIE_RTOL)
     for start in range(0, len(cand), chunk):
         d = cdist(pts[start:start + chunk], pts)
-        flat = int(np.argmax(d))
-        r, c = divmod(flat, d.shape[1])
-        if d[r, c] > best:
-            best, best_pair = float(d[r, c]), (start + r, c)
-    a, b = sorted(best_pair)
-    return int(cand[a]), int(cand[b])
+        hits = np.flatnonzero(d.ravel() >= floor)
+        if hits.size:
+            r, c = divmod(int(hits[0]), d.shape[1])
+            a, b = sorted((start + r, c))
+            return int(cand[a]), int(cand[b])
+    raise AssertionError("unreachable: the maximum is among the distances")
 
 
 def opposite_pairs(points: np.ndarray, loop: np.ndarray, start: int, count: int) -> list[tuple[int, int]]:

@@ -11,13 +11,31 @@ from parambench.datasets_gen.errors import ConvergenceError, SolverError
 from parambench.datasets_gen.surface import MethodInput
 from parambench.methods.hints import Hint, hinted
 from parambench.methods.mesh.fallbacks import PIN_ALTERNATIVES, Attempt, first_regular, mesh_attempts
-from parambench.methods.mesh.pins import opposite_pairs
+from parambench.methods.mesh.pins import farthest_pair, opposite_pairs
 
 
 def polygon(n: int, radii=None) -> np.ndarray:
     ang = 2 * np.pi * np.arange(n) / n
     r = np.ones(n) if radii is None else np.asarray(radii, dtype=float)
     return np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(n)])
+
+
+@pytest.mark.parametrize("nudge", [0.0, 1e-15, -1e-15])
+def test_farthest_pair_breaks_rounding_ties_by_candidate_order(nudge):
+    # a square's two diagonals tie; a last-bit difference (as different scipy releases
+    # round) must not decide which one is taken: the first pair in candidate order wins
+    square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0 + nudge, 0.0], [0.0, 1.0, 0.0]])
+    assert farthest_pair(square, np.array([0, 1, 2, 3])) == (0, 2)
+    assert farthest_pair(square, np.array([1, 3, 0, 2])) == (1, 3)
+    assert farthest_pair(square, np.array([3, 0, 1, 2]), chunk=1) == (3, 1)
+
+
+def test_farthest_pair_finds_a_clear_maximum_across_chunks():
+    rng = np.random.default_rng(0)
+    pts = rng.random((300, 3))
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    i, j = np.unravel_index(np.argmax(d), d.shape)
+    assert set(farthest_pair(pts, np.arange(300), chunk=7)) == {int(i), int(j)}
 
 
 def test_opposite_pairs_on_a_regular_polygon_by_hand():

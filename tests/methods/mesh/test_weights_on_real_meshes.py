@@ -123,13 +123,17 @@ def test_uniform_weights_keep_bunny_holes_open_once_filled(real_meshes):
 #: row); with uniform authalic rows at the 3150 vertices with a negative weight they are
 #: regular.
 FALLBACKS = {
-    ("real/bump-domain", "dncp-opt", "authalic", True): {"pins_fallback": 1, "pins_farthest": [230, 232],
-                                                         "pins": [494, 354]},
     ("real/cortex-lh", "scp", "authalic", False): {"authalic_fallback": "negative", "n_uniform_rows": 3150},
     ("real/cortex-lh", "scp", "authalic", True): {"authalic_fallback": "negative", "n_uniform_rows": 3150},
     ("real/cortex-lh", "dncp-opt", "authalic", False): {"authalic_fallback": "negative", "n_uniform_rows": 3150,
                                                         "pins": [376, 12191]},
 }
+#: No regular map as asked, and some fallback gives one, but which one depends on the last
+#: bits of the sparse solves: bump-domain's normalized authalic DNCP with its farthest pins
+#: (two corners of the square; the two diagonals tie) is regular with the authalic
+#: fallback's uniform rows under scipy 1.17 / numpy 2.4 (QC 1.70, 0 foldovers), and needed
+#: the first other pin pair (494, 354) under the releases before.
+SOME_FALLBACK = {("real/bump-domain", "dncp-opt", "authalic", True)}
 #: More than 10 s each (measured 12 to 32 s): the failing searches before the fallback on
 #: cortex-lh's 451 boundary vertices, and the exact boundary search after the subspace one.
 SLOW = {("real/cortex-lh", "scp", "authalic", False), ("real/cortex-lh", "scp", "authalic", True),
@@ -153,6 +157,12 @@ def test_every_weight_option_works_on_every_real_mesh(real_meshes, name, method,
     assert np.isfinite(res.uv).all()
     assert res.diagnostics["regular_boundary"]
     fallback = FALLBACKS.get(case, {})
+    if case in SOME_FALLBACK:
+        assert res.diagnostics["fallback_reason"].startswith("no regular dncp map at any k")
+        assert {"authalic_fallback", "pins_fallback"} & set(res.diagnostics)
+        assert res.diagnostics.get("pins_farthest", res.diagnostics["pins"]) == [230, 232]  # the first of the tie
+        assert evaluate(s.points, s.faces, res.uv)["foldover_fraction"] < 0.01
+        return
     for key, value in fallback.items():
         assert res.diagnostics[key] == value, key
     if fallback:
@@ -173,11 +183,11 @@ def test_every_weight_option_works_on_every_real_mesh(real_meshes, name, method,
 
 
 def test_given_pins_are_never_changed(real_meshes):
-    # the farthest pair of bump-domain, given explicitly: no other pins are tried, only the
-    # authalic rows, which do not help with these pins
+    # two corners of bump-domain (the square's other diagonal), given explicitly: no other
+    # pins are tried, only the authalic rows, which do not help with these pins
     s = real_meshes["real/bump-domain"]
     with pytest.raises(ConvergenceError, match=r"no regular dncp map at any k") as info:
-        DNCP(s, weights="authalic", normalized=True, pins="230,232")
+        DNCP(s, weights="authalic", normalized=True, pins="231,233")
     assert "(also without a regular map: uniform_at='negative')" in str(info.value)
     assert "pins=" not in str(info.value)
 
