@@ -24,7 +24,7 @@ between its ends: :func:`parambench.methods.pointset.surface_neighbours._confirm
 Measured (``python -m parambench.bench.sheet_split fold N SAMPLING SEED NOISE``; ocp's
 pipeline on the confirmed graph with the front end's own normals, via
 :func:`parambench.bench.frontend_isolation.isolate`; QC on the noisy mesh, where
-``scp-igl`` has 1.098-1.108):
+``scp-igl`` has 1.098-1.108 at noise 0.25):
 
 - one noisy sheet (bump, saddle, slit, holes, cap; jittered 2k, noise 0.5): no cut
   confirmed, the Euclidean graph bit for bit;
@@ -33,9 +33,9 @@ pipeline on the confirmed graph with the front end's own normals, via
   0.989-1.0), as good as the Euclidean graph cut by the ground truth; at 20k seed 2, 11
   edges across are left (847 foldovers); random and graded 2k leave 4 (ConvergenceError,
   326 foldovers);
-- ``fold``, noise 0.35: 150-172 edges across left (48 and 322 foldovers), noise 0.4 and
-  0.5: 250-830 (NoBoundaryError). At noise 0.5 no test on positions can succeed: 19-28
-  of ~2000 points lie nearer the other sheet
+- ``fold``, 2k: noise 0.35, 150-172 edges across left (48 and 322 foldovers, seeds 0
+  and 1); noise 0.4, 251 (NoBoundaryError); noise 0.5, 1024 (1869 foldovers). At noise 0.5
+  no test on positions can succeed: 19-28 of ~2000 points lie nearer the other sheet
   (:func:`parambench.bench.frontend_isolation.closer_elsewhere`).
 
 So it is not put into the front end: it needs a margin it does not have (guard tolerance
