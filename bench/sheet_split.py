@@ -38,6 +38,12 @@ pipeline on the confirmed graph with the front end's own normals, via
   no test on positions can succeed: 19-28 of ~2000 points lie nearer the other sheet
   (:func:`parambench.bench.frontend_isolation.closer_elsewhere`).
 
+- the guarded graph before confirmation (:func:`sheet_cut_graph` as is) leaves 1 edge
+  across at 20k seed 2 and on random and graded 2k (ends 0.75-2.5 spacings apart: both
+  ends pushed towards each other by the noise), and that edge alone gives 4 and 21
+  foldovers (QC 4.4 and 3622) or ConvergenceError; the confirmation then restores 3-10
+  more around it (their detours run through it). ocp needs no edge across at all.
+
 So it is not put into the front end: it needs a margin it does not have (guard tolerance
 0.25 instead of 0.2 leaves 25 edges across at 20k seed 0).
 """
