@@ -7,18 +7,27 @@ pieces replaced by ground truth:
 
 * ``true_normals``: per-vertex normals of the mesh (area-weighted face normals, unit)
   given to the front end; ``smooth=False`` also skips the front end's neighbourhood
-  smoothing of them (which averages across a gap);
+  smoothing of them (which averages across a gap); ``normals_truth="surface"`` takes the
+  surface's own normals instead (a generated surface's exact normals: under normal noise
+  the noisy mesh's vertex normals carry the noise);
 * ``true_loops``: the mesh's boundary loops (oriented by the faces) instead of the
   detected ones for the Laplacian's boundary term and the solve;
 * ``mesh_neighbours``: the kNN graph replaced by the K nearest points within ``rings``
   mesh rings, so normals, DEM balls, weights and the boundary cannot bridge a gap
   (the noise refits of the normals still search Euclidean neighbourhoods).
 
+:func:`truth_cut_knn` is the Euclidean kNN graph with the edges across a gap removed by the
+ground truth (a ``graph`` to pass), and :func:`closer_elsewhere` counts the points of a noisy
+sampling that lie nearer another part of the clean surface than their own: no method that
+sees positions only can keep those on their side of a gap.
+
 Each run reports QC mean and foldovers on the true mesh and where the flipped faces lie:
 within 2 / 5 mesh rings of a *bridge* (an Euclidean kNN edge spanning more than
 ``bridge_rings`` mesh rings), within 2 rings of the true boundary, or elsewhere.
-Found with it on ``real/camelhead`` (the lips): see the README's Measured table. Run
-``python -m parambench.bench.frontend_isolation real/camelhead`` for the standard cases.
+Found with it on ``real/camelhead`` (the lips) and ``fold`` under noise: see the README's
+Measured table. Run ``python -m parambench.bench.frontend_isolation real/camelhead`` for the
+standard cases, ``python -m parambench.bench.frontend_isolation fold 2000 jittered 0 0.5``
+for a generated surface (size, sampling, seed, noise in spacings).
 """
 
 from __future__ import annotations
@@ -38,8 +47,9 @@ from parambench.methods.pointset.plugin_support import scale_to_spacing
 from parambench.methods.hints import method_hints
 from parambench.methods.plugins.ocp import Ocp, conformal_problem, ocp_laplacian
 
-__all__ = ["mesh_adjacency", "vertex_normals", "ring_distance", "mesh_ring_knn", "bridges", "oriented_loops",
-           "flipped_faces", "isolate", "pruned_with_true_normals", "STANDARD_CASES", "main"]
+__all__ = ["mesh_adjacency", "vertex_normals", "ring_distance", "mesh_ring_knn", "truth_cut_knn", "bridges",
+           "closer_elsewhere", "oriented_loops", "flipped_faces", "isolate", "pruned_with_true_normals",
+           "STANDARD_CASES", "main"]
 
 
 def mesh_adjacency(n: int, faces: np.ndarray) -> sp.csr_matrix:
@@ -114,6 +124,87 @@ def mesh_ring_knn(points: np.ndarray, adjacency: sp.csr_matrix, k: int, rings: i
     return KnnGraph(indices=c[pick].astype(np.int64), distances=d[pick], mean_spacing=float(d[pick].mean()))
 
 
+def truth_cut_knn(points: np.ndarray, adjacency: sp.csr_matrix, k: int, rings: int = 6,
+                  pool: int = 4) -> KnnGraph:
+    """The Euclidean K nearest without the edges that span more than ``rings`` mesh rings.
+
+    What a perfect gap test would leave of the Euclidean graph: each point keeps its K
+    nearest among its ``pool * K`` nearest that lie within ``rings`` rings of it on the
+    mesh (unlike :func:`mesh_ring_knn`, edges of up to ``rings`` rings, e.g. round a
+    tight bend, stay). A row with fewer such candidates is filled with its nearest cut ones.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    adjacency : (N, N) scipy.sparse.csr_matrix
+        From :func:`mesh_adjacency`.
+    k : int
+    rings : int
+        Ring span above which an edge counts as crossing a gap.
+    pool : int
+        Candidates per point, in units of K.
+
+    Returns
+    -------
+    KnnGraph
+        Rows nearest first, self excluded.
+    """
+    cand = knn_graph(points, min(points.shape[0] - 1, pool * k))
+    m = cand.indices.shape[1]
+    rows = np.repeat(np.arange(points.shape[0]), m)
+    cut = (ring_distance(adjacency, rows, cand.indices.ravel(), rings) > rings).reshape(-1, m)
+    pick = np.argsort(cut, axis=1, kind="stable")[:, :k]
+    dist = np.take_along_axis(cand.distances, pick, axis=1)
+    resort = np.argsort(dist, axis=1, kind="stable")
+    idx = np.take_along_axis(np.take_along_axis(cand.indices, pick, axis=1), resort, axis=1)
+    dist = np.take_along_axis(dist, resort, axis=1)
+    return KnnGraph(indices=np.ascontiguousarray(idx), distances=np.ascontiguousarray(dist),
+                    mean_spacing=float(dist.mean()))
+
+
+def closer_elsewhere(points: np.ndarray, clean_points: np.ndarray, faces: np.ndarray, rings: int = 6,
+                     subdivisions: int = 8) -> np.ndarray:
+    """Points nearer to another part of the clean surface than to their own place on it.
+
+    Each point of a noisy sampling is compared with the clean mesh (the same sampling
+    without noise: ``make_surface(..., noise=0)`` with the same seed gives it): the
+    nearest point of the clean mesh (among ``subdivisions``-times subdivided samples of
+    every face, the face's nearest-corner vertex standing for it) more than ``rings``
+    mesh rings from the point's own vertex means the noise carried the point past the
+    middle of a gap. Positions alone cannot tell such a point's side: any neighbourhood
+    built from them puts it on the other sheet.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+        The noisy sampling.
+    clean_points : (N, 3) numpy.ndarray of float64
+        The same vertices without noise.
+    faces : (F, 3) numpy.ndarray of int64
+        The mesh of both.
+    rings : int
+    subdivisions : int
+        Barycentric steps per face edge of the dense clean samples.
+
+    Returns
+    -------
+    (M,) numpy.ndarray of int64
+        The points, ascending.
+    """
+    from scipy.spatial import cKDTree
+
+    t = np.linspace(0.0, 1.0, int(subdivisions) + 1)
+    a, b = np.meshgrid(t, t)
+    inside = a + b <= 1.0 + 1e-12
+    bary = np.stack([1.0 - a[inside] - b[inside], a[inside], b[inside]], axis=1)  # (S, 3)
+    samples = np.einsum("sk,fki->fsi", bary, clean_points[faces]).reshape(-1, 3)
+    corner = faces[:, np.argmax(bary, axis=1)].reshape(-1)  # the sample's nearest corner
+    _, near = cKDTree(samples).query(points)
+    n = points.shape[0]
+    far = ring_distance(mesh_adjacency(n, faces), np.arange(n), corner[near], rings) > rings
+    return np.flatnonzero(far)
+
+
 def bridges(points: np.ndarray, adjacency: sp.csr_matrix, k: int = 8, bridge_rings: int = 10) -> np.ndarray:
     """Vertices at an end of a Euclidean kNN edge spanning more than ``bridge_rings`` rings."""
     g = knn_graph(points, k)
@@ -166,7 +257,8 @@ def _front_end_patched(points: np.ndarray, graph: KnnGraph | None, skip_normal_c
 
 def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_loops: bool = False,
             mesh_neighbours: bool = False, rings: int = 3, graph: KnnGraph | None = None, energy: str = "neumann",
-            params: FrontEndParams | None = None, bridge_rings: int = 10, context: dict | None = None) -> dict:
+            params: FrontEndParams | None = None, bridge_rings: int = 10, context: dict | None = None,
+            normals_truth: str = "mesh") -> dict:
     """Run ``ocp``'s pipeline on ``surface.points`` with ground-truth pieces substituted.
 
     Parameters
@@ -193,6 +285,10 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
         Ring span above which a kNN edge counts as a bridge (fold location).
     context : dict, optional
         Reused between calls on the same surface (adjacency, normals, bridges, distances).
+    normals_truth : {"mesh", "surface"}
+        The true normals (given with ``true_normals`` and the reference of
+        ``normal_error_deg``): the mesh's vertex normals, or ``surface.normals`` (a
+        generated surface's exact normals, which a noisy sampling's mesh does not have).
 
     Returns
     -------
@@ -215,13 +311,19 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
         ctx["d_bridge"] = (dijkstra(adj, indices=ctx["bridges"], unweighted=True, min_only=True)
                            if len(ctx["bridges"]) else np.full(n, np.inf))
         ctx["d_boundary"] = dijkstra(adj, indices=loops_all, unweighted=True, min_only=True)
+    if normals_truth == "mesh":
+        truth = ctx["normals"]
+    elif normals_truth == "surface" and surface.normals is not None:
+        truth = surface.normals / np.linalg.norm(surface.normals, axis=1, keepdims=True)
+    else:
+        raise ValueError(f"normals_truth must be 'mesh' or 'surface' (with surface.normals), got {normals_truth!r}.")
     opts = replace(params or FrontEndParams(), smooth_normals=bool(smooth))
     if graph is None and mesh_neighbours:
         graph = mesh_ring_knn(pts, ctx["adjacency"], int(opts.k_nn), rings)
     if graph is not None:  # the substitute replaces the Euclidean kNN search (the patched knn_graph)
         opts = replace(opts, neighbours="euclidean")
     with _front_end_patched(pts, graph, skip_normal_check=true_normals):
-        front = _frontend.build_frontend(pts, ctx["normals"] if true_normals else None, opts)
+        front = _frontend.build_frontend(pts, truth if true_normals else None, opts)
     detected = front.boundary_loops
     if true_loops:
         loops = oriented_loops(faces, surface.boundary_loops)
@@ -234,7 +336,7 @@ def isolate(surface, *, true_normals: bool = False, smooth: bool = True, true_lo
         sol = conformal_problem(front, lap).solve("scp", "line")
     uv = scale_to_spacing(sol.uv, front)
     m = evaluate(pts, faces, uv)
-    cos = np.einsum("ij,ij->i", front.normals, ctx["normals"])
+    cos = np.einsum("ij,ij->i", front.normals, truth)
     ang = np.degrees(np.arccos(np.clip(np.abs(cos), 0.0, 1.0)))
     flip = flipped_faces(uv, faces)
     near_b = ctx["d_bridge"][faces[flip]].min(axis=1) if flip.size else np.zeros(0)
@@ -287,24 +389,51 @@ STANDARD_CASES = {
 
 
 def main(argv=None) -> int:
-    """Print one JSON line per case of :data:`STANDARD_CASES` for a dataset name (default ``real/camelhead``)."""
+    """Print one JSON line per case of :data:`STANDARD_CASES` for a dataset (default ``real/camelhead``).
+
+    Arguments: ``NAME [N SAMPLING SEED NOISE]``; with ``N`` a generated surface of that
+    size, sampling (default jittered), seed (0) and normal noise in spacings (0). Under
+    noise the true normals are the surface's exact ones (``normals_truth="surface"``)
+    and the last line also counts :func:`closer_elsewhere`. Cases that raise print the
+    error.
+    """
     import json
     import sys
 
+    from parambench.datasets_gen.errors import ParambenchError
     from parambench.datasets_gen.registry import make_surface
 
     args = sys.argv[1:] if argv is None else list(argv)
-    surface = make_surface(args[0] if args else "real/camelhead")
+    name = args[0] if args else "real/camelhead"
+    if len(args) > 1:
+        size, sampling = int(args[1]), args[2] if len(args) > 2 else "jittered"
+        seed, noise = (int(args[3]) if len(args) > 3 else 0), (float(args[4]) if len(args) > 4 else 0.0)
+        surface = make_surface(name, size, sampling=sampling, seed=seed, noise=noise)
+    else:
+        noise = 0.0
+        surface = make_surface(name)
+    truth = "surface" if noise > 0 and surface.normals is not None else "mesh"
     ctx: dict = {}
     cases = dict(STANDARD_CASES)
     pruned_true = pruned_with_true_normals(surface)
     cases["pruned graph cut with true normals"] = {"graph": pruned_true}
     cases["pruned graph cut with true normals + true normals"] = {"graph": pruned_true, "true_normals": True}
+    cut = truth_cut_knn(surface.points, mesh_adjacency(surface.n_points, surface.faces), FrontEndParams().k_nn)
+    cases["Euclidean graph cut by the truth"] = {"graph": cut}
+    cases["Euclidean graph cut by the truth + true normals"] = {"graph": cut, "true_normals": True}
     for label, kwargs in cases.items():
-        out = isolate(surface, context=ctx, **kwargs)
+        try:
+            out = isolate(surface, context=ctx, normals_truth=truth, **kwargs)
+        except (ParambenchError, ValueError) as exc:  # a refusal is a finding here
+            print(json.dumps({"case": label, "error": f"{type(exc).__name__}: {exc}"}), flush=True)
+            continue
         out.pop("uv")
         print(json.dumps({"case": label, **out}), flush=True)
-    print(json.dumps({"bridge_ends": int(len(ctx["bridges"]))}))
+    summary = {"bridge_ends": int(len(ctx["bridges"])), "normals_truth": truth}
+    if noise > 0:  # the same sampling without noise: the noise has a random stream of its own
+        clean = make_surface(name, size, sampling=sampling, seed=seed, noise=0.0)
+        summary["closer_elsewhere"] = int(closer_elsewhere(surface.points, clean.points, surface.faces).size)
+    print(json.dumps(summary))
     return 0
 
 

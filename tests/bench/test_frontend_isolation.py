@@ -66,3 +66,42 @@ def test_errors_of_the_isolated_pipeline_name_only_ocp_parameters():
     with pytest.raises(ConvergenceError) as err:
         iso.isolate(make_surface("real/bunny10k"), true_loops=True)
     assert "normalized" not in str(err.value) and "k_search='direct'" in str(err.value)
+
+
+def test_truth_cut_graph_leaves_no_edge_across_the_fold_and_keeps_a_gapless_surface_euclidean():
+    from parambench.methods.pointset.neighbourhoods import knn_graph
+
+    fold = make_surface("fold", 600, sampling="jittered", seed=0, noise=0.5)
+    adj = iso.mesh_adjacency(fold.n_points, fold.faces)
+    rows = np.repeat(np.arange(fold.n_points), 8)
+    plain = knn_graph(fold.points, 8)
+    assert (iso.ring_distance(adj, rows, plain.indices.ravel(), 6) > 6).sum() > 0  # the noise bridges the gap
+    cut = iso.truth_cut_knn(fold.points, adj, 8, rings=6)
+    assert (iso.ring_distance(adj, rows, cut.indices.ravel(), 6) > 6).sum() == 0
+    assert np.all(np.diff(cut.distances, axis=1) >= 0)
+    s = _surface()
+    same = iso.truth_cut_knn(s.points, iso.mesh_adjacency(s.n_points, s.faces), 8, rings=6)
+    assert np.array_equal(same.indices, knn_graph(s.points, 8).indices)
+
+
+def test_closer_elsewhere_counts_points_the_noise_carried_past_the_middle_of_the_gap():
+    def count(name, noise):
+        noisy = make_surface(name, 600, sampling="jittered", seed=0, noise=noise)
+        clean = make_surface(name, 600, sampling="jittered", seed=0, noise=0.0)
+        return iso.closer_elsewhere(noisy.points, clean.points, noisy.faces).size
+
+    assert count("fold", 0.5) > 0
+    assert count("fold", 0.25) == 0 and count("bump", 0.5) == 0
+    clean = make_surface("fold", 600, sampling="jittered", seed=0)
+    assert iso.closer_elsewhere(clean.points, clean.points, clean.faces).size == 0
+
+
+def test_surface_normals_as_the_truth_of_a_noisy_sampling():
+    s = make_surface("bump", 600, sampling="jittered", seed=0, noise=0.5)
+    ctx = {}
+    out = iso.isolate(s, true_normals=True, normals_truth="surface", context=ctx)
+    assert out["normal_error_deg"]["all"] < 1e-6 and out["normal_sign_flips"] == 0
+    mesh_truth = iso.isolate(s, true_normals=True, context=ctx)  # the noisy mesh's own vertex normals
+    assert mesh_truth["normal_error_deg"]["all"] < 1e-6
+    with pytest.raises(ValueError):
+        iso.isolate(s, normals_truth="exact", context=ctx)
