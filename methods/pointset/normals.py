@@ -403,13 +403,19 @@ def _sort_tied_runs(keys, order):
         hi = lo + 1
         while hi < m and keys[order[hi]] == keys[order[lo]]:
             hi += 1
-        for i in range(lo + 1, hi):  # insertion sort: runs are short (mostly the two directions of an edge)
-            v = order[i]
-            j = i
-            while j > lo and order[j - 1] > v:
-                order[j] = order[j - 1]
-                j -= 1
-            order[j] = v
+        if hi - lo > 16:
+            # Long runs exist: on an exactly flat region every edge has parallel normals
+            # and lies in the plane, so its weight is the floor 1e-9 (protrusions' flat
+            # base at 100k points: insertion sort here took 6 s of the front end's 8).
+            order[lo:hi] = np.sort(order[lo:hi])
+        else:
+            for i in range(lo + 1, hi):  # insertion sort: most runs are the two directions of an edge
+                v = order[i]
+                j = i
+                while j > lo and order[j - 1] > v:
+                    order[j] = order[j - 1]
+                    j -= 1
+                order[j] = v
         lo = hi
 
 

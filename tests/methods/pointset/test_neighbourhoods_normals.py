@@ -327,6 +327,9 @@ def test_stable_order_is_numpys_stable_argsort(monkeypatch, parts):
     np.testing.assert_array_equal(normals._stable_order(keys), np.argsort(keys, kind="stable"))
     keys = np.random.default_rng(parts).random(999)
     np.testing.assert_array_equal(normals._stable_order(keys), np.argsort(keys, kind="stable"))
+    # long runs of one key (a flat region's edges all weigh the floor 1e-9)
+    keys = np.where(np.random.default_rng(parts).random(5003) < 0.7, 1e-9, np.random.default_rng(9).random(5003))
+    np.testing.assert_array_equal(normals._stable_order(keys), np.argsort(keys, kind="stable"))
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
