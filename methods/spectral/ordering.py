@@ -164,11 +164,8 @@ def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int =
         if emit or idx.size <= leaf_size:
             pieces.append(idx)
             continue
-        p = points[idx]
-        axis = int(np.argmax(p.max(axis=0) - p.min(axis=0)))
-        c = p[:, axis]
-        left = c < np.median(c)
-        if left.all() or not left.any():
+        left = _median_split(points[idx])
+        if left is None:
             pieces.append(idx)
             continue
         cross = left[a] != left[b]
@@ -186,3 +183,24 @@ def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int =
         stack.append(children[1])
         stack.append(children[0])
     return np.concatenate(pieces)
+
+
+def _median_split(p: np.ndarray) -> np.ndarray | None:
+    """A mask splitting ``p`` (at least 2 rows) at a coordinate's median; None if all points coincide.
+
+    The longest axis first. Where more than half the points share the median value (a flat
+    region, e.g. a base plane at z = 0 exactly), ``c < median`` is empty: then
+    ``c <= median``, then the next axis. Giving up there instead left four pieces of
+    protrusions' interior at 300k points (18k-37k points each, 110k of 298k) undissected,
+    and the direct path's factorisation ran for more than 15 minutes; now 11 s.
+    """
+    extent = p.max(axis=0) - p.min(axis=0)
+    for axis in np.argsort(-extent, kind="stable"):
+        if extent[axis] <= 0.0:
+            break
+        c = p[:, axis]
+        median = np.median(c)
+        for left in (c < median, c <= median):
+            if left.any() and not left.all():
+                return left
+    return None
