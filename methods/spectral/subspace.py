@@ -305,11 +305,14 @@ class BoundarySubspace:
         scale = 0.5 * abs(k) * float(np.abs(l_kk.diagonal()).max())
         eye = sp.identity(basis.shape[0], format="csc")
         prev, steps, rel = np.inf, 0, np.inf
+        best = None
         while True:
             lam, y = self._ritz(k, basis.T @ sq, basis.T @ np.asarray(self._m_kk @ basis))
             z = basis @ y
             r = (0.5 * k) * (sq @ y) - self._m_kk @ z - lam * z
             rel = float(np.linalg.norm(r - r.mean()) / (scale * np.linalg.norm(z)))
+            if best is None or rel < best[0]:
+                best = (rel, lam, z)
             if rel <= rtol or steps >= max_steps or rel > stall * prev:
                 break
             prev = rel
@@ -340,6 +343,10 @@ class BoundarySubspace:
             self.basis, self._sq, self._interior = basis, sq, interior
             self._s = basis.T @ sq
             self._m = basis.T @ np.asarray(self._m_kk @ basis)
+        # With a non-normal operator a step can make the Ritz pair worse (protrusions at
+        # 300k points, direct path: residual 5.0e-7 -> 2.0e-6, the map 6.7e-4 -> 1.8e-3 of
+        # its diameter off the exact one): the pair with the smallest residual is returned.
+        rel, lam, z = best
         turning = loop_turning_numbers(z, self._local_loops)
         point = KPoint(k=float(k), energy=float(lam.real), turning=turning, state=(z, lam))
         return point, {"refine_steps": steps, "boundary_residual": rel}

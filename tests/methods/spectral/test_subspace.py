@@ -107,6 +107,33 @@ def test_refine_reaches_the_exact_boundary_eigenvector(bump_ocp):
     assert info["refine_steps"] >= 1
 
 
+def test_refine_returns_the_pair_with_the_smallest_residual(bump_ocp, monkeypatch):
+    # A Davidson step on a non-normal operator can make the Ritz pair worse (protrusions at
+    # 300k points: residual 5e-7 -> 2e-6 and the map 3x further from the exact one). Made
+    # to happen here by letting every Ritz solve after the first return a scaled-down copy
+    # of the smallest pair's eigenvalue (a wrong pair, with a larger residual): refine must
+    # return the first, better pair.
+    red = bump_ocp._reduction()
+    sub = BoundarySubspace(red, bump_ocp.area, bump_ocp.loops, bump_ocp.points)
+    k = 1.02
+    honest = sub._ritz
+    calls = []
+
+    def worse_after_first(k_, s_proj, m_proj):
+        lam, y = honest(k_, s_proj, m_proj)
+        calls.append(lam)
+        return (lam, y) if len(calls) == 1 else (0.5 * lam, y)
+
+    monkeypatch.setattr(sub, "_ritz", worse_after_first)
+    point, info = sub.refine(k, max_steps=1)
+    assert len(calls) == 2 and info["refine_steps"] == 1
+    assert point.state[1] == calls[0]  # the first pair, not the last
+    monkeypatch.setattr(sub, "_ritz", honest)
+    first, first_info = sub.refine(k, max_steps=0)
+    assert info["boundary_residual"] == pytest.approx(first_info["boundary_residual"], rel=1e-12)
+    np.testing.assert_allclose(point.state[0], first.state[0], rtol=0, atol=1e-14 * np.abs(first.state[0]).max())
+
+
 def test_subspace_needs_the_boundary_b(saddle):
     problem = ConformalProblem(saddle.lap, saddle.loops, b_matrix=sp.identity(saddle.points.shape[0]))
     with pytest.raises(InvalidInputError, match="boundary"):
