@@ -103,7 +103,12 @@ class MultilevelSettings:
         the map then differs from the direct one by 1.2e-3 of the diameter (k_opt by
         1.8e-5) against 1.6e-6 at 2.0, above the 1e-3 this path promises; 2.0 stays.
     fine_modes : int
-        Fourier frequencies of the fine subspace besides the coarse map.
+        Fourier frequencies of the fine subspace besides the coarse map (each loop gets
+        at least 4). Fewer per loop where the coarse map joins was tried and not kept:
+        holes at 300k needs 23 columns with at least 1 per loop instead of 41 (one block
+        of two-grid cycles at a million points instead of two) with the same map, but
+        at 20k points holes graded then took 22-24 cycles instead of 8 and
+        holes-bumped needed the enlarged search (74 columns).
     seed : int
         Seed of the subsample's priorities.
     fine_solver : {"twogrid", "direct"}
