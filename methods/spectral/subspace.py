@@ -311,9 +311,15 @@ class BoundarySubspace:
             z = basis @ y
             r = (0.5 * k) * (sq @ y) - self._m_kk @ z - lam * z
             rel = float(np.linalg.norm(r - r.mean()) / (scale * np.linalg.norm(z)))
+            # A step that multiplies the best residual so far (more than 2x) swapped the
+            # Ritz pair on a non-normal operator, and the residual falls again after it
+            # (protrusions at 300k points: 5.0e-7, 2.0e-6, 4.5e-7, ..., 4.8e-8): not a
+            # stall. A stall is a step that gains less than ``stall`` (1.0-1.05x at the
+            # solves' floor, measured at 10k points).
+            jumped = best is not None and rel > 2.0 * best[0]
             if best is None or rel < best[0]:
                 best = (rel, lam, z)
-            if rel <= rtol or steps >= max_steps or rel > stall * prev:
+            if rel <= rtol or steps >= max_steps or (rel > stall * prev and not jumped):
                 break
             prev = rel
             precond = sp.csc_matrix((0.5 * k) * l_kk - self._m_kk - lam.real * eye)

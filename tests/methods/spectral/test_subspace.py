@@ -134,6 +134,29 @@ def test_refine_returns_the_pair_with_the_smallest_residual(bump_ocp, monkeypatc
     np.testing.assert_allclose(point.state[0], first.state[0], rtol=0, atol=1e-14 * np.abs(first.state[0]).max())
 
 
+def test_refine_goes_on_after_a_jump_of_the_ritz_pair(bump_ocp, monkeypatch):
+    # One Ritz solve (the second) returns a wrong pair: its residual jumps far above the
+    # best so far, as a swapped pair does on a non-normal operator. That is no stall:
+    # the steps go on and end below the first residual; the old rule stopped at the jump.
+    red = bump_ocp._reduction()
+    sub = BoundarySubspace(red, bump_ocp.area, bump_ocp.loops, bump_ocp.points)
+    k = 1.02
+    honest = sub._ritz
+    calls = []
+
+    def one_jump(k_, s_proj, m_proj):
+        lam, y = honest(k_, s_proj, m_proj)
+        calls.append(lam)
+        return (0.5 * lam, y) if len(calls) == 2 else (lam, y)
+
+    first, first_info = sub.refine(k, max_steps=0)
+    monkeypatch.setattr(sub, "_ritz", one_jump)
+    point, info = sub.refine(k)
+    assert len(calls) >= 3 and info["refine_steps"] >= 2
+    assert info["boundary_residual"] < first_info["boundary_residual"]
+    assert point.state[1] != 0.5 * calls[1]
+
+
 def test_subspace_needs_the_boundary_b(saddle):
     problem = ConformalProblem(saddle.lap, saddle.loops, b_matrix=sp.identity(saddle.points.shape[0]))
     with pytest.raises(InvalidInputError, match="boundary"):
