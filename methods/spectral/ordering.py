@@ -8,8 +8,8 @@ vertices). It needs vertex positions; without them callers fall back to SuperLU'
 minimum-degree order.
 
 Point clouds come in any order; sparse products, extractions and sweeps over a
-Laplacian in that order miss the cache at every neighbour. :func:`leaf_order` (kd-tree
-leaves) and :func:`symmetric_permutation` put a problem into an order where neighbours
+Laplacian in that order miss the cache at every neighbour. :func:`~parambench.methods.pointset.reorder.spatial_order`
+(kd-tree leaves) and :func:`symmetric_permutation` put a problem into an order where neighbours
 are close in memory; :func:`submatrix` extracts blocks in one compiled pass.
 """
 
@@ -20,29 +20,13 @@ from pathlib import Path
 import numba
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from ..numba_cache import configure_numba_cache
 from ..pointset.reorder import insert_sorted
 
-__all__ = ["nested_dissection", "leaf_order", "symmetric_permutation", "submatrix"]
+__all__ = ["nested_dissection", "symmetric_permutation", "submatrix"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
-
-
-def leaf_order(points: np.ndarray) -> np.ndarray:
-    """Kd-tree leaf order of ``points``: a permutation keeping spatial neighbours close in memory.
-
-    Parameters
-    ----------
-    points : (N, d) numpy.ndarray of float64
-
-    Returns
-    -------
-    (N,) numpy.ndarray of int64
-        ``points[order]`` is the reordered set.
-    """
-    return np.asarray(cKDTree(points, leafsize=16).indices, dtype=np.int64)
 
 
 def symmetric_permutation(a: sp.spmatrix, order: np.ndarray) -> sp.csr_matrix:

@@ -101,7 +101,7 @@ class TwoGridSolver:
         Threads; the columns of a block are shared among them (the kernel releases the GIL).
     order : (n,) numpy.ndarray of int, optional
         The order of the rows in the sweeps, a permutation that keeps neighbours close in
-        memory (e.g. :func:`parambench.methods.pointset.neighbourhoods.spatial_order` of
+        memory (e.g. :func:`parambench.methods.pointset.reorder.spatial_order` of
         the rows' points); reverse Cuthill-McKee of ``matrix`` by default.
 
     Attributes

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from parambench.methods.spectral.ordering import leaf_order, submatrix, symmetric_permutation
+from parambench.methods.pointset.reorder import spatial_order
+from parambench.methods.spectral.ordering import submatrix, symmetric_permutation
 
 
 def _random_matrix(n: int, m: int, seed: int) -> sp.csr_matrix:
@@ -49,9 +50,9 @@ def test_repeated_columns_are_refused():
         submatrix(_random_matrix(10, 10, 0), np.arange(3), np.array([1, 1]))
 
 
-def test_leaf_order_is_a_permutation_that_keeps_neighbours_close():
+def test_spatial_order_is_a_permutation_that_keeps_neighbours_close():
     pts = np.random.default_rng(0).random((5000, 3))
-    order = leaf_order(pts)
+    order = spatial_order(pts)
     np.testing.assert_array_equal(np.sort(order), np.arange(5000))
     step = np.linalg.norm(np.diff(pts[order], axis=0), axis=1)
     shuffled = np.linalg.norm(np.diff(pts, axis=0), axis=1)
