@@ -130,6 +130,14 @@ class ConformalProblem:
         ``b_matrix`` is an unknown string.
     """
 
+    #: Largest relative boundary residual of a refined subspace map that is extended and
+    #: returned. Converged maps reach 1e-9 to 5e-7 (the two-grid solves' floor); the worst
+    #: unsettled one measured that was still close to the exact map, 1.9e-5 (cylinder,
+    #: 100k points, two levels). Above this the map is not trusted, as when it spins: the
+    #: exact map at k_opt is solved instead (cortex-lh, normalized cotangent weights:
+    #: 1.4e-3 with turning number 1, QC 2.19 and 10 foldovers).
+    TRUSTED_RESIDUAL = 1e-4
+
     def __init__(self, laplacian: sp.spmatrix, loops: Sequence[np.ndarray], b_matrix="boundary",
                  points: np.ndarray | None = None, max_boundary_dense: int = 4000,
                  psd_from_k: float | None = None, subspace_from: int = 300,
@@ -307,7 +315,8 @@ class ConformalProblem:
     def _scp_subspace_search(self, line_kwargs: dict) -> tuple[ConformalSolution, dict]:
         """k_opt by the line search on the boundary subspace, then the exact map there."""
         red, sub, result, point, info = self._subspace_search(line_kwargs)
-        z = sub.extend(point.state[0]) if point.regular else None
+        trusted = point.regular and info["boundary_residual"] <= self.TRUSTED_RESIDUAL
+        z = sub.extend(point.state[0]) if trusted else None
         # The interior factorisation is done with; free it before any fallback factorises.
         self._release_reductions()
         backend = "subspace"
