@@ -54,7 +54,8 @@ import numpy as np
 
 from parambench.methods.pointset.neighbourhoods import KnnGraph, knn_graph
 from parambench.methods.pointset.normals import pca_fit
-from parambench.methods.pointset.surface_neighbours import FACING_TOL, GAP_HOPS, _confirmed_cuts, _crossing
+from parambench.methods.pointset.surface_neighbours import (FACING_TOL, GAP_HOPS, _confirmed_cuts, _crossing,
+                                                              graph_without_edges)
 
 __all__ = ["two_plane_models", "sheet_cut_graph", "confirmed_sheet_graph", "MIN_RATIO", "main"]
 
@@ -189,15 +190,7 @@ def sheet_cut_graph(points: np.ndarray, k: int = 8, *, m: int = 64, min_ratio: f
         cross &= _crossing(points, own_normals, np.broadcast_to(np.arange(n)[:, None], cand.shape), cand,
                            guard_tol)
     rows = np.broadcast_to(np.arange(n)[:, None], cand.shape)
-    # Symmetric: a pair cut from either end is cut from both.
-    pairs = np.unique(np.concatenate([rows[cross] * n + cand[cross], cand[cross] * n + rows[cross]]))
-    cut = np.isin(rows * n + cand, pairs)
-    pick = np.argsort(cut, axis=1, kind="stable")[:, :k]
-    sel, sel_dist = np.take_along_axis(cand, pick, axis=1), np.take_along_axis(dist, pick, axis=1)
-    resort = np.argsort(sel_dist, axis=1, kind="stable")
-    sel = np.ascontiguousarray(np.take_along_axis(sel, resort, axis=1))
-    sel_dist = np.ascontiguousarray(np.take_along_axis(sel_dist, resort, axis=1))
-    return KnnGraph(indices=sel, distances=sel_dist, mean_spacing=float(sel_dist.mean())), int(pairs.size // 2)
+    return graph_without_edges(cand, dist, rows[cross], cand[cross], k)
 
 
 def confirmed_sheet_graph(points: np.ndarray, k: int = 8, **options) -> tuple[KnnGraph, int]:

@@ -38,8 +38,8 @@ from .neighbourhoods import KnnGraph, far_along_graph, knn_graph, symmetric_adja
 from .normals import _dot3, consistent_signs, pca_fit, pca_normals
 from .row_chunks import for_each_chunk
 
-__all__ = ["surface_knn_graph", "pruned_knn_graph", "gap_aware_knn_graph", "gap_suspected", "CANDIDATE_FACTOR", "MAX_SLOPE",
-           "FACING_TOL", "GAP_HOPS", "BORROW_RATIO"]
+__all__ = ["surface_knn_graph", "pruned_knn_graph", "gap_aware_knn_graph", "gap_suspected", "graph_without_edges",
+           "CANDIDATE_FACTOR", "MAX_SLOPE", "FACING_TOL", "GAP_HOPS", "BORROW_RATIO"]
 
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
@@ -329,7 +329,31 @@ def _confirmed_cuts(plain: KnnGraph, pruned: KnnGraph, hops: int) -> tuple[KnnGr
     left_out = ~(cand[:, :, None] == pruned.indices[:, None, :]).any(axis=2) & (dist <= pruned.distances[:, -1:])
     rows = np.broadcast_to(np.arange(n, dtype=np.int64)[:, None], cand.shape)
     far = far_along_graph(symmetric_adjacency(pruned), rows[left_out], cand[left_out], hops)
-    i, j = rows[left_out][far], cand[left_out][far]
+    return graph_without_edges(cand, dist, rows[left_out][far], cand[left_out][far], k)
+
+
+def graph_without_edges(cand: np.ndarray, dist: np.ndarray, i: np.ndarray, j: np.ndarray,
+                        k: int) -> tuple[KnnGraph, int]:
+    """The ``k`` nearest candidates of each row once the edges ``i[e]``-``j[e]`` are cut (either direction).
+
+    Parameters
+    ----------
+    cand, dist : (N, C) numpy.ndarray of int64, float64
+        Candidate neighbours of each point, nearest first, and their distances (C >= k).
+    i, j : (E,) numpy.ndarray of int64
+        Ends of the edges to cut.
+    k : int
+
+    Returns
+    -------
+    graph : KnnGraph
+        Each row keeps its ``k`` nearest uncut candidates (cut ones fill a row that has too
+        few), nearest first.
+    n_cut : int
+        Distinct edges cut.
+    """
+    n = cand.shape[0]
+    rows = np.broadcast_to(np.arange(n, dtype=np.int64)[:, None], cand.shape)
     # Symmetric: an edge cut from one end is cut from the other too.
     pairs = np.unique(np.concatenate([i * n + j, j * n + i]))
     cut = np.isin(rows * n + cand, pairs)

@@ -107,6 +107,24 @@ def test_refine_reaches_the_exact_boundary_eigenvector(bump_ocp):
     assert info["refine_steps"] >= 1
 
 
+def _spy_ritz(monkeypatch, sub: BoundarySubspace, wrong) -> list:
+    """Make ``sub``'s Ritz solve number c (from 1) return half the true Ritz value where ``wrong(c)``.
+
+    A halved value is a wrong pair with a larger residual, as a swapped pair on a
+    non-normal operator. Returns the list of the true Ritz values, one per call.
+    """
+    honest = sub._ritz
+    calls = []
+
+    def spied(k_, s_proj, m_proj):
+        lam, y = honest(k_, s_proj, m_proj)
+        calls.append(lam)
+        return (0.5 * lam, y) if wrong(len(calls)) else (lam, y)
+
+    monkeypatch.setattr(sub, "_ritz", spied)
+    return calls
+
+
 def test_refine_returns_the_pair_with_the_smallest_residual(bump_ocp, monkeypatch):
     # A Davidson step on a non-normal operator can make the Ritz pair worse (protrusions at
     # 300k points: residual 5e-7 -> 2e-6 and the map 3x further from the exact one). Made
@@ -116,20 +134,11 @@ def test_refine_returns_the_pair_with_the_smallest_residual(bump_ocp, monkeypatc
     red = bump_ocp._reduction()
     sub = BoundarySubspace(red, bump_ocp.area, bump_ocp.loops, bump_ocp.points)
     k = 1.02
-    honest = sub._ritz
-    calls = []
-
-    def worse_after_first(k_, s_proj, m_proj):
-        lam, y = honest(k_, s_proj, m_proj)
-        calls.append(lam)
-        return (lam, y) if len(calls) == 1 else (0.5 * lam, y)
-
-    monkeypatch.setattr(sub, "_ritz", worse_after_first)
+    first, first_info = sub.refine(k, max_steps=0)
+    calls = _spy_ritz(monkeypatch, sub, lambda c: c > 1)
     point, info = sub.refine(k, max_steps=1)
     assert len(calls) == 2 and info["refine_steps"] == 1
     assert point.state[1] == calls[0]  # the first pair, not the last
-    monkeypatch.setattr(sub, "_ritz", honest)
-    first, first_info = sub.refine(k, max_steps=0)
     assert info["boundary_residual"] == pytest.approx(first_info["boundary_residual"], rel=1e-12)
     np.testing.assert_allclose(point.state[0], first.state[0], rtol=0, atol=1e-14 * np.abs(first.state[0]).max())
 
@@ -141,16 +150,8 @@ def test_refine_goes_on_after_a_jump_of_the_ritz_pair(bump_ocp, monkeypatch):
     red = bump_ocp._reduction()
     sub = BoundarySubspace(red, bump_ocp.area, bump_ocp.loops, bump_ocp.points)
     k = 1.02
-    honest = sub._ritz
-    calls = []
-
-    def one_jump(k_, s_proj, m_proj):
-        lam, y = honest(k_, s_proj, m_proj)
-        calls.append(lam)
-        return (0.5 * lam, y) if len(calls) == 2 else (lam, y)
-
     first, first_info = sub.refine(k, max_steps=0)
-    monkeypatch.setattr(sub, "_ritz", one_jump)
+    calls = _spy_ritz(monkeypatch, sub, lambda c: c == 2)
     point, info = sub.refine(k)
     assert len(calls) >= 3 and info["refine_steps"] >= 2
     assert info["boundary_residual"] < first_info["boundary_residual"]
