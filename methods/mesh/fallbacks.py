@@ -39,11 +39,12 @@ farthest pair, two of the four 90-degree corners of its square boundary, also wi
 uniform authalic rows; it is regular with each of the six pairs of
 :func:`~parambench.methods.mesh.pins.opposite_pairs` (QC 1.43 to 1.65, at most one
 foldover) and with none of four other pairs tried that include a corner (measured
-with the releases before scipy 1.17 / numpy 2.4). Which fallback rescues it depends on the last bits of
-the solves: under scipy 1.17 / numpy 2.4 the farthest pair (230, 232; the square's
-two diagonals tie, :func:`~parambench.methods.mesh.pins.farthest_pair` takes the first
-in candidate order) is regular with the uniform authalic rows (QC 1.70, 0 foldovers),
-while the other diagonal (231, 233) still spins. Those pairs are tried in their fixed order. Pins given as ``"i,j"`` are never changed.
+with the releases before scipy 1.17 / numpy 2.4). Which fallback rescues it depends
+on the last bits of the solves: under scipy 1.17 / numpy 2.4 the farthest pair
+(230, 232; the square's two diagonals tie, :func:`~parambench.methods.mesh.pins.farthest_pair`
+takes the first in candidate order) is regular with the uniform authalic rows (QC
+1.70, 0 foldovers), while the other diagonal (231, 233) still spins. Those pairs are
+tried in their fixed order. Pins given as ``"i,j"`` are never changed.
 """
 
 from __future__ import annotations

@@ -31,16 +31,17 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
     """
     cand = np.asarray(candidates, dtype=np.int64)
     pts = points[cand]
-    best = max(float(cdist(pts[start:start + chunk], pts).max()) for start in range(0, len(cand), chunk))
+    starts = range(0, len(cand), chunk)
+    peaks = [float(cdist(pts[start:start + chunk], pts).max()) for start in starts]
     # Symmetric shapes have exact ties (a square's two diagonals) that rounding splits
     # differently from one scipy release to the next: distances within rounding of the
-    # maximum count as equal, and the first such pair in candidate order wins.
-    floor = best * (1.0 - _TIE_RTOL)
-    for start in range(0, len(cand), chunk):
-        d = cdist(pts[start:start + chunk], pts)
-        hits = np.flatnonzero(d.ravel() >= floor)
-        if hits.size:
-            r, c = divmod(int(hits[0]), d.shape[1])
+    # maximum count as equal, and the first such pair in candidate order wins. Only the
+    # first chunk holding one is computed again.
+    floor = max(peaks) * (1.0 - _TIE_RTOL)
+    for start, peak in zip(starts, peaks):
+        if peak >= floor:
+            d = cdist(pts[start:start + chunk], pts)
+            r, c = divmod(int(np.flatnonzero(d.ravel() >= floor)[0]), d.shape[1])
             a, b = sorted((start + r, c))
             return int(cand[a]), int(cand[b])
     raise AssertionError("unreachable: the maximum is among the distances")
