@@ -111,6 +111,10 @@ class ConformalProblem:
     subspace_ktol : float
         Stop repeating the search once k_opt moves by less than this, relative; whether it
         did within ``subspace_rounds`` is ``subspace_settled`` in the diagnostics.
+    refine_rule : dict, optional
+        Keyword arguments of the Davidson refinement
+        (:meth:`~parambench.methods.spectral.subspace.BoundarySubspace.refine`'s
+        ``max_steps``, ``stall``, ``window``); its defaults when None.
     interior_solver : callable, optional
         Solves with the interior block of the boundary reduction instead of a sparse
         factorisation (``interior_solver(l_ii, interior)``, see
@@ -143,7 +147,7 @@ class ConformalProblem:
                  psd_from_k: float | None = None, subspace_from: int = 300,
                  subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None,
                  subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0,
-                 interior_solver=None) -> None:
+                 interior_solver=None, refine_rule: dict | None = None) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -191,6 +195,7 @@ class ConformalProblem:
         self._perm: np.ndarray | None = None
         self._reductions: dict[tuple, BoundaryReduction] = {}
         self._interior_solver = interior_solver
+        self.refine_rule = dict(refine_rule or {})
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -417,7 +422,7 @@ class ConformalProblem:
         initial = sub.size
         result = self._search_first(sub, line_kwargs)
         evaluations, rounds = result.n_evaluations, 1
-        point, info = sub.refine(result.best.k, absorb=True)
+        point, info = sub.refine(result.best.k, absorb=True, **self.refine_rule)
         settled = self.subspace_rounds <= 1  # one search asked for: nothing to settle
         while rounds < self.subspace_rounds:
             again = self._search_near(sub, point.k, line_kwargs)
@@ -427,7 +432,7 @@ class ConformalProblem:
             if not moved:
                 settled = True
                 break
-            point, info = sub.refine(again.best.k, absorb=True)
+            point, info = sub.refine(again.best.k, absorb=True, **self.refine_rule)
         self._counts["eigen_solves"] += evaluations + rounds
         return red, sub, result, point, {**info, "subspace_rounds": rounds, "subspace_size": initial,
                                          "subspace_final_size": sub.size, "subspace_settled": settled}
