@@ -75,10 +75,14 @@ def test_dncp_falls_back_to_the_direct_k_where_the_good_region_is_too_narrow(rea
 
 @pytest.mark.slow
 def test_scp_falls_back_to_the_exact_search_where_the_subspace_k_opt_spins(real_meshes):
-    # before: SolverError "the exact SCP map near the subspace k_opt = 3.20485 is not regular"
+    # before: SolverError "the exact SCP map near the subspace k_opt = 3.20485 is not regular".
+    # The subspace search hands over either because its k_opt spins or, since the
+    # refinement judges progress over several steps, because it stops unconverged
+    # (residual 1.3e-4, k_opt 3.2610: the exact map there is regular, but off the exact k_opt).
     s = real_meshes["real/cortex-lh"]
     res = SCP(s, weights="cotangent", normalized=True)
-    assert "not regular" in res.diagnostics["subspace_fallback"]
+    reason = res.diagnostics["subspace_fallback"]
+    assert "not regular" in reason or "did not converge" in reason
     assert res.diagnostics["backend"] == "boundary" and res.diagnostics["turning_numbers"] == [1]
     # the exact k_opt is where the energy crosses zero: +-0.1 % gives a negative energy or a spin
     prob, _, _ = build_mesh_problem(s, StageTimer(), weights="cotangent", normalized=True, uniform_at=None,
