@@ -137,9 +137,10 @@ class ConformalProblem:
     #: Largest relative boundary residual of a refined subspace map that is extended and
     #: returned. Converged maps reach 1e-9 to 5e-7 (the two-grid solves' floor); the worst
     #: unsettled one measured that was still close to the exact map, 1.9e-5 (cylinder,
-    #: 100k points, two levels). Above this the map is not trusted, as when it spins: the
-    #: exact map at k_opt is solved instead (cortex-lh, normalized cotangent weights:
-    #: 1.4e-3 with turning number 1, QC 2.19 and 10 foldovers).
+    #: 100k points, two levels). Above this neither the map nor its k_opt is trusted: the
+    #: exact search runs instead where the boundary is small enough for it, else the exact
+    #: map at k_opt is solved (cortex-lh, normalized cotangent weights: 1.4e-3 with
+    #: turning number 1, QC 2.19 and 10 foldovers, before the refinement's window rule).
     TRUSTED_RESIDUAL = 1e-4
 
     def __init__(self, laplacian: sp.spmatrix, loops: Sequence[np.ndarray], b_matrix="boundary",
