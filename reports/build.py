@@ -56,6 +56,7 @@ _SMALL_ROW_PX = 112
 #: Benchmarks section. Each returns a :class:`~parambench.reports.html.Section` or None (no data).
 OPTIONAL_SECTIONS = (
     ("parambench.reports.boundary_benchmark", "boundary_benchmark_section", "benchmarks"),
+    ("parambench.reports.scaling_benchmark", "scaling_benchmark_section", "benchmarks"),
 )
 #: A per-surface picture other modules may add to the row of small figures: (module,
 #: function); called as ``function(histograms, edges, title)`` with each drawn variant's
