@@ -88,11 +88,16 @@ FINE_SOLVERS = ("twogrid", "direct")
 #: Coarse points each fine point is interpolated from.
 _INTERP_K = 6
 
-#: The coarse level's Davidson refinement stops at the first step that gains less than
-#: 0.8x: its map only gives the fine subspace a direction. The refinement's default
-#: (progress judged over 4 steps) made the coarse level 2.4-3.3 s slower at 300k points
-#: (bump, holes: 4.3 s before) for the same fine map.
-COARSE_REFINE = {"max_steps": 12, "stall": 0.8, "window": 1}
+#: Both levels' Davidson refinements stop at the first step that gains less than 0.8x,
+#: not after 4 such steps as on the direct path. The coarse map only gives the fine
+#: subspace a direction (with the 4-step rule the coarse level took 2.4-3.3 s more at
+#: 300k points, bump and holes, for the same fine map); the fine level's products come
+#: from two-grid solves, and steps past the first stall chase their error: on
+#: real/meg-helmet (two levels forced) the 4-step rule reached a residual of 7.8e-9 on
+#: those products with a map 1.1e-3 of the diameter off the exact one (1.3e-5 with
+#: this rule). On a jittered cylinder at 300k it did better (1.06e-3 from the exact map
+#: against 1.64e-3, but 255 two-grid cycles instead of 143), within issue 14's 1e-3 neither.
+TWO_LEVEL_REFINE = {"max_steps": 12, "stall": 0.8, "window": 1}
 
 
 @dataclass(frozen=True)
@@ -381,7 +386,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
         # Galerkin products keep zero row sums only to rounding; remove the residue exactly.
         lap_c = (lap_c - sp.diags(np.asarray(lap_c.sum(axis=1)).ravel())).tocsr()
         coarse_problem = ConformalProblem(lap_c, [pos[lp] for lp in loops], b_matrix="boundary",
-                                          points=points[coarse], refine_rule=COARSE_REFINE)
+                                          points=points[coarse], refine_rule=TWO_LEVEL_REFINE)
         # Held here, the coarse interior factorisation outlives the coarse search: the
         # fine level's two-grid cycles correct on it.
         coarse_reduction = coarse_problem.reduction() if settings.fine_solver == "twogrid" else None
@@ -404,7 +409,8 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
     with single_threaded_blas(), stage("fine"):
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points,
                                 subspace_modes=settings.fine_modes if z_b is not None else settings.enlarged_modes,
-                                subspace_extra=extra, interior_solver=interior_solver, subspace_ktol=settings.fine_ktol)
+                                subspace_extra=extra, interior_solver=interior_solver, subspace_ktol=settings.fine_ktol,
+                                refine_rule=TWO_LEVEL_REFINE)
         sol = fine.solve("scp", "line")
         counts = dict(fine.counts)
         enlarged = (not sol.diagnostics.get("subspace_settled", True)
@@ -419,7 +425,8 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
             fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points,
                                     subspace_modes=settings.enlarged_modes,
                                     subspace_extra=np.column_stack([extra, z_f.real, z_f.imag]),
-                                    interior_solver=interior_solver, subspace_ktol=settings.fine_ktol)
+                                    interior_solver=interior_solver, subspace_ktol=settings.fine_ktol,
+                                    refine_rule=TWO_LEVEL_REFINE)
             sol = fine.solve("scp", "line")
             counts = {key: counts.get(key, 0) + value for key, value in fine.counts.items()}
     info = {"coarse_points": int(coarse.size), "coarse_k_opt": None if coarse_k is None else float(coarse_k),

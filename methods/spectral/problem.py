@@ -698,8 +698,10 @@ class ConformalProblem:
         """
         if mode == "scp" and self._use_subspace(backend):
             try:
-                return self._scp_subspace_search(line_kwargs,
-                                                 exact_fallback=backend == "auto" and self._use_boundary("auto"))
+                # Not with iterative interior solves (the two-level path's fine level): the
+                # exact search would run on them, minutes at 300k points.
+                exact = backend == "auto" and self._use_boundary("auto") and self._interior_solver is None
+                return self._scp_subspace_search(line_kwargs, exact_fallback=exact)
             except SolverError as err:
                 # The subspace's k_opt is an estimate; where the exact map there still spins
                 # and the nudges of _scp_sparse_regular do not reach the exact k_opt

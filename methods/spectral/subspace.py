@@ -120,13 +120,18 @@ def _combine(blocks: Sequence[np.ndarray], y: np.ndarray) -> np.ndarray:
     return out
 
 
-def _stalled(bests: Sequence[float], stall: float, window: int) -> bool:
-    """Whether the best residuals so far (one per Davidson step, non-increasing) stopped falling.
+def _stalled(rels: Sequence[float], bests: Sequence[float], stall: float, window: int) -> bool:
+    """Whether the Davidson residuals stopped falling.
 
-    True when the last ``window`` steps brought the best residual down by less than the
-    factor ``stall``.
+    ``rels`` holds each step's residual, ``bests`` the smallest so far after each step.
+    With ``window`` > 1: the last ``window`` steps brought the best residual down by less
+    than the factor ``stall``. With ``window`` = 1 (the two-level path's rule): the last
+    step gained less than ``stall`` over the one before, unless it more than doubled the
+    best residual before it (a swapped Ritz pair, after which the residual falls again).
     """
-    return len(bests) > window and bests[-1] > stall * bests[-1 - window]
+    if window > 1:
+        return len(bests) > window and bests[-1] > stall * bests[-1 - window]
+    return len(rels) > 1 and rels[-1] > stall * rels[-2] and not rels[-1] > 2.0 * bests[-2]
 
 
 def _inverse_iteration(op: np.ndarray, lam: complex, steps: int = 3, rtol: float = 1e-10) -> np.ndarray | None:
@@ -287,7 +292,8 @@ class BoundarySubspace:
             :attr:`SOLVE_FLOOR` times the interior solves' tolerance when they are iterative.
         stall, window : float, int
             Also stop when ``window`` steps bring the smallest residual so far down by less
-            than the factor ``stall`` (it floors at the accuracy of the interior solves).
+            than the factor ``stall`` (it floors at the accuracy of the interior solves);
+            ``window=1`` is the one-step rule of the two-level path (:func:`_stalled`).
             Progress is judged over several steps, not one: on small spectral gaps the
             residual falls slowly and unevenly (a jittered cylinder at 300k points: 0.6-0.9x
             per step, with rises; the old one-step rule stopped at 4e-7 with k_opt 7e-4 and
@@ -318,7 +324,7 @@ class BoundarySubspace:
         scale = 0.5 * abs(k) * float(np.abs(l_kk.diagonal()).max())
         eye = sp.identity(basis.shape[0], format="csc")
         steps, rel = 0, np.inf
-        best, bests = None, []
+        best, bests, rels = None, [], []
         while True:
             lam, y = self._ritz(k, basis.T @ sq, basis.T @ np.asarray(self._m_kk @ basis))
             z = basis @ y
@@ -330,7 +336,8 @@ class BoundarySubspace:
             if best is None or rel < best[0]:
                 best = (rel, lam, z)
             bests.append(best[0])
-            if rel <= rtol or steps >= max_steps or _stalled(bests, stall, window):
+            rels.append(rel)
+            if rel <= rtol or steps >= max_steps or _stalled(rels, bests, stall, window):
                 break
             precond = sp.csc_matrix((0.5 * k) * l_kk - self._m_kk - lam.real * eye)
             try:

@@ -234,13 +234,26 @@ def test_first_search_from_the_pencil_estimate_equals_the_line_search(case, requ
     problem._release_reductions()
 
 
+def _stops(rels, stall, window):
+    """_stalled after each step of a residual sequence."""
+    bests = np.minimum.accumulate(rels).tolist()
+    return [_stalled(rels[:i], bests[:i], stall, window) for i in range(1, len(rels) + 1)]
+
+
 def test_a_slow_uneven_residual_is_no_stall_a_flat_one_is():
-    # Best residuals per Davidson step on a jittered cylinder at 300k points (direct path,
+    # Residuals per Davidson step on a jittered cylinder at 300k points (direct path,
     # measured): the second step gains nothing, the fourth makes things worse, and the
     # residual then falls to 9e-10. The one-step rule stopped after the first step (and
     # the search's final map was 2.4e-3 of its diameter off the exact one); this one goes on.
-    measured = [1.4e-5, 1.4e-5, 1.3e-5, 1.3e-5, 4.5e-6, 2.0e-6, 1.1e-6, 6.7e-7, 5.6e-7, 4.1e-7, 3.9e-7, 3.2e-7]
-    assert not any(_stalled(measured[:i], 0.7, 4) for i in range(1, len(measured) + 1))
+    measured = [1.4e-5, 1.5e-5, 1.3e-5, 2.0e-5, 4.5e-6, 2.0e-6, 1.1e-6, 6.7e-7, 5.6e-7, 4.1e-7, 3.9e-7, 3.2e-7]
+    assert not any(_stops(measured, 0.7, 4))
+    assert _stops(measured, 0.8, 1)[:2] == [False, True]
     # At the solves' floor (1.0-1.05x per step, measured at 10k points) it stops after the window.
     flat = [3.1e-7, 3.05e-7, 3.04e-7, 3.04e-7, 3.03e-7]
-    assert [_stalled(flat[:i], 0.7, 4) for i in range(1, 6)] == [False] * 4 + [True]
+    assert _stops(flat, 0.7, 4) == [False] * 4 + [True]
+
+
+def test_the_one_step_rule_goes_on_after_a_swapped_pair():
+    # protrusions at 300k points: 5.0e-7, then a swapped Ritz pair (2.0e-6, more than twice
+    # the best), then 4.5e-7: no stall at the jump nor right after it; a gain of 0.9x is one.
+    assert _stops([5.0e-7, 2.0e-6, 4.5e-7, 4.1e-7], 0.8, 1) == [False, False, False, True]
