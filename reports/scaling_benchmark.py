@@ -48,8 +48,9 @@ def scaling_benchmark_rows(stats: pd.DataFrame) -> pd.DataFrame:
     pandas.DataFrame
         Columns :data:`SCALING_COLUMNS`: ``n_points`` int, ``method`` the variant,
         ``seconds`` the benchmark's minimum, ``time_ratio_vs_scp_igl`` and ``peak_rss_mb``
-        floats (NaN where missing), ``stages`` a list of (stage, seconds, peak MB) in the
-        order the run stored them (peak MB NaN where the run stored none).
+        floats (NaN where missing), ``stages`` a list of (stage, seconds, peak MB) by stage
+        name (the loaded ``extra`` is key-sorted; ``total`` is one of them), peak MB NaN
+        where the run stored none.
     """
     records = []
     for row in stats.itertuples():
