@@ -707,7 +707,10 @@ class ConformalProblem:
                 # and the nudges of _scp_sparse_regular do not reach the exact k_opt
                 # (normalized cotangent on real/cortex-lh, 451 boundary vertices: subspace
                 # 3.20485, exact 3.25935), the exact search on the boundary reduction decides.
-                if backend != "auto" or not self._use_boundary("auto"):
+                # Not with iterative interior solves either: the reduction takes one solve
+                # per boundary point (550 s at 300k points on the two-level path's fine
+                # level, where ocp's solver="auto" falls back to the direct path instead).
+                if backend != "auto" or not self._use_boundary("auto") or self._interior_solver is not None:
                     raise
                 subspace_error = str(err)
             backend = "boundary"

@@ -285,7 +285,7 @@ def test_auto_falls_back_to_the_direct_solve_where_two_levels_fail(monkeypatch):
 
     monkeypatch.setattr(ocp_plugin, "_multilevel_solve", fails)
     ocp = get_method("ocp")
-    with pytest.raises(ConvergenceError):
+    with pytest.raises(ConvergenceError, match="use solver='direct'"):
         ocp(surf.points_only(), solver="multilevel")
     auto = ocp(surf.points_only())
     assert auto.diagnostics["solver"] == "direct" and auto.diagnostics["solver_option"] == "auto"

@@ -8,6 +8,7 @@ import pytest
 
 from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, UnknownNameError
 from parambench.methods.spectral import ConformalProblem
+from parambench.methods.spectral.sparse_eigen import SparseFactor
 
 
 def identity_uv(case):
@@ -153,3 +154,23 @@ def test_dncp_direct_with_non_symmetric_weights(saddle):
     line = ConformalProblem(lap, saddle.loops, points=saddle.points).solve("dncp", "line", pins=pins)
     assert direct.diagnostics["regular_boundary"]
     assert np.isclose(direct.k, line.k, rtol=1e-9)
+
+
+def test_a_failed_subspace_search_goes_to_the_exact_search_only_with_direct_solves(saddle, uv_rms, monkeypatch):
+    # With iterative interior solves (the two-level path's fine level) the exact search's
+    # reduction would take one iterative solve per boundary point: the error goes up to
+    # the caller instead (ocp's solver="auto" then takes the direct path). The saddle's
+    # 146 boundary points take the subspace search from subspace_from=50 on.
+    reference = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points).solve("scp", "line")
+
+    def fails(self, line_kwargs, exact_fallback=False):
+        raise SolverError("the subspace map spins (stand-in)")
+
+    monkeypatch.setattr(ConformalProblem, "_scp_subspace_search", fails)
+    direct = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points, subspace_from=50).solve("scp", "line")
+    assert direct.diagnostics["subspace_fallback"] == "the subspace map spins (stand-in)"
+    assert abs(direct.k - reference.k) < 1e-6 and uv_rms(direct.uv, reference.uv) < 1e-6
+    iterative = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points, subspace_from=50,
+                                 interior_solver=lambda l_ii, interior: SparseFactor(l_ii))
+    with pytest.raises(SolverError, match="stand-in"):
+        iterative.solve("scp", "line")
