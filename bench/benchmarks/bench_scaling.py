@@ -8,7 +8,8 @@ and the peak resident memory of the process while each stage ran (``stage_peak_r
 ``scaling_method`` names the variant below; the report lays these benchmarks out side by
 side per size (:mod:`parambench.reports.scaling_benchmark`).
 The issue's target: ``ocp`` at 100k points no slower than ``scp-igl`` (ratio <= 1).
-``ocp`` is ``solver="direct"`` and ``ocp-multilevel`` ``solver="multilevel"`` (issue #14;
+``ocp`` and ``sdp`` are ``solver="direct"``, ``ocp-multilevel`` and ``sdp-multilevel``
+``solver="multilevel"`` (issue #14;
 ``ocp``'s default ``"auto"`` is the latter from 200k points on), ``fbcp-pc`` the
 free-boundary peer; ``ocp-multilevel``'s ``extra_info``
 adds the coarse level's size, the fine subspace's, how the fine level solved
@@ -29,7 +30,8 @@ from parambench.methods.registry import get_method
 
 SIZES = [int(s) for s in os.environ.get("PARAMBENCH_BENCH_SIZES", "10000,100000").split(",") if s.strip()]
 #: Benchmark name -> (method, parameters).
-VARIANTS = {"scp-igl": ("scp-igl", {}), "scp": ("scp", {}), "sdp": ("sdp", {}), "ocp": ("ocp", {"solver": "direct"}),
+VARIANTS = {"scp-igl": ("scp-igl", {}), "scp": ("scp", {}), "sdp": ("sdp", {"solver": "direct"}),
+            "sdp-multilevel": ("sdp", {"solver": "multilevel"}), "ocp": ("ocp", {"solver": "direct"}),
             "ocp-multilevel": ("ocp", {"solver": "multilevel"}), "fbcp-pc": ("fbcp-pc", {})}
 METHODS = list(VARIANTS)
 CASES = [(n, m) for n in SIZES for m in METHODS]

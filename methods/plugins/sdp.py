@@ -5,13 +5,17 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from parambench.datasets_gen.errors import ConvergenceError, SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
+from ..hints import Hint, hinted
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
+from ..spectral.multilevel import FINE_SOLVERS
 from ..spectral.ordering import nested_dissection
+from .ocp import OCP_SOLVERS, resolve_solver
 
 
 @register
@@ -24,23 +28,62 @@ class Sdp(Method):
     eigenvalues are nearly equal on roughly symmetric patches, so the literal eigenvectors
     can be nearly parallel: measured on the jittered bump, QC mean 1.35 at 5k points but
     3.67 at 10k (B-orthonormal: 1.15 and 1.21).
+
+    ``solver``: ``"direct"`` factorises ``L - sigma B`` on every point (shift-invert);
+    ``"multilevel"`` solves the same problem as the eigenproblem of its boundary Schur
+    complement in a boundary subspace started from a Poisson-disk subsample's pair, with
+    two-grid interior solves (``fine_solver="twogrid"``) or one interior factorisation
+    (``"direct"``): :mod:`parambench.methods.spectral.multilevel_dirichlet`. ``"auto"``
+    (default) is ``"multilevel"`` from ocp's ``MULTILEVEL_FROM`` points on and falls back
+    to ``"direct"`` if the two-level refinement does not converge (``multilevel_error``).
     """
 
     name = "sdp"
     description = "spectral Dirichlet parameterization, L f = lambda B f on W^tan (points only; Sec. 4.1)"
-    defaults = {**FRONTEND_DEFAULTS, "b_orthonormal": True}
+    defaults = {**FRONTEND_DEFAULTS, "b_orthonormal": True, "solver": "auto", "fine_solver": "twogrid"}
     param_grid = {"b_orthonormal": [False, True]}
+    choices = {"solver": OCP_SOLVERS, "fine_solver": FINE_SOLVERS}
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
+        solver = resolve_solver(params["solver"], surface.n_points, "line")
         front = run_frontend(surface, params, timer)
-        lap = front.L.tocsc()
+        lap = front.L
         front = front.without_balls()  # ~1.3 GB at 1M points, not needed by the solve
+        b_diag = front.boundary_mask.astype(np.float64)
+        extra: dict = {}
+        pair = None
+        if solver == "multilevel":
+            try:
+                pair, extra = _multilevel_pair(front, lap, params["fine_solver"], timer)
+            except (ConvergenceError, SolverError) as exc:
+                if params["solver"] != "auto":
+                    stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
+                    raise hinted(type(exc), stem, *hints, Hint("use solver='direct'", "solver", "direct")) from exc
+                extra = {"multilevel_error": f"{type(exc).__name__}: {exc}"}
+                solver = "direct"
         with timer("solve"):
-            b_diag = front.boundary_mask.astype(np.float64)
-            perm = nested_dissection(front.points, lap)
-            vals, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc(), perm=perm)
+            if pair is None:
+                lap = lap.tocsc()
+                perm = nested_dissection(front.points, lap)
+                vals, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc(), perm=perm)
+                extra["eigenvalues"] = vals.tolist()
             if params["b_orthonormal"]:
                 pair = b_orthonormalize(pair, b_diag)
             uv = scale_to_spacing(pair, front)
-        diag = dict(frontend_diagnostics(front), eigenvalues=vals.tolist())
+        diag = dict(frontend_diagnostics(front), solver=solver, solver_option=params["solver"], **extra)
         return MethodOutput(uv, diag)
+
+
+def _multilevel_pair(front, lap, fine_solver: str, timer: StageTimer) -> tuple[np.ndarray, dict]:
+    """SDP's pair by :func:`~parambench.methods.spectral.multilevel_dirichlet.multilevel_sdp` (stages
+    ``subsample``, ``coarse``, ``solve``), and its diagnostics."""
+    from ..pointset.subsample import poisson_disk_subsample
+    from ..spectral.multilevel import MultilevelSettings
+    from ..spectral.multilevel_dirichlet import multilevel_sdp
+
+    settings = MultilevelSettings(fine_solver=fine_solver)
+    with timer("subsample"):
+        coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
+                                        np.concatenate(front.boundary_loops), seed=settings.seed)
+    return multilevel_sdp(lap, front.boundary_loops, front.points, coarse, normals=front.normals, settings=settings,
+                          stage=lambda name: timer("solve" if name == "fine" else name))

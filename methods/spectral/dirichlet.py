@@ -20,7 +20,7 @@ from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 
-__all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize"]
+__all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize", "real_pair"]
 
 
 def fix_signs(vectors: np.ndarray) -> np.ndarray:
@@ -31,7 +31,7 @@ def fix_signs(vectors: np.ndarray) -> np.ndarray:
     return vectors * signs
 
 
-def _real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two real vectors spanning the two smallest eigen-directions (a complex pair gives Re, Im)."""
     order = np.argsort(vals.real)
     vals, vecs = vals[order], vecs[:, order]
@@ -116,7 +116,7 @@ def smallest_nontrivial_pair(a_mat: sp.spmatrix, b_mat: sp.spmatrix, *, perm: np
                      Hint("try a larger k_nn", "k_nn"), Hint("try a larger reg_eps", "reg_eps")) from None
     keep = np.abs(mu) > 1e-12 * np.abs(mu).max()
     vals = sigma + 1.0 / mu[keep]
-    vals, pair = _real_pair(vals, vecs[:, keep])
+    vals, pair = real_pair(vals, vecs[:, keep])
     if vals[0] < -1e-8 * scale:
         raise hinted(SolverError, f"the Dirichlet problem has a negative eigenvalue ({vals[0]:.3e}): the energy "
                      "is not bounded below with these weights", Hint("try a larger reg_eps", "reg_eps"),

@@ -78,7 +78,8 @@ from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 from .twogrid import TwoGridSolver
 
-__all__ = ["interpolation_matrix", "MultilevelSettings", "multilevel_scp", "FINE_SOLVERS"]
+__all__ = ["interpolation_matrix", "MultilevelSettings", "multilevel_scp", "leaf_ordered", "galerkin_operator",
+           "two_grid_factory", "FINE_SOLVERS", "TWO_LEVEL_REFINE"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -350,14 +351,7 @@ def multilevel_scp(laplacian: sp.spmatrix | list, loops: Sequence[np.ndarray], p
         raise InvalidInputError("the coarse level must keep every boundary-loop point.")
     stage = stage or (lambda name: nullcontext())
     with stage("coarse"):
-        # Both levels work in the points' kd-tree leaf order: the input order of a point
-        # cloud is arbitrary, and every sparse product, extraction and sweep then misses
-        # the cache (at a million points the Galerkin product took 7.7 s in input order,
-        # 1.0 s in this one).
-        order = spatial_order(points)
-        inverse = np.empty_like(order)
-        inverse[order] = np.arange(order.size)
-        lap = symmetric_permutation(sp.csr_matrix(matrix, dtype=np.float64), order)
+        lap, order, inverse = leaf_ordered(matrix, points)
         del matrix
         if handed_over:
             laplacian.clear()
@@ -373,6 +367,32 @@ def multilevel_scp(laplacian: sp.spmatrix | list, loops: Sequence[np.ndarray], p
     return replace(sol, z=z), info
 
 
+def leaf_ordered(matrix: sp.spmatrix, points: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
+    """The matrix in the points' kd-tree leaf order, that order and its inverse.
+
+    Both levels work in this order: the input order of a point cloud is arbitrary, and
+    every sparse product, extraction and sweep then misses the cache (at a million
+    points the Galerkin product took 7.7 s in input order, 1.0 s in this one).
+
+    Returns
+    -------
+    lap : (N, N) scipy.sparse.csr_matrix of float64
+        ``matrix[order][:, order]``.
+    order, inverse : (N,) numpy.ndarray of int64
+        Leaf position -> input row, and input row -> leaf position.
+    """
+    order = spatial_order(points)
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(order.size)
+    return symmetric_permutation(sp.csr_matrix(matrix, dtype=np.float64), order), order, inverse
+
+
+def galerkin_operator(lap: sp.csr_matrix, prolong: sp.csr_matrix) -> sp.csr_matrix:
+    """``P^T L P`` with its rows' sums set to zero exactly (the products keep them only to rounding)."""
+    lap_c = (prolong.T @ lap @ prolong).tocsr()
+    return (lap_c - sp.diags(np.asarray(lap_c.sum(axis=1)).ravel())).tocsr()
+
+
 def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray, coarse: np.ndarray,
                 normals: np.ndarray | None, settings: MultilevelSettings,
                 stage: Callable[[str], AbstractContextManager]) -> tuple[ConformalSolution, dict]:
@@ -382,9 +402,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
     pos[coarse] = np.arange(coarse.size)
     with single_threaded_blas(), stage("coarse"):
         prolong = interpolation_matrix(points, coarse, normals)
-        lap_c = (prolong.T @ lap @ prolong).tocsr()
-        # Galerkin products keep zero row sums only to rounding; remove the residue exactly.
-        lap_c = (lap_c - sp.diags(np.asarray(lap_c.sum(axis=1)).ravel())).tocsr()
+        lap_c = galerkin_operator(lap, prolong)
         coarse_problem = ConformalProblem(lap_c, [pos[lp] for lp in loops], b_matrix="boundary",
                                           points=points[coarse], refine_rule=TWO_LEVEL_REFINE)
         # Held here, the coarse interior factorisation outlives the coarse search: the
@@ -404,7 +422,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
     solvers: list = []
     interior_solver = None
     if coarse_reduction is not None:
-        interior_solver = _two_grid_factory(prolong, coarse_reduction, settings, solvers)
+        interior_solver = two_grid_factory(prolong, coarse_reduction, settings, solvers)
     extra = None if z_b is None else np.column_stack([z_b.real, z_b.imag])
     with single_threaded_blas(), stage("fine"):
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points,
@@ -441,7 +459,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
     return sol, info
 
 
-def _two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: MultilevelSettings, made: list):
+def two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: MultilevelSettings, made: list):
     """``interior_solver`` for the fine problem: two-grid cycles on the coarse interior factorisation.
 
     The fine interior rows of P restricted to the coarse interior columns interpolate
