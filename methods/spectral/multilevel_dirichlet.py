@@ -291,7 +291,8 @@ def _coarse_schur_inverse(lap_c: sp.csr_matrix, coarse_loops: Sequence[np.ndarra
     on the fine boundary is one on the coarse boundary. ``sigma = -lambda_1`` of the
     coarse pair keeps the shifted operator regular (S_c has the constants as its null
     space) while it still inverts S_c's smooth part, which the boundary block alone
-    misses. One factorisation of the coarse ``L_c - sigma B_c``: the residual's rows on the
+    misses. Its own factorisation: reusing the coarse shift-invert's (sigma = -1e-6 of
+    the scale) took the 20k bump's refinement 8 steps and 64 two-grid cycles instead of 5 and 43. One factorisation of the coarse ``L_c - sigma B_c``: the residual's rows on the
     boundary, zero interior rows, and the solution's boundary rows are ``(S_c - sigma I)^{-1} r``.
     """
     n_c = lap_c.shape[0]
