@@ -113,8 +113,14 @@ class BoundaryReduction:
 
     @property
     def solve_rtol(self) -> float:
-        """Relative residual the interior solves stop at (0.0 for a factorisation, exact to rounding)."""
-        return float(getattr(self._factor, "rtol", 0.0)) if self.solves_are_iterative else 0.0
+        """Relative residual the interior solves stop at (0.0 for a factorisation, exact to rounding).
+
+        Also 0.0 once an iterative solver has fallen back to a factorisation
+        (``fell_back``): its solves are exact from then on.
+        """
+        if not self.solves_are_iterative or getattr(self._factor, "fell_back", False):
+            return 0.0
+        return float(getattr(self._factor, "rtol", 0.0))
 
     def apply_schur(self, x: np.ndarray) -> np.ndarray:
         """``S x = L_KK x - L_KI L_II^{-1} L_IK x`` without forming S.

@@ -274,7 +274,7 @@ class BoundarySubspace:
         return KPoint(k=float(k), energy=float(lam.real), turning=turning, state=(z_k, lam))
 
     def refine(self, k: float, *, max_steps: int = 40, rtol: float = 1e-9, stall: float = 0.7, window: int = 4,
-               absorb: bool = False) -> tuple[KPoint, dict]:
+               absorb: bool = False, precondition=None) -> tuple[KPoint, dict]:
         """The smallest eigenpair of the full boundary problem at k, by Davidson steps.
 
         Each step adds the real and imaginary parts of the residual
@@ -301,6 +301,11 @@ class BoundarySubspace:
         absorb : bool
             Keep the grown basis as the subspace of later :meth:`evaluate` calls (a
             second k search then sees the directions the refinement found).
+        precondition : callable, optional
+            ``precondition(k, lam, r, z)`` gives further complex directions (K,) from the
+            residual r of the Ritz vector z, added each step with their real and
+            imaginary parts (the two-level path's coarse operator:
+            :func:`~parambench.methods.spectral.multilevel.coarse_scp_preconditioner`).
 
         Returns
         -------
@@ -346,6 +351,9 @@ class BoundarySubspace:
                 raise hinted(SolverError, "the boundary preconditioner is singular",
                              Hint("use backend='boundary'", "backend", "boundary")) from None
             new = np.column_stack([t.real, t.imag])
+            if precondition is not None:
+                extra_t = precondition(k, lam, r, z)
+                new = np.column_stack([new, extra_t.real, extra_t.imag])
             new -= new.mean(axis=0)
             for _ in range(2):  # classical Gram-Schmidt, twice is enough
                 new -= basis @ (basis.T @ new)
