@@ -257,3 +257,16 @@ def test_the_one_step_rule_goes_on_after_a_swapped_pair():
     # protrusions at 300k points: 5.0e-7, then a swapped Ritz pair (2.0e-6, more than twice
     # the best), then 4.5e-7: no stall at the jump nor right after it; a gain of 0.9x is one.
     assert _stops([5.0e-7, 2.0e-6, 4.5e-7, 4.1e-7], 0.8, 1) == [False, False, False, True]
+
+
+def test_the_window_rule_judges_the_steps_after_a_swap_on_their_own():
+    # protrusions at 1M points, direct path (measured): a good start, a swapped Ritz pair
+    # at the first step, then the new branch falls 23x in three steps while the best so far
+    # gains only 6 %. The window rule alone stopped here (map 2.3e-3 of its diameter off).
+    measured = [2.05e-6, 4.28e-5, 3.73e-6, 3.52e-6, 1.93e-6]
+    assert not any(_stops(measured, 0.7, 4))
+    # A branch that stalls as well stops once it has had its own window.
+    flat_branch = measured + [1.92e-6, 1.91e-6, 1.90e-6, 1.90e-6]
+    assert _stops(flat_branch, 0.7, 4)[-4:] == [False, False, False, True]
+    # Without a swap nothing changes.
+    assert _stops([3.1e-7, 3.05e-7, 3.04e-7, 3.04e-7, 3.03e-7], 0.7, 4)[-1]
