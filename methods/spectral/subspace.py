@@ -120,6 +120,11 @@ def _combine(blocks: Sequence[np.ndarray], y: np.ndarray) -> np.ndarray:
     return out
 
 
+#: A Davidson step whose residual is more than this multiple of the best before it took a
+#: swapped Ritz pair (a non-normal operator; the residual falls again after it).
+SWAP_FACTOR = 2.0
+
+
 def _stalled(rels: Sequence[float], bests: Sequence[float], stall: float, window: int) -> bool:
     """Whether the Davidson residuals stopped falling.
 
@@ -142,7 +147,7 @@ def _stalled(rels: Sequence[float], bests: Sequence[float], stall: float, window
             return True
         branch = np.minimum.accumulate(rels[start:])
         return branch.size > window and branch[-1] > stall * branch[-1 - window]
-    return len(rels) > 1 and rels[-1] > stall * rels[-2] and not rels[-1] > 2.0 * bests[-2]
+    return len(rels) > 1 and rels[-1] > stall * rels[-2] and not rels[-1] > SWAP_FACTOR * bests[-2]
 
 
 def _last_swap(rels: Sequence[float]) -> int:
@@ -150,7 +155,7 @@ def _last_swap(rels: Sequence[float]) -> int:
     r = np.asarray(rels, dtype=float)
     if r.size < 2:
         return 0
-    jumps = np.flatnonzero(r[1:] > 2.0 * np.minimum.accumulate(r)[:-1]) + 1
+    jumps = np.flatnonzero(r[1:] > SWAP_FACTOR * np.minimum.accumulate(r)[:-1]) + 1
     return int(jumps[-1]) if jumps.size else 0
 
 
