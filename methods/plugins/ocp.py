@@ -125,7 +125,12 @@ class Ocp(Method):
     at 20k-300k points: the same k_opt to 3e-5 and map to 8.3e-4 of the diameter
     (1e-4 or better except on a random sampling). ``fine_solver``: ``"twogrid"``
     (default) solves the fine interior by two-grid cycles on the coarse factorisation
-    (no fine factorisation), ``"direct"`` factorises it. End to end at 1M points
+    (no fine factorisation), ``"direct"`` factorises it. ``map_error`` (two levels,
+    two-grid solves): when the fine map's error estimate (boundary residual over the gap
+    to the next Ritz value, ``map_error_estimate`` in the diagnostics; at a million
+    points 0.08-0.19 with the default solves, 1e-3 to 1e-2 at 20k) is above this, the
+    solves are tightened and the search settled again (:mod:`parambench.methods.spectral.multilevel`);
+    null (default): never. End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
     the time of ``scp-igl`` on the true mesh (see README's Measured table).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
@@ -140,7 +145,8 @@ class Ocp(Method):
     name = "ocp"
     description = "optimized conformal parameterization, k line search (points only; Sec. 4.2)"
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
-                "solver": "auto", "fine_solver": "twogrid", "retry_k_nn": RETRY_K_NN, "holes": "auto"}
+                "solver": "auto", "fine_solver": "twogrid", "map_error": None, "retry_k_nn": RETRY_K_NN,
+                "holes": "auto"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
     choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS, "holes": HOLES_MODES}
 
@@ -151,8 +157,12 @@ class Ocp(Method):
         ------
         InvalidInputError
             ``solver="multilevel"`` and ``k_search`` is not ``"line"``; ``retry_k_nn``
-            not a whole number >= 0.
+            not a whole number >= 0; ``map_error`` not positive.
         """
+        map_error = params["map_error"]
+        if map_error is not None and (isinstance(map_error, bool) or not isinstance(map_error, (int, float))
+                                      or not map_error > 0):
+            raise InvalidInputError(f"map_error must be a positive number (or null for none), got {map_error!r}.")
         retry = params["retry_k_nn"]
         if isinstance(retry, bool) or not isinstance(retry, (int, np.integer)) or retry < 0:
             raise InvalidInputError(f"retry_k_nn must be a whole number >= 0 (0: no retry), got {retry!r}.")
@@ -222,7 +232,7 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer)
     """
     if solver == "multilevel":
         try:
-            return _multilevel_solve(front, box, timer, params["fine_solver"])
+            return _multilevel_solve(front, box, timer, params["fine_solver"], params["map_error"])
         except (ConvergenceError, SolverError) as exc:
             if params["solver"] != "auto":
                 stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
@@ -247,7 +257,8 @@ def resolve_solver(option: str, n_points: int, k_search: str) -> str:
     return "multilevel" if n_points >= MULTILEVEL_FROM and k_search == "line" else "direct"
 
 
-def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "twogrid"):
+def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "twogrid",
+                      map_error: float | None = None):
     """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics).
 
     Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
@@ -256,7 +267,7 @@ def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "t
     from ..pointset.subsample import poisson_disk_subsample
     from ..spectral.multilevel import MultilevelSettings, multilevel_scp
 
-    settings = MultilevelSettings(fine_solver=fine_solver)
+    settings = MultilevelSettings(fine_solver=fine_solver, map_error=map_error)
     with timer("subsample"):
         coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
                                         np.concatenate(front.boundary_loops), seed=settings.seed)

@@ -54,6 +54,22 @@ and subsample, the multilevel solve at 1M points (bump, saved inputs, quiet mach
 went from 71.6 s to 31.9 s. ``ocp`` end to end through ``parambench flatten`` at 1M
 (quiet 2-core machine, one run each): bump / holes / cap 51.1 / 52.1 / 48.1 s of method
 time, peak RSS 2.80 / 2.84 / 2.80 GiB.
+
+The two-level map's accuracy is bounded by the two-grid solves: the refinement stops at
+a boundary residual of :attr:`~parambench.methods.spectral.subspace.BoundarySubspace.SOLVE_FLOOR`
+times ``fine_rtol``, and the map's error is about that residual over the spectral gap,
+which shrinks with the point count (relative gap ~2.5e-6 at a million points on bump
+and protrusions, ~6e-5 on a 20k cylinder). The refinement reports the ratio
+(``map_error_estimate``; a bound, 60-130x the map's measured distance from the exact
+one at 1M). ``MultilevelSettings.map_error`` (ocp's ``map_error``) asks for a smaller
+one: the solves are tightened, the subspace's products solved again from their kept
+interior values (:meth:`~parambench.methods.spectral.subspace.BoundarySubspace.resolve`)
+and the k search settled again. Measured on saved protrusions 1M inputs (raw pose,
+quiet 2 cores), against the exact map: 1.37e-3 of the diameter in 153 s without,
+2.7e-4 in 335 s with ``map_error=0.02`` (each Davidson step on the fine level is a
+block of two-grid cycles, ~20 s at that size), about what a uniform ``fine_rtol`` of
+1e-9 gives (2.4e-4, 304 s); so it is not the default. On bump at 1M the default map is
+6.3e-4 of the diameter from the direct path's.
 """
 
 from __future__ import annotations
@@ -140,6 +156,10 @@ class MultilevelSettings:
         map's relative boundary residual is above this (measured: 1.9e-5 on the cylinder
         above; bump at 20k, unsettled by 1.2e-5 in k after 4 rounds with a map 1.8e-7
         from converged, is left alone).
+    map_error : float or None
+        The fine map's error estimate (boundary residual over the Ritz gap, see
+        :class:`~parambench.methods.spectral.problem.ConformalProblem`) below which the
+        two-grid solves are not tightened; None: never tightened.
     enlarged_modes : int
         Fourier frequencies of that second fine search (``fine_enlarged`` in the
         diagnostics). Measured at 300k points (bump): 32 frequencies from the start
@@ -155,6 +175,7 @@ class MultilevelSettings:
     fine_ktol: float = 1e-6
     enlarge_residual: float = 1e-6
     enlarged_modes: int = 32
+    map_error: float | None = None
 
 
 def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.ndarray | None = None,
@@ -420,7 +441,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
             # fine spacing, under a coarse spacing of two) finds no regular map at any k:
             # the fine search then runs on the larger Fourier subspace alone.
             z_b, coarse_k, coarse_info, coarse_error = None, None, {"regular": False}, exc
-        precondition = coarse_scp_preconditioner(lap_c, [pos[lp] for lp in loops])
+        precondition = coarse_scp_preconditioner(lap_c, [pos[lp] for lp in loops], points[coarse])
         del lap_c
     solvers: list = []
     interior_solver = None
@@ -431,7 +452,8 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
         fine = ConformalProblem(lap, loops, b_matrix="boundary", points=points,
                                 subspace_modes=settings.fine_modes if z_b is not None else settings.enlarged_modes,
                                 subspace_extra=extra, interior_solver=interior_solver, subspace_ktol=settings.fine_ktol,
-                                refine_rule=dict(TWO_LEVEL_REFINE, precondition=precondition))
+                                refine_rule=dict(TWO_LEVEL_REFINE, precondition=precondition),
+                                map_error=settings.map_error)
         sol = fine.solve("scp", "line")
         counts = dict(fine.counts)
         enlarged = (not sol.diagnostics.get("subspace_settled", True)
@@ -447,7 +469,8 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
                                     subspace_modes=settings.enlarged_modes,
                                     subspace_extra=np.column_stack([extra, z_f.real, z_f.imag]),
                                     interior_solver=interior_solver, subspace_ktol=settings.fine_ktol,
-                                    refine_rule=dict(TWO_LEVEL_REFINE, precondition=precondition))
+                                    refine_rule=dict(TWO_LEVEL_REFINE, precondition=precondition),
+                                    map_error=settings.map_error)
             sol = fine.solve("scp", "line")
             counts = {key: counts.get(key, 0) + value for key, value in fine.counts.items()}
     info = {"coarse_points": int(coarse.size), "coarse_k_opt": None if coarse_k is None else float(coarse_k),
@@ -467,7 +490,8 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
 COARSE_SHIFT = 1e-4
 
 
-def coarse_scp_preconditioner(lap_c: sp.csr_matrix, coarse_loops: Sequence[np.ndarray]):
+def coarse_scp_preconditioner(lap_c: sp.csr_matrix, coarse_loops: Sequence[np.ndarray],
+                              points: np.ndarray | None = None):
     """``precondition(k, lam, r, z)`` of the fine Davidson refinement: the coarse boundary operator's inverse.
 
     The fine boundary points are the coarse ones, so a fine boundary residual r is one of
@@ -484,8 +508,14 @@ def coarse_scp_preconditioner(lap_c: sp.csr_matrix, coarse_loops: Sequence[np.nd
     cycles, 16.3 -> 13.0 s); fold at 100k (its two-grid solves fall back to a
     factorisation) 6.7e-4 -> 3.3e-7, k_opt to 9e-7 of the direct path's; bump and holes
     unchanged (no refinement step).
+
+    With the coarse ``points`` (M, 3) the factorisations follow their nested dissection,
+    computed once: at 1M points (bump, coarse level 100k) a factorisation took 39 s in
+    that order against 74 s in SuperLU's minimum degree (both with another job on the
+    cores; 27 s for the latter alone), the solves 0.57 s against 0.75 s.
     """
     from .operators import area_matrix
+    from .ordering import nested_dissection
 
     n_c = lap_c.shape[0]
     rows = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in coarse_loops])
@@ -499,8 +529,11 @@ def coarse_scp_preconditioner(lap_c: sp.csr_matrix, coarse_loops: Sequence[np.nd
         if cache.get("k") != k:
             shift = COARSE_SHIFT * 0.5 * abs(k) * diag_max
             op = ((0.5 * k) * lap_c - area_c + shift * sp.diags(indicator)).tocsc().astype(np.complex128)
+            perm = cache.get("perm")
+            if perm is None and points is not None:
+                perm = nested_dissection(points, lap_c)
             cache.clear()  # one factorisation alive at a time
-            cache.update(k=k, factor=SparseFactor(op))
+            cache.update(k=k, factor=SparseFactor(op, perm=perm), perm=perm)
         rhs = np.zeros((n_c, 2), dtype=np.complex128)
         rhs[rows, 0] = r
         rhs[rows, 1] = z

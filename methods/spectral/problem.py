@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.linalg as la
@@ -120,6 +121,14 @@ class ConformalProblem:
         factorisation (``interior_solver(l_ii, interior)``, see
         :class:`~parambench.methods.spectral.reduction.BoundaryReduction`; the two-grid
         solver of :mod:`.multilevel`). Used for the reduction onto the boundary loops alone.
+    map_error : float, optional
+        With iterative interior solves (``interior_solver``), the subspace map's error
+        estimate (its boundary residual over the gap to the next Ritz value, both
+        relative to ``k/2 max|diag L_KK|``; ``map_error_estimate`` in the diagnostics)
+        the search must reach: when the first settled map's is above it, the solves are
+        tightened, the subspace's products solved again from their kept interior values
+        and the k search settled again (``polish_rtol`` in the diagnostics). None: no
+        polish.
     k_start : float
         Where the line search starts (its ``k0``) unless :meth:`solve` is given one: 1 for
         weights at the cotangent scale; a caller that knows the weights' scale differs
@@ -143,12 +152,16 @@ class ConformalProblem:
     #: turning number 1, QC 2.19 and 10 foldovers, before the refinement's window rule).
     TRUSTED_RESIDUAL = 1e-4
 
+    #: The tightest interior-solve tolerance a polish asks for (``map_error``): below it the
+    #: two-grid cycles approach double precision's limit on these rows.
+    MIN_SOLVE_RTOL = 1e-12
+
     def __init__(self, laplacian: sp.spmatrix, loops: Sequence[np.ndarray], b_matrix="boundary",
                  points: np.ndarray | None = None, max_boundary_dense: int = 4000,
                  psd_from_k: float | None = None, subspace_from: int = 300,
                  subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None,
                  subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0,
-                 interior_solver=None, refine_rule: dict | None = None) -> None:
+                 interior_solver=None, refine_rule: dict | None = None, map_error: float | None = None) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -197,6 +210,9 @@ class ConformalProblem:
         self._reductions: dict[tuple, BoundaryReduction] = {}
         self._interior_solver = interior_solver
         self.refine_rule = dict(refine_rule or {})
+        if map_error is not None and not map_error > 0:
+            raise InvalidInputError(f"map_error must be positive, got {map_error}.")
+        self.map_error = None if map_error is None else float(map_error)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -433,21 +449,73 @@ class ConformalProblem:
         sub = BoundarySubspace(red, self.area, self.loops, self.points, self.subspace_modes, self.subspace_extra)
         initial = sub.size
         result = self._search_first(sub, line_kwargs)
-        evaluations, rounds = result.n_evaluations, 1
         point, info = sub.refine(result.best.k, absorb=True, **self.refine_rule)
+        evaluations = result.n_evaluations
+        result, point, info, rounds, settled = self._settle(sub, result, point, info, line_kwargs)
+        evaluations += rounds.evaluations
+        rounds = 1 + rounds.searches
+        polish_rtol = self._polish_rtol(red, info)
+        polished = polish_rtol is not None and red.tighten(polish_rtol)
+        if polished:
+            # The map is limited by the interior solves' accuracy where the spectral gap is
+            # small: the products are solved again from their kept interior values to
+            # the tolerance the gap asks for, and the k search settles again on them.
+            sub.resolve()
+            point, info = sub.refine(point.k, absorb=True, **self._polish_rule(info))
+            result, point, info, more, settled = self._settle(sub, result, point, info, line_kwargs,
+                                                              self._polish_rule(info))
+            rounds, evaluations = rounds + more.searches, evaluations + more.evaluations
+        self._counts["eigen_solves"] += evaluations + rounds
+        return red, sub, result, point, {**info, "subspace_rounds": rounds, "subspace_size": initial,
+                                         "subspace_final_size": sub.size, "subspace_settled": settled,
+                                         "polish_rtol": float(polish_rtol) if polished else None}
+
+    def _settle(self, sub: BoundarySubspace, result, point, info: dict, line_kwargs: dict,
+                rule: dict | None = None):
+        """Repeat the k search on the refined subspace until k_opt moves by less than ``subspace_ktol``.
+
+        At most ``subspace_rounds - 1`` searches after the one that gave ``point``.
+
+        Returns
+        -------
+        result, point, info
+            The last search's result, the refined point at its k_opt and its refinement's info.
+        counts : SimpleNamespace
+            ``searches`` and line-search ``evaluations`` made here.
+        settled : bool
+        """
+        rule = self.refine_rule if rule is None else rule
+        counts = SimpleNamespace(searches=0, evaluations=0)
         settled = self.subspace_rounds <= 1  # one search asked for: nothing to settle
-        while rounds < self.subspace_rounds:
+        while counts.searches + 1 < self.subspace_rounds:
             again = self._search_near(sub, point.k, line_kwargs)
-            evaluations, rounds = evaluations + again.n_evaluations, rounds + 1
+            counts.searches += 1
+            counts.evaluations += again.n_evaluations
             moved = abs(again.best.k - point.k) > self.subspace_ktol * abs(point.k)
             result = again
             if not moved:
                 settled = True
                 break
-            point, info = sub.refine(again.best.k, absorb=True, **self.refine_rule)
-        self._counts["eigen_solves"] += evaluations + rounds
-        return red, sub, result, point, {**info, "subspace_rounds": rounds, "subspace_size": initial,
-                                         "subspace_final_size": sub.size, "subspace_settled": settled}
+            point, info = sub.refine(again.best.k, absorb=True, **rule)
+        return result, point, info, counts, settled
+
+    def _polish_rtol(self, red: BoundaryReduction, info: dict) -> float | None:
+        """The interior solves' tolerance that lets the map reach ``map_error``, or None if no polish is due.
+
+        Due when the refined map's error estimate (residual over the Ritz gap) is above
+        ``map_error`` and the interior solves are iterative: their error floors the
+        residual at :attr:`BoundarySubspace.SOLVE_FLOOR` times their tolerance.
+        """
+        if self.map_error is None or red.solve_rtol == 0.0:
+            return None
+        if not info.get("map_error_estimate", 0.0) > self.map_error:
+            return None
+        wanted = self.map_error * info["ritz_gap"] / BoundarySubspace.SOLVE_FLOOR
+        return max(min(wanted, red.solve_rtol), self.MIN_SOLVE_RTOL)
+
+    def _polish_rule(self, info: dict) -> dict:
+        """The refinement's stop rule after a polish: down to the residual ``map_error`` asks for."""
+        return dict(self.refine_rule, rtol=max(self.map_error * info["ritz_gap"], 1e-12))
 
     def _scp_sparse_regular(self, k: float, max_steps: int = 6) -> KPoint:
         """Exact SCP at k, nudged upwards if it still spins just below the exact transition.

@@ -137,8 +137,16 @@ class BoundaryReduction:
         """
         return self._schur_product(x, None)
 
-    def apply_schur_extended(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def apply_schur_extended(self, x: np.ndarray, guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``S x`` and the interior values of the harmonic extensions of x's columns.
+
+        Parameters
+        ----------
+        x : (K, m) numpy.ndarray of float64
+        guess : (V - K, m) numpy.ndarray of float64, optional
+            Interior values from an earlier, looser solve for the same x: an iterative
+            interior solver starts from them (a factorisation ignores them). Overwritten
+            with the new interior values, which are also returned.
 
         Returns
         -------
@@ -148,10 +156,29 @@ class BoundaryReduction:
             columns costs no further solve.
         """
         x = np.asarray(x, dtype=np.float64)
-        interior = np.zeros((self.interior.size, x.shape[1]))
-        return self._schur_product(x, interior), interior
+        if guess is None:
+            interior = np.zeros((self.interior.size, x.shape[1]))
+        else:
+            interior = guess
+            if interior.shape != (self.interior.size, x.shape[1]):
+                raise ValueError(f"guess must have shape {(self.interior.size, x.shape[1])}, got {interior.shape}.")
+        return self._schur_product(x, interior, warm=guess is not None), interior
 
-    def _schur_product(self, x: np.ndarray, interior: np.ndarray | None) -> np.ndarray:
+    def tighten(self, rtol: float) -> bool:
+        """Make later iterative interior solves stop at the smaller relative residual ``rtol``.
+
+        Returns
+        -------
+        bool
+            Whether anything changed (False for a factorisation, exact to rounding, and
+            when the solver's tolerance is already at most ``rtol``).
+        """
+        if self.solve_rtol == 0.0 or self.solve_rtol <= rtol:
+            return False
+        self._factor.rtol = float(rtol)
+        return True
+
+    def _schur_product(self, x: np.ndarray, interior: np.ndarray | None, warm: bool = False) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
         out = np.asarray(self._l_kk @ x, dtype=np.float64)
         if self._factor is None:
@@ -167,7 +194,11 @@ class BoundaryReduction:
         with single_threaded_blas():  # see parambench.methods.spectral.threads
             for start in range(0, x.shape[1], block):
                 cols = slice(start, min(start + block, x.shape[1]))
-                sol = self._factor.solve(np.ascontiguousarray(self._l_ik @ x[:, cols]))
+                rhs = np.ascontiguousarray(self._l_ik @ x[:, cols])
+                if warm and self.solves_are_iterative:
+                    sol = self._factor.solve(rhs, guess=-interior[:, cols])
+                else:
+                    sol = self._factor.solve(rhs)
                 out[:, cols] -= self._l_ki @ sol
                 if interior is not None:
                     interior[:, cols] = -sol

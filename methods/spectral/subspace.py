@@ -159,6 +159,18 @@ def _last_swap(rels: Sequence[float]) -> int:
     return int(jumps[-1]) if jumps.size else 0
 
 
+def _ritz_gap(op: np.ndarray, lam: complex) -> float:
+    """Distance from ``lam`` to the nearest other eigenvalue of the small dense ``op``.
+
+    An eigenvector's error is bounded by its residual over this gap (to first order), so
+    the residual a refinement must reach for a given map accuracy scales with it.
+    """
+    with single_threaded_blas():
+        vals = la.eigvals(op, check_finite=False)
+    dist = np.sort(np.abs(vals - lam))
+    return float(dist[1]) if dist.size > 1 else np.inf
+
+
 def _inverse_iteration(op: np.ndarray, lam: complex, steps: int = 3, rtol: float = 1e-10) -> np.ndarray | None:
     """Unit eigenvector of the small dense ``op`` for its eigenvalue ``lam``, or None if it does not converge."""
     m = op.shape[0]
@@ -337,7 +349,11 @@ class BoundarySubspace:
         point : KPoint
             ``state`` = (boundary values (K,) complex128, Ritz value).
         info : dict
-            ``refine_steps``, ``boundary_residual`` (the relative residual reached).
+            ``refine_steps``, ``boundary_residual`` (the relative residual reached),
+            ``ritz_gap`` (distance from the returned Ritz value to the next one on the
+            final basis, relative like the residual) and ``map_error_estimate`` (their
+            ratio: a first-order bound on the map's error, pessimistic by 60-130x on the
+            maps measured at a million points).
 
         Raises
         ------
@@ -352,7 +368,6 @@ class BoundarySubspace:
         interior = None if self._interior is None else list(self._interior)
         l_kk = red.boundary_block
         scale = 0.5 * abs(k) * float(np.abs(l_kk.diagonal()).max())
-        eye = sp.identity(basis.shape[0], format="csc")
         steps, rel = 0, np.inf
         best, bests, rels = None, [], []
         while True:
@@ -369,16 +384,7 @@ class BoundarySubspace:
             rels.append(rel)
             if rel <= rtol or steps >= max_steps or _stalled(rels, bests, stall, window):
                 break
-            precond = sp.csc_matrix((0.5 * k) * l_kk - self._m_kk - lam.real * eye)
-            try:
-                t = sla.spsolve(precond, r)
-            except RuntimeError:
-                raise hinted(SolverError, "the boundary preconditioner is singular",
-                             Hint("use backend='boundary'", "backend", "boundary")) from None
-            new = np.column_stack([t.real, t.imag])
-            if precondition is not None:
-                extra_t = precondition(k, lam, r, z)
-                new = np.column_stack([new, extra_t.real, extra_t.imag])
+            new = self._corrections(k, lam, r, z, precondition)
             new -= new.mean(axis=0)
             for _ in range(2):  # classical Gram-Schmidt, twice is enough
                 new -= basis @ (basis.T @ new)
@@ -405,7 +411,46 @@ class BoundarySubspace:
         rel, lam, z = best
         turning = loop_turning_numbers(z, self._local_loops)
         point = KPoint(k=float(k), energy=float(lam.real), turning=turning, state=(z, lam))
-        return point, {"refine_steps": steps, "boundary_residual": rel}
+        gap = _ritz_gap((0.5 * k) * (basis.T @ sq) - basis.T @ np.asarray(self._m_kk @ basis), lam) / scale
+        return point, {"refine_steps": steps, "boundary_residual": rel, "ritz_gap": gap,
+                       "map_error_estimate": rel / max(gap, np.finfo(float).tiny)}
+
+    def resolve(self) -> None:
+        """Compute the basis's Schur products again, to the interior solver's present tolerance.
+
+        After :meth:`BoundaryReduction.tighten` the products already made keep the old
+        solves' error, and a refinement cannot get below it (:attr:`SOLVE_FLOOR`); each
+        block of kept interior values is the starting guess of its new solve, so an
+        iterative solver only runs the cycles that close the gap between the tolerances.
+        Without kept interior values (a factorisation) there is nothing to gain: no-op.
+        """
+        if self._interior is None:
+            return
+        parts, start = [], 0
+        for block in self._interior:
+            cols = slice(start, start + block.shape[1])
+            sq_part, _ = self._reduction.apply_schur_extended(self.basis[:, cols], guess=block)
+            parts.append(sq_part)
+            start = cols.stop
+        self._sq = np.hstack(parts)
+        self._s = self.basis.T @ self._sq
+        self.n_solves += start
+
+    def _corrections(self, k: float, lam: complex, r: np.ndarray, z: np.ndarray, precondition) -> np.ndarray:
+        """Davidson's correction of the Ritz pair (lam, z) with residual r, and the caller's, as real columns."""
+        l_kk = self._reduction.boundary_block
+        eye = sp.identity(l_kk.shape[0], format="csc")
+        precond = sp.csc_matrix((0.5 * k) * l_kk - self._m_kk - lam.real * eye)
+        try:
+            t = sla.spsolve(precond, r)
+        except RuntimeError:
+            raise hinted(SolverError, "the boundary preconditioner is singular",
+                         Hint("use backend='boundary'", "backend", "boundary")) from None
+        new = np.column_stack([t.real, t.imag])
+        if precondition is not None:
+            extra_t = precondition(k, lam, r, z)
+            new = np.column_stack([new, extra_t.real, extra_t.imag])
+        return new
 
     def extend(self, z_keep: np.ndarray) -> np.ndarray:
         """Harmonic extension of boundary values to every vertex.

@@ -168,8 +168,15 @@ class TwoGridSolver:
     def _fall_back(self) -> None:
         self._direct = SparseFactor(self._a)
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         """Solve for a vector or an (n, c) block of right-hand sides (real or complex).
+
+        Parameters
+        ----------
+        rhs : (n,) or (n, c) numpy.ndarray of float64 or complex128
+        guess : (n, c) numpy.ndarray of float64, optional
+            Starting values of a real block (a solution to a looser tolerance: the
+            cycles then only go on from its residual, 2-3 cycles per factor 100).
 
         Returns
         -------
@@ -179,21 +186,28 @@ class TwoGridSolver:
         rhs = np.asarray(rhs)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if np.iscomplexobj(rhs):
+            if guess is not None:
+                raise ValueError("a starting guess is taken for real right-hand sides only.")
             block = rhs.reshape(rhs.shape[0], -1)
             x = self._solve_real(np.hstack([block.real, block.imag]))
             half = block.shape[1]
             return (x[:, :half] + 1j * x[:, half:]).reshape(rhs.shape)
-        return self._solve_real(rhs.reshape(rhs.shape[0], -1)).reshape(rhs.shape)
+        shape = rhs.shape
+        if guess is not None and np.shape(guess) != shape:
+            raise ValueError(f"guess must have the right-hand side's shape {shape}, got {np.shape(guess)}.")
+        g = None if guess is None else np.asarray(guess, dtype=np.float64).reshape(shape[0], -1)
+        return self._solve_real(rhs.reshape(shape[0], -1), g).reshape(shape)
 
-    def _solve_real(self, b: np.ndarray) -> np.ndarray:
+    def _solve_real(self, b: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         """Solve for an (n, c) real block in the caller's order."""
         if self._identity:
-            return self._solve_ordered(np.asarray(b, dtype=np.float64))
+            return self._solve_ordered(np.asarray(b, dtype=np.float64), guess)
         x = np.empty((b.shape[0], b.shape[1]), dtype=np.float64)
-        x[self._order] = self._solve_ordered(np.ascontiguousarray(b[self._order], dtype=np.float64))
+        x[self._order] = self._solve_ordered(np.ascontiguousarray(b[self._order], dtype=np.float64),
+                                             None if guess is None else guess[self._order])
         return x
 
-    def _solve_ordered(self, b: np.ndarray) -> np.ndarray:
+    def _solve_ordered(self, b: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         if self._direct is not None:
             return self._direct.solve(b)
         norm_b = np.linalg.norm(b, axis=0)
@@ -209,7 +223,8 @@ class TwoGridSolver:
         chunks = max(1, min(self.workers, cols))
         bounds = [(c * cols // chunks, (c + 1) * cols // chunks) for c in range(chunks)]
         bs = [np.ascontiguousarray(b[:, lo:hi]) for lo, hi in bounds]
-        xs = [np.zeros_like(part) for part in bs]
+        xs = [np.zeros_like(part) if guess is None else np.array(guess[:, lo:hi], dtype=np.float64, order="C")
+              for part, (lo, hi) in zip(bs, bounds)]
         m = self._p.shape[1]
         restricted = [np.empty((m, hi - lo)) for lo, hi in bounds]
         squares = [np.empty(hi - lo) for lo, hi in bounds]

@@ -194,3 +194,55 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     np.testing.assert_array_equal(permuted.indptr, expected.indptr)
     np.testing.assert_array_equal(permuted.indices, expected.indices)
     np.testing.assert_array_equal(permuted.data, expected.data)
+
+
+def test_a_warm_start_reaches_a_tighter_tolerance_in_fewer_cycles(cap_problem):
+    _, _, _, l_ii, p_ii = cap_problem
+    coarse_solve = _coarse_solver(l_ii, p_ii)
+    b = np.random.default_rng(7).standard_normal((l_ii.shape[0], 2))
+    exact = sla.spsolve(sp.csc_matrix(l_ii), b)
+    loose = TwoGridSolver(l_ii, p_ii, coarse_solve, rtol=1e-5)
+    x_loose = loose.solve(b)
+    cold = TwoGridSolver(l_ii, p_ii, coarse_solve, rtol=1e-10)
+    x_cold = cold.solve(b)
+    loose.rtol = 1e-10
+    before = loose.n_cycles
+    x_warm = loose.solve(b, guess=x_loose)
+    assert np.linalg.norm(x_loose - exact) > 1e-7 * np.linalg.norm(exact)  # the guess is not the answer
+    assert np.linalg.norm(x_warm - exact) <= 1e-8 * np.linalg.norm(exact)
+    assert np.linalg.norm(x_cold - exact) <= 1e-8 * np.linalg.norm(exact)
+    assert 0 < loose.n_cycles - before < cold.n_cycles
+    with pytest.raises(ValueError, match="shape"):
+        loose.solve(b, guess=x_loose[:, :1])
+    with pytest.raises(ValueError, match="real"):
+        loose.solve(b + 1j * b, guess=x_loose)
+
+
+def test_tightened_solves_make_a_subspace_s_products_exact(cap_problem):
+    """resolve() solves the kept products again to the new tolerance, from their interior values."""
+    lap, interior, boundary, l_ii, p_ii = cap_problem
+    coarse_solve = _coarse_solver(l_ii, p_ii)
+    red = BoundaryReduction(lap, boundary,
+                            interior_solver=lambda block, rows: TwoGridSolver(block, p_ii, coarse_solve, rtol=1e-4))
+    exact = BoundaryReduction(lap, boundary)
+    area = sp.identity(lap.shape[0], format="csr", dtype=np.complex128)
+    sub = BoundarySubspace(red, area, [boundary], n_modes=4)
+    s_exact = exact.apply_schur(sub.basis)
+    z_b = sub.basis @ np.linspace(1.0, 2.0, sub.size)
+
+    def errors():
+        ext = sub.extend(z_b.astype(np.complex128))
+        return (np.abs(sub._sq - s_exact).max() / np.abs(s_exact).max(),
+                np.abs(ext - exact.extend(z_b.astype(np.complex128))).max() / np.abs(z_b).max())
+
+    loose_s, loose_ext = errors()
+    assert loose_s > 1e-7 and loose_ext > 1e-7  # really loose
+    assert not exact.tighten(1e-12)  # a factorisation is exact already
+    assert not red.tighten(1e-3)  # never loosened
+    assert red.tighten(1e-11) and red.solve_rtol == 1e-11
+    cycles = red.interior_factor.n_cycles
+    solves = sub.n_solves
+    sub.resolve()
+    tight_s, tight_ext = errors()
+    assert tight_s <= 1e-8 and tight_ext <= 1e-8
+    assert sub.n_solves == solves + sub.size and red.interior_factor.n_cycles > cycles
