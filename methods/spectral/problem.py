@@ -129,6 +129,10 @@ class ConformalProblem:
         tightened, the subspace's products solved again from their kept interior values
         and the k search settled again (``polish_rtol`` in the diagnostics). None: no
         polish.
+    unsettled_map_error : float, optional
+        The same, only when the k search did not settle within ``subspace_rounds`` while
+        its refinement reached the interior solves' floor (the solves' error moves
+        k_opt from round to round: a jittered cylinder at 1M points).
     k_start : float
         Where the line search starts (its ``k0``) unless :meth:`solve` is given one: 1 for
         weights at the cotangent scale; a caller that knows the weights' scale differs
@@ -161,7 +165,8 @@ class ConformalProblem:
                  psd_from_k: float | None = None, subspace_from: int = 300,
                  subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None,
                  subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0,
-                 interior_solver=None, refine_rule: dict | None = None, map_error: float | None = None) -> None:
+                 interior_solver=None, refine_rule: dict | None = None, map_error: float | None = None,
+                 unsettled_map_error: float | None = None) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -213,6 +218,9 @@ class ConformalProblem:
         if map_error is not None and not map_error > 0:
             raise InvalidInputError(f"map_error must be positive, got {map_error}.")
         self.map_error = None if map_error is None else float(map_error)
+        if unsettled_map_error is not None and not unsettled_map_error > 0:
+            raise InvalidInputError(f"unsettled_map_error must be positive, got {unsettled_map_error}.")
+        self.unsettled_map_error = None if unsettled_map_error is None else float(unsettled_map_error)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -451,19 +459,20 @@ class ConformalProblem:
         result = self._search_first(sub, line_kwargs)
         point, info = sub.refine(result.best.k, absorb=True, **self.refine_rule)
         evaluations = result.n_evaluations
-        result, point, info, rounds, settled = self._settle(sub, result, point, info, line_kwargs)
-        evaluations += rounds.evaluations
-        rounds = 1 + rounds.searches
-        polish_rtol = self._polish_rtol(red, info)
+        result, point, info, counts, settled = self._settle(sub, result, point, info, line_kwargs)
+        evaluations += counts.evaluations
+        rounds = 1 + counts.searches
+        target = self._polish_target(red, info, settled)
+        polish_rtol = None if target is None else self._polish_rtol(red, info, target)
         polished = polish_rtol is not None and red.tighten(polish_rtol)
         if polished:
             # The map is limited by the interior solves' accuracy where the spectral gap is
             # small: the products are solved again from their kept interior values to
             # the tolerance the gap asks for, and the k search settles again on them.
             sub.resolve()
-            point, info = sub.refine(point.k, absorb=True, **self._polish_rule(info))
-            result, point, info, more, settled = self._settle(sub, result, point, info, line_kwargs,
-                                                              self._polish_rule(info))
+            rule = dict(self.refine_rule, rtol=max(target * info["ritz_gap"], 1e-12))
+            point, info = sub.refine(point.k, absorb=True, **rule)
+            result, point, info, more, settled = self._settle(sub, result, point, info, line_kwargs, rule)
             rounds, evaluations = rounds + more.searches, evaluations + more.evaluations
         self._counts["eigen_solves"] += evaluations + rounds
         return red, sub, result, point, {**info, "subspace_rounds": rounds, "subspace_size": initial,
@@ -499,23 +508,34 @@ class ConformalProblem:
             point, info = sub.refine(again.best.k, absorb=True, **rule)
         return result, point, info, counts, settled
 
-    def _polish_rtol(self, red: BoundaryReduction, info: dict) -> float | None:
-        """The interior solves' tolerance that lets the map reach ``map_error``, or None if no polish is due.
+    def _polish_target(self, red: BoundaryReduction, info: dict, settled: bool) -> float | None:
+        """The error estimate a polish must reach, or None if none is due.
 
-        Due when the refined map's error estimate (residual over the Ritz gap) is above
-        ``map_error`` and the interior solves are iterative: their error floors the
-        residual at :attr:`BoundarySubspace.SOLVE_FLOOR` times their tolerance.
+        Due, with iterative interior solves, when the map's error estimate (residual over
+        the Ritz gap) is above ``map_error``, or above ``unsettled_map_error`` when the k
+        search did not settle although the refinement reached the solves' floor
+        (:attr:`BoundarySubspace.SOLVE_FLOOR` times their tolerance): the solves'
+        error then moves k_opt from round to round.
         """
-        if self.map_error is None or red.solve_rtol == 0.0:
+        if red.solve_rtol == 0.0:
             return None
-        if not info.get("map_error_estimate", 0.0) > self.map_error:
+        floor = BoundarySubspace.SOLVE_FLOOR * red.solve_rtol
+        targets = [self.map_error]
+        if not settled and info.get("boundary_residual", np.inf) <= 2.0 * floor:
+            targets.append(self.unsettled_map_error)
+        targets = [t for t in targets if t is not None]
+        if not targets or not info.get("map_error_estimate", 0.0) > min(targets):
             return None
-        wanted = self.map_error * info["ritz_gap"] / BoundarySubspace.SOLVE_FLOOR
-        return max(min(wanted, red.solve_rtol), self.MIN_SOLVE_RTOL)
+        return min(targets)
 
-    def _polish_rule(self, info: dict) -> dict:
-        """The refinement's stop rule after a polish: down to the residual ``map_error`` asks for."""
-        return dict(self.refine_rule, rtol=max(self.map_error * info["ritz_gap"], 1e-12))
+    def _polish_rtol(self, red: BoundaryReduction, info: dict, target: float) -> float | None:
+        """The interior solves' tolerance that lets the map's error estimate reach ``target``.
+
+        The refinement's residual floors at :attr:`BoundarySubspace.SOLVE_FLOOR` times the
+        solves' tolerance, and the estimate is that residual over the Ritz gap.
+        """
+        wanted = target * info["ritz_gap"] / BoundarySubspace.SOLVE_FLOOR
+        return max(min(wanted, red.solve_rtol), self.MIN_SOLVE_RTOL)
 
     def _scp_sparse_regular(self, k: float, max_steps: int = 6) -> KPoint:
         """Exact SCP at k, nudged upwards if it still spins just below the exact transition.

@@ -442,3 +442,26 @@ def test_ocp_passes_map_error_to_the_two_level_path_and_refuses_a_bad_one():
     tight = method(surf.points_only(), solver="multilevel", map_error=asked)
     assert tight.diagnostics["polish_rtol"] < MultilevelSettings().fine_rtol
     assert tight.diagnostics["map_error_estimate"] < plain.diagnostics["map_error_estimate"]
+
+
+def test_an_unsettled_search_at_the_solves_floor_is_polished(bump_front_small):
+    # A k tolerance of 0 never settles; with loose two-grid solves the refinement sits at
+    # their floor, so the unsettled search is polished (and only then, by default).
+    from dataclasses import replace
+
+    from scipy.spatial import cKDTree
+
+    lap, loops, points = bump_front_small
+    spacing = float(np.mean(cKDTree(points).query(points, k=2)[0][:, 1]))
+    coarse = poisson_disk_subsample(points, 2.0 * spacing, np.concatenate(loops), seed=0)
+    exact = ConformalProblem(lap, loops, points=points).solve("scp", "line")
+    loose = MultilevelSettings(fine_rtol=1e-4, fine_ktol=0.0, enlarge_residual=1.0)
+    off, _ = multilevel_scp(lap, loops, points, coarse, settings=replace(loose, unsettled_map_error=None))
+    on, _ = multilevel_scp(lap, loops, points, coarse, settings=replace(loose, unsettled_map_error=1e-3))
+    assert not off.diagnostics["subspace_settled"] and off.diagnostics["polish_rtol"] is None
+    assert off.diagnostics["boundary_residual"] <= 2 * BoundarySubspace.SOLVE_FLOOR * 1e-4
+    assert on.diagnostics["polish_rtol"] < 1e-4
+    assert _aligned_error(on.z, exact.z) < _aligned_error(off.z, exact.z) / 10
+    settled = MultilevelSettings(fine_rtol=1e-4, unsettled_map_error=1e-3)
+    calm, _ = multilevel_scp(lap, loops, points, coarse, settings=settled)
+    assert calm.diagnostics["subspace_settled"] and calm.diagnostics["polish_rtol"] is None
