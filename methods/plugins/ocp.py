@@ -130,7 +130,9 @@ class Ocp(Method):
     to the next Ritz value, ``map_error_estimate`` in the diagnostics; at a million
     points 0.08-0.19 with the default solves, 1e-3 to 1e-2 at 20k) is above this, the
     solves are tightened and the search settled again (:mod:`parambench.methods.spectral.multilevel`);
-    null (default): never. End to end at 1M points
+    null (default): only where the fine k search did not settle while its refinement
+    sat at the solves' floor (a jittered cylinder at 1M points: 4.2e-3 -> 3.4e-5 of the
+    diameter from the direct map). End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
     the time of ``scp-igl`` on the true mesh (see README's Measured table).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
