@@ -528,7 +528,7 @@ class ConformalProblem:
             return None
         return min(targets)
 
-    def _polish_rtol(self, red: BoundaryReduction, info: dict, target: float) -> float | None:
+    def _polish_rtol(self, red: BoundaryReduction, info: dict, target: float) -> float:
         """The interior solves' tolerance that lets the map's error estimate reach ``target``.
 
         The refinement's residual floors at :attr:`BoundarySubspace.SOLVE_FLOOR` times the
