@@ -218,10 +218,20 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     cov = (report.get("selfcheck") or {}).get("coverage")
     coverage = ""
     if cov:
-        coverage = (f", loop coverage {'ok' if cov['passed'] else 'FAILED (a missed hole?)'}: "
-                    f"{cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops")
+        verdict = ("FAILED (a missed hole or boundary?)" if not cov["passed"] else "ok" if cov["applicable"]
+                   else "not judged (irregular sampling: voids look like holes)")
+        coverage = (f", loop coverage {verdict}: {cov['n_uncovered']} of {cov['n_candidates']} boundary "
+                    f"candidates off the loops, largest connected group {cov['largest_uncovered_group']}")
     print(f"{surface.n_points} points, mean spacing {report['mean_spacing']:.4g}, "
           f"{len(loops)} boundary loop(s){coverage} -> {out}")
+    if cov and not cov["passed"]:
+        # The diagnostics are written either way; the exit code says the loops are doubtful.
+        from parambench.methods.pointset.selfcheck import suggest_fix
+
+        print(f"parambench: error: inspect: {cov['largest_uncovered_group']} connected boundary candidates lie "
+              f"on no detected loop (a missed hole or boundary); {suggest_fix(['coverage'], report['params'], 'ocp')}",
+              file=sys.stderr)
+        return EXIT_SELFCHECK
     return 0
 
 

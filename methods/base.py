@@ -33,7 +33,8 @@ from typing import Any, Callable, ClassVar, Iterator
 
 import numpy as np
 
-from parambench.datasets_gen.errors import InvalidInputError, MissingFacesError, ParambenchError, UnknownNameError
+from parambench.datasets_gen.errors import (InvalidInputError, MissingFacesError, ParambenchError, SolverError,
+                                           UnknownNameError)
 from parambench.datasets_gen.surface import MethodInput, Surface
 
 from .hints import fit_hints, method_hints
@@ -347,11 +348,20 @@ class Method:
         """:meth:`run`, then the point-set self-check on the same points (``diagnostics["selfcheck"]``).
 
         Inside :func:`~parambench.methods.pointset.coincident.run_on_representatives`, so the check
-        sees the distinct points the method saw, and reuses that run's front end.
+        sees the distinct points the method saw, and reuses that run's front end. A run
+        that raises SolverError on loops that fail the coverage check raises it restated
+        (:func:`~parambench.methods.pointset.plugin_support.boundary_doubt`).
         """
-        from .pointset.plugin_support import selfcheck_result
+        from .pointset.plugin_support import boundary_doubt, selfcheck_result
 
-        result = self.run(surface, **params)
+        try:
+            result = self.run(surface, **params)
+        except SolverError as exc:  # ConvergenceError included
+            # A solve that fails on loops that miss the boundary: say so, not only the solver's advice.
+            doubt = boundary_doubt(surface, exc)
+            if doubt is None:
+                raise
+            raise doubt from exc
         check = selfcheck_result(surface, result)
         retry = None if check["passed"] else self.retry_params(params, check)
         if retry is None:

@@ -9,15 +9,16 @@ from typing import Any
 
 import numpy as np
 
-from parambench.datasets_gen.errors import SolverError, TooFewPointsError
+from parambench.datasets_gen.errors import ParambenchError, SolverError, TooFewPointsError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import StageTimer
+from ..hints import Hint, hinted
 from .frontend import STAGES, FrontEnd, build_frontend
 from .params import frontend_params, method_defaults
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
-           "frontend_candidates", "selfcheck_result"]
+           "frontend_candidates", "selfcheck_result", "boundary_doubt"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
@@ -156,6 +157,53 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
     check["seconds"] = round(time.perf_counter() - start, 4)  # with the inputs' estimation, if any
     result.diagnostics["selfcheck"] = check
     return check
+
+
+#: Remedies for loops that miss boundary candidates, in the order offered (the
+#: parameters of every point-set method; :func:`~parambench.methods.hints.fit_hints`
+#: drops those a method lacks).
+_BOUNDARY_HINTS = (Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg"),
+                   Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor"),
+                   Hint("raise k_nn (e.g. 12)", "k_nn"))
+
+
+def boundary_doubt(surface: MethodInput, exc: ParambenchError) -> ParambenchError | None:
+    """``exc`` restated when the front end's loops fail the coverage check, or None.
+
+    A k search or eigen-solve on a wrong boundary fails with advice about the solver
+    (a real face range scan, 85k points: the line search "use k_search='direct'", the
+    direct search "use k_search='line'"), which sends the user in a circle; the cause is
+    upstream. When the run's front end left its facts (:func:`run_frontend`) and its
+    loops miss a connected group of boundary candidates
+    (:func:`~parambench.methods.pointset.selfcheck.loop_coverage`), the error keeps its
+    type and says so first, with front-end parameters as remedies before the solver's.
+
+    Parameters
+    ----------
+    surface : MethodInput
+        The surface the failed run was given.
+    exc : ParambenchError
+        What the run raised.
+
+    Returns
+    -------
+    ParambenchError or None
+        An error of the same type to raise from ``exc``; None when the loops pass (or
+        there is nothing to check them with).
+    """
+    from .selfcheck import loop_coverage
+
+    inputs = _CHECK_INPUTS.pop(surface, None)
+    if inputs is None or inputs.candidates is None:
+        return None
+    cov = loop_coverage(surface.points, inputs.loops, inputs.candidates, inputs.knn_indices, inputs.spacing)
+    if cov["passed"]:
+        return None
+    stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
+    doubt = (f"the detected boundary looks wrong: {cov['largest_uncovered_group']} connected boundary candidates "
+             f"lie on no loop ({cov['n_uncovered']} of {cov['n_candidates']} off the {len(inputs.loops)} loops: "
+             f"a missed boundary or hole), and the solve on it failed ({stem})")
+    return hinted(type(exc), doubt, *_BOUNDARY_HINTS, *hints)
 
 
 def require_neighbours(n_points: int, k: Any, param: str) -> None:

@@ -132,3 +132,36 @@ def test_the_summary_says_when_holes_were_filled():
     assert _holes_summary({}) == ""
     assert _holes_summary({"holes_filled": 2, "n_fill_points": 31}) == (
         " (2 hole(s) filled with 31 points: with free holes the map failed)")
+
+
+def _xyz(tmp_path, name, sampling):
+    from parambench.datasets_gen.registry import make_surface
+
+    path = tmp_path / f"{name}-{sampling}.xyz"
+    np.savetxt(path, make_surface(name, 2000, sampling=sampling, seed=0).points, fmt="%.17g")
+    return path
+
+
+def test_inspect_exits_3_when_the_loops_miss_boundary_candidates(tmp_path, capsys):
+    """Loops of fewer than 40 points dropped: the three holes of ``holes`` at 2k points
+    (27-34 points each) are missed; the JSON is still written, the exit code says so."""
+    src, out = _xyz(tmp_path, "holes", "jittered"), tmp_path / "front.json"
+    assert main(["inspect", str(src), "-o", str(out)]) == 0
+    assert "loop coverage ok" in capsys.readouterr().out
+    assert main(["inspect", str(src), "-o", str(out), "--param", "min_loop_size=40"]) == EXIT_SELFCHECK
+    captured = capsys.readouterr()
+    report = json.loads(out.read_text())
+    assert len(report["boundary_loops"]) == 1 and not report["selfcheck"]["coverage"]["passed"]
+    assert "loop coverage FAILED" in captured.out
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "on no detected loop" in err[0] and "--param boundary_angle_deg=100" in err[0]
+
+
+def test_inspect_says_when_coverage_cannot_be_judged(tmp_path, capsys):
+    """A uniform random sample: its voids look like small holes, so coverage is not judged
+    (and the run is not failed for it)."""
+    src, out = _xyz(tmp_path, "plane", "random"), tmp_path / "front.json"
+    assert main(["inspect", str(src), "-o", str(out)]) == 0
+    cov = json.loads(out.read_text())["selfcheck"]["coverage"]
+    assert not cov["applicable"] and cov["passed"] and cov["n_scattered"] > 0.02 * 2000
+    assert "loop coverage not judged" in capsys.readouterr().out

@@ -123,7 +123,7 @@ def test_coverage_passes_when_every_candidate_is_near_a_loop():
     candidates[outer] = candidates[rim] = True
     cov = loop_coverage(pts, [outer, rim], candidates, knn, spacing=1.0)
     assert cov == {"n_candidates": len(outer) + len(rim), "n_uncovered": 0, "largest_uncovered_group": 0,
-                   "applicable": True, "passed": True}
+                   "n_scattered": 0, "applicable": True, "passed": True}
 
 
 def test_non_finite_map_fails_without_raising():
@@ -349,3 +349,70 @@ def test_without_loops_bridging_triangles_are_dropped_and_the_rest_judged():
     inner = np.flatnonzero((pts[:, 0] == 3) & (pts[:, 1] == 3))[0]
     uv[inner] += [1.6, 1.6]
     assert check_pointset_map(pts, uv, normals, None)["n_flipped"] > 0
+
+
+def _grid_with_voids_and_a_chain(chain_length, n=100):
+    """An n x n unit grid whose boundary ring is its loop, with boundary candidates on the
+    ring, on isolated points of a stride-4 lattice (voids of an irregular sampling: more
+    than 2 % of the points, none connected) and on a straight interior chain."""
+    from scipy.spatial import cKDTree
+
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    pts = np.c_[x.ravel(), y.ravel(), np.zeros(n * n)]
+    outer = _ring(n)
+    candidates = np.zeros(n * n, dtype=bool)
+    candidates[outer] = True
+    lattice = (x % 4 == 2) & (y % 4 == 2) & (np.abs(y - n // 2) > 4) & (x > 4) & (x < n - 5) & (y > 4) & (y < n - 5)
+    candidates[lattice.ravel()] = True
+    chain = (y == n // 2) & (x >= 10) & (x < 10 + chain_length)
+    candidates[chain.ravel()] = True
+    knn = cKDTree(pts).query(pts, k=9)[1][:, 1:]
+    return pts, outer, candidates, knn
+
+
+def test_coverage_fails_a_long_missed_chain_even_where_voids_make_it_not_applicable():
+    """On an irregular sampling (uncovered void rings on more than 2 % of the points) the
+    check cannot tell a small missed hole from a void, but 64 connected uncovered
+    candidates are no void: a real face scan's missed 2484-point outer boundary showed
+    as a group of 514 there, and passed before."""
+    from parambench.methods.pointset.selfcheck import MIN_MISSED_CHAIN
+
+    for length, passed in ((30, True), (MIN_MISSED_CHAIN, False), (80, False)):
+        pts, outer, candidates, knn = _grid_with_voids_and_a_chain(length)
+        cov = loop_coverage(pts, [outer], candidates, knn, spacing=1.0)
+        assert cov["applicable"] is False and cov["n_scattered"] > 0.02 * len(pts)
+        assert cov["largest_uncovered_group"] == length
+        assert cov["passed"] is passed
+
+
+def test_a_solver_error_on_loops_that_miss_candidates_is_restated_with_front_end_remedies():
+    from parambench.datasets_gen.errors import ConvergenceError
+    from parambench.datasets_gen.surface import MethodInput
+    from parambench.methods.hints import Hint, fit_hints, hinted
+    from parambench.methods.pointset import plugin_support as support
+    from parambench.methods.registry import get_method
+
+    pts, outer, rim = _grid_with_hole()
+    knn = np.argsort(np.linalg.norm(pts[:, None] - pts[None], axis=-1), axis=1)[:, 1:9]
+    candidates = np.zeros(len(pts), dtype=bool)
+    candidates[outer] = candidates[rim] = True
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    surface = MethodInput(points=pts, name="grid")
+
+    def solver_error():
+        return hinted(ConvergenceError, "no t = 1 crossing found", Hint("use k_search='direct'", "k_search", "direct"))
+
+    # The hole's rim is on no loop: the error says the boundary first, with its remedies.
+    support._CHECK_INPUTS[surface] = support._CheckInputs(normals, knn, 1.0, [outer], candidates)
+    doubt = support.boundary_doubt(surface, solver_error())
+    assert isinstance(doubt, ConvergenceError)
+    ocp = get_method("ocp")
+    fit_hints(doubt, ocp.defaults, ocp.defaults)
+    text = str(doubt)
+    assert text.startswith(f"the detected boundary looks wrong: {len(rim)} connected boundary candidates lie on no loop")
+    assert "no t = 1 crossing found" in text
+    assert text.index("boundary_angle_deg") < text.index("k_search='direct'")
+    # With both loops the boundary is not in doubt: the solver's own error stands.
+    support._CHECK_INPUTS[surface] = support._CheckInputs(normals, knn, 1.0, [outer, rim], candidates)
+    assert support.boundary_doubt(surface, solver_error()) is None
+    assert support.boundary_doubt(surface, solver_error()) is None  # nothing left to check with
