@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -124,6 +125,10 @@ def _default_method(surface) -> str:
 #: Exit code of ``flatten`` when the map fails its self-check and ``--force`` is not given.
 EXIT_SELFCHECK = 3
 
+REPAIR_HELP = ("keep the largest connected piece (of the faces, or of the k_nn-neighbour graph for points) and "
+               "repair duplicate faces, non-manifold edges and vertices (pymeshlab); says on stderr what it dropped; "
+               "the output then holds the repaired vertices, not the input's")
+
 
 def _selfcheck_summary(check: dict | None) -> str:
     if not check:
@@ -160,6 +165,28 @@ def _holes_summary(diag: dict) -> str:
     return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: with free holes the map failed)"
 
 
+def _repaired(surface, repair: bool, k_nn: Any):
+    """``surface`` itself, or with ``--repair`` its largest piece repaired (one line on stderr)."""
+    if not repair:
+        return surface
+    from parambench.datasets_gen.repair import repair_summary, repair_surface
+
+    surface, facts = repair_surface(surface, k_nn=k_nn if isinstance(k_nn, int) and k_nn > 0 else 8)
+    print(f"parambench: note: {repair_summary(facts)}; the output holds these vertices", file=sys.stderr)
+    return surface
+
+
+@contextmanager
+def _offer_repair(repair: bool):
+    """Add ``--repair`` to the message of an error it would remove, when it was not given."""
+    try:
+        yield
+    except ParambenchError as exc:
+        if getattr(exc, "repairable", False) and not repair:
+            exc.args = (f"{str(exc).rstrip('.')}; or pass --repair to keep the largest piece and repair it.",)
+        raise
+
+
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from parambench.datasets_gen.io import load_surface
     from parambench.methods.pointset.selfcheck import failure_line, pointset_faces
@@ -173,7 +200,9 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     surface = load_surface(args.input, points_only=args.points_only)
     method = get_method(args.method or _default_method(surface))
     params = parse_param_values(args.param or [], method.defaults)
-    result = method(surface, **params)
+    surface = _repaired(surface, args.repair, params.get("k_nn", method.defaults.get("k_nn")))
+    with _offer_repair(args.repair):
+        result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
     summary = (f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
@@ -212,7 +241,9 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         from parambench.datasets_gen.errors import UnknownNameError
 
         raise UnknownNameError(f"unknown front-end parameter(s) {', '.join(unknown)}; accepted: {', '.join(sorted(defaults))}.")
-    report = inspect_surface(surface, **params)
+    surface = _repaired(surface, args.repair, params.get("k_nn", defaults["k_nn"]))
+    with _offer_repair(args.repair):
+        report = inspect_surface(surface, **params)
     out.write_text(json.dumps(report, indent=2))
     loops = report.get("boundary_loops", [])
     cov = (report.get("selfcheck") or {}).get("coverage")
@@ -323,6 +354,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "self-check's uv triangulation as faces")
     flat.add_argument("--force", action="store_true",
                       help="write a point-set map that fails its self-check (otherwise exit code 3, nothing written)")
+    flat.add_argument("--repair", action="store_true", help=REPAIR_HELP)
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")
@@ -330,6 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     insp.add_argument("--points-only", action="store_true", help="drop faces (the front end uses points only)")
     insp.add_argument("--param", nargs="+", action="extend", metavar="KEY=VALUE", help="front-end parameters")
     insp.add_argument("-o", "--output", required=True, help="output .json")
+    insp.add_argument("--repair", action="store_true", help=REPAIR_HELP)
     insp.set_defaults(func=_cmd_inspect)
 
     rep = sub.add_parser("report", help="build the HTML and PDF report of a results directory, or compare two")

@@ -11,6 +11,7 @@ flow (``Surface`` is defined there); it depends on nothing else in the project.
 from __future__ import annotations
 
 __all__ = [
+    "repairable",
     "ParambenchError",
     "InputFileError",
     "InvalidInputError",
@@ -100,3 +101,11 @@ class ResourceLimitError(ParambenchError):
 
 class ResultsInUseError(ParambenchError):
     """A results folder is locked by another running sweep."""
+
+
+def repairable(exc: ParambenchError) -> ParambenchError:
+    """Mark an error that :func:`parambench.datasets_gen.repair.repair_surface` removes
+    (several pieces, unreferenced vertices, non-manifold edges or vertices, duplicate
+    faces), so that the command line can offer ``--repair``; returns ``exc``."""
+    exc.repairable = True
+    return exc

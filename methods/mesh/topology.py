@@ -7,7 +7,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from parambench.datasets_gen.errors import DisconnectedError, NotADiskError
+from parambench.datasets_gen.errors import DisconnectedError, NotADiskError, repairable
 # The one definition of a mesh's loops lives below the methods, where the readers use it too.
 from parambench.datasets_gen.mesh_loops import boundary_loops
 
@@ -148,24 +148,24 @@ def require_manifold(faces: np.ndarray, n_vertices: int) -> None:
     dup = duplicate_faces(faces)
     if dup.size:
         pairs = [f"face {int(r)} = face {int(f)}" for r, f in dup]
-        raise NotADiskError(
+        raise repairable(NotADiskError(
             f"the mesh has {len(dup)} duplicate face(s) over the same three vertices ({_examples(pairs)}); "
             "remove them (pymeshlab meshing_remove_duplicate_faces) or use --points-only."
-        )
+        ))
     edges, counts = non_manifold_edges(faces)
     if edges.size:
         shown = [f"{int(a)}-{int(b)} on {int(c)} faces" for (a, b), c in zip(edges, counts)]
-        raise NotADiskError(
+        raise repairable(NotADiskError(
             f"the mesh has {len(edges)} non-manifold edge(s) shared by more than two faces (vertices {_examples(shown)}); "
             "repair them (pymeshlab meshing_repair_non_manifold_edges) or use --points-only."
-        )
+        ))
     verts = non_manifold_vertices(faces, n_vertices)
     if verts.size:
-        raise NotADiskError(
+        raise repairable(NotADiskError(
             f"the mesh has {verts.size} non-manifold vertex/vertices where separate fans of faces meet "
             f"(vertex {_examples(verts.tolist())}); repair them (pymeshlab meshing_repair_non_manifold_vertices) "
             "or use --points-only."
-        )
+        ))
 
 
 def _component_count(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
@@ -203,16 +203,16 @@ def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_
     used = np.zeros(n, dtype=bool)
     used[faces.ravel()] = True
     if not used.all():
-        raise DisconnectedError(
+        raise repairable(DisconnectedError(
             f"{int((~used).sum())} vertex/vertices belong to no face; remove unreferenced vertices "
             "(pymeshlab meshing_remove_unreferenced_vertices) or use --points-only."
-        )
+        ))
     n_comp, _ = _component_count(faces, n)
     if n_comp > 1:
-        raise DisconnectedError(
+        raise repairable(DisconnectedError(
             f"the mesh has {n_comp} connected components; flatten each component separately "
             "(pymeshlab generate_splitting_by_connected_components)."
-        )
+        ))
     loops = boundary_loops(faces)
     if not loops:
         raise NotADiskError("the mesh is closed (no boundary loop); cut it open along a seam before flattening.")

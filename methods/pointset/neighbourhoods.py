@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError
+from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError, repairable
 
 from ..numba_cache import configure_numba_cache
 from .reorder import insert_sorted
@@ -310,10 +310,10 @@ def require_connected(adjacency: sp.spmatrix, k: int) -> None:
     n_comp = sizes.size
     if n_comp > 1:
         shown = ", ".join(str(int(s)) for s in sizes[:8]) + (", ..." if n_comp > 8 else "")
-        raise DisconnectedError(
+        raise repairable(DisconnectedError(
             f"the {k}-nearest-neighbour graph has several components: {shown} points; "
             "flatten each separately or increase k_nn."
-        )
+        ))
 
 
 def _component_sizes(adjacency: sp.spmatrix) -> np.ndarray:
