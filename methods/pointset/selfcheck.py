@@ -42,7 +42,7 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   where uncovered candidates in groups smaller than that are rare (at most
   ``MAX_UNCOVERED_FRACTION`` = 2 % of the points): in an irregular sampling the angle criterion also fires around the voids of
   the sampling (uniform random samples: 5-8 % of the points uncovered in small groups,
-  groups of up to 20 at 20k and 27 at 100k points, with correct loops and 0 flipped
+  groups of up to 20 at 20k, 27 at 100k and 22-27 at 1M points, with correct loops and 0 flipped
   triangles), and there it cannot tell a missed hole from a void; the facts then say
   ``applicable: False``. (Counting every candidate outside the largest group instead
   let several missed holes pass as voids: ``holes`` at 2k points with its three holes
