@@ -2,7 +2,7 @@
 # Set up everything the test suite needs on a fresh machine, then run it.
 #   - Debian packages for the report checks: headless Chromium + its driver, poppler (pdftoppm)
 #   - a virtualenv in .venv with parambench and its test extra
-# Extra arguments go to pytest (e.g. `bash tests/run.sh -k metrics`).
+# Extra arguments go to pytest (e.g. `bash tests/run.sh -k metrics`; `-n 0` runs in one process).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,4 +20,8 @@ fi
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null
 .venv/bin/python -m pip install -q ".[test]"  # not editable: an editable install of a flat layout always prints a setuptools notice
-exec .venv/bin/python -m pytest "$@"
+# One pytest worker per core, at most 4 (pytest-xdist): on 2 cores the suite takes
+# about half the time of one process; more workers would mostly add memory.
+cores=$(nproc 2>/dev/null || echo 2)
+workers=$(( cores < 4 ? cores : 4 ))
+exec .venv/bin/python -m pytest -n "$workers" "$@"
