@@ -33,7 +33,7 @@ from ..hints import Hint, hinted
 from .ksearch import DEFAULT_R, KPoint, line_search, root_search_near
 from .operators import area_matrix, boundary_indicator, check_loops, conformal_operator, is_symmetric, rayleigh_energy
 from .ordering import nested_dissection
-from .reduction import BoundaryReduction, dense_real_pencil, dense_smallest
+from .reduction import BoundaryReduction, deflation_basis, dense_real_pencil, dense_smallest, pencil_k_estimates
 from .sparse_eigen import SparseFactor, smallest_eigenpair
 from .subspace import DEFAULT_MODES, BoundarySubspace
 from .threads import single_threaded_blas
@@ -806,13 +806,37 @@ class ConformalProblem:
             diag["subspace_fallback"] = subspace_error
             return sol, diag
         evaluate, reduced = self._line_evaluator(mode, backend, pins, pin_values)
-        result = line_search(evaluate, **line_kwargs)
+        result = None
+        if mode == "scp" and reduced and line_kwargs.get("bracket") is None:
+            result = self._reduced_root_search(line_kwargs.get("r", DEFAULT_R))
+        if result is None:
+            result = line_search(evaluate, **line_kwargs)
         best = result.best
         z = self._reduction(pins if mode == "dncp" else ()).extend(best.state[0]) if reduced else best.state[0]
         sol = ConformalSolution(z=z, k=best.k, energy=best.energy, turning=best.turning,
                                 eigenvalue=best.state[1], diagnostics={"backend": "boundary" if reduced else "sparse"})
         return sol, {"landscape": result.landscape, "bracket": list(result.bracket),
                      "n_k_evaluations": result.n_evaluations}
+
+    def _reduced_root_search(self, r: float):
+        """The SCP k search on the dense boundary reduction from the pencil's k_opt estimate, or None.
+
+        As the subspace search's first round (:meth:`_search_first`): the largest near-real
+        root of ``M_KK z = k (S / 2) z`` (one eigenvalue solve) starts a root find of q
+        (:func:`~parambench.methods.spectral.ksearch.root_search_near`), where the line
+        search from k = 1 took 20-30 evaluations, each a dense K x K eigenvalue solve
+        (2000 points: 26 evaluations, 1.0 s of ocp's 1.3 s solve). None where the estimate
+        does not lead to a plain sign change of q between regular maps: the caller then
+        runs the line search.
+        """
+        red = self._reduction()
+        q = deflation_basis(red.keep.size)
+        m_kk = self.area[red.keep][:, red.keep].toarray()
+        estimates = pencil_k_estimates(0.5 * (q.T @ red.schur @ q), q.T @ m_kk @ q)
+        self._counts["eigen_solves"] += 1
+        if estimates.size == 0:
+            return None
+        return root_search_near(self._scp_reduced, float(estimates[0]), r=r)
 
     def _line_evaluator(self, mode: str, backend: str, pins: np.ndarray | None = None,
                         pin_values: np.ndarray | None = None) -> tuple[Callable[[float], KPoint], bool]:

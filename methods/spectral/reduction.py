@@ -294,6 +294,38 @@ def _dense_smallest(operator: np.ndarray, hermitian: bool, count: int) -> tuple[
     return vals, vectors / np.linalg.norm(vectors, axis=0)
 
 
+def pencil_k_estimates(s_half: np.ndarray, m: np.ndarray, imag_tol: float = 1e-2) -> np.ndarray:
+    """The k at which ``k S / 2 - M`` has a zero eigenvalue, largest first: start points of a k search.
+
+    ``(k S / 2 - M) y = 0`` is the pencil ``M y = mu (S / 2) y``; the smallest eigenvalue's
+    real part crosses zero at its largest (near-)real positive mu, exactly for symmetric L
+    and to about 6 digits otherwise (as for ``k_search="direct"``). Eigenvalues only, of
+    one standard m x m problem: about the cost of one evaluation of the search.
+
+    Parameters
+    ----------
+    s_half : (m, m) numpy.ndarray of float64
+        ``S / 2`` on a basis without translations (zero-sum columns), where it is
+        definite for the Laplacians here.
+    m : (m, m) numpy.ndarray of complex128
+        The area matrix on the same basis.
+    imag_tol : float
+        Largest ``|Im mu| / |mu|`` of a candidate.
+
+    Returns
+    -------
+    (c,) numpy.ndarray of float64
+        Real parts of the candidates, decreasing, all > 0; empty when ``s_half`` is singular.
+    """
+    with single_threaded_blas():
+        try:
+            vals = la.eigvals(la.solve(s_half, m, check_finite=False), check_finite=False)
+        except (la.LinAlgError, ValueError):
+            return np.empty(0)
+    ok = np.isfinite(vals) & (vals.real > 0) & (np.abs(vals.imag) <= imag_tol * np.abs(vals))
+    return np.sort(vals.real[ok])[::-1]
+
+
 def dense_real_pencil(a: np.ndarray, b: np.ndarray, *, hermitian: bool, imag_tol: float = 1e-8
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Real positive eigenvalues mu of ``a z = mu b z`` on zero-sum vectors, largest first.

@@ -40,7 +40,7 @@ from parambench.datasets_gen.errors import SolverError
 
 from ..hints import Hint, hinted
 from .ksearch import KPoint
-from .reduction import BoundaryReduction
+from .reduction import BoundaryReduction, pencil_k_estimates
 from .threads import single_threaded_blas
 from .turning import loop_turning_numbers
 
@@ -265,10 +265,9 @@ class BoundarySubspace:
     def k_estimates(self, imag_tol: float = 1e-2) -> np.ndarray:
         """The k at which the Ritz problem has a zero eigenvalue, largest first: start points of a k search.
 
-        ``((k / 2) Q^T S Q - Q^T M_KK Q) y = 0`` is the pencil ``M y = mu (S / 2) y``; the
-        smallest Ritz value's real part crosses zero at its largest (near-)real positive
-        mu, exactly for symmetric L and to about 6 digits otherwise (as for
-        ``k_search="direct"``). One m x m eigen-solve, about the cost of one evaluation.
+        :func:`~parambench.methods.spectral.reduction.pencil_k_estimates` of
+        ``((k / 2) Q^T S Q - Q^T M_KK Q) y = 0``; Q^T S Q is definite on the zero-sum basis
+        (no translations) for the Laplacians here.
 
         Parameters
         ----------
@@ -281,15 +280,7 @@ class BoundarySubspace:
             Real parts of the candidates, decreasing, all > 0; empty when S's projection
             is singular.
         """
-        with single_threaded_blas():
-            try:
-                # Q^T S Q is definite on the zero-sum basis (no translations) for the
-                # Laplacians here, so the pencil reduces to a standard eigen-problem.
-                vals = la.eigvals(la.solve(0.5 * self._s, self._m, check_finite=False), check_finite=False)
-            except (la.LinAlgError, ValueError):
-                return np.empty(0)
-        ok = np.isfinite(vals) & (vals.real > 0) & (np.abs(vals.imag) <= imag_tol * np.abs(vals))
-        return np.sort(vals.real[ok])[::-1]
+        return pencil_k_estimates(0.5 * self._s, self._m, imag_tol)
 
     @property
     def size(self) -> int:
