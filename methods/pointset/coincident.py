@@ -26,7 +26,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.surface import MethodInput, duplicate_tolerance, find_duplicate_points
 
 __all__ = ["CoincidentPointsWarning", "CoincidentGroups", "MERGE_SPACING_TOL", "merge_tolerance",
-           "coincident_groups", "run_on_representatives"]
+           "coincident_groups", "run_on_representatives", "warn_merged"]
 
 #: Points closer than this fraction of the median nearest-neighbour spacing are merged.
 MERGE_SPACING_TOL = 1e-6
@@ -118,6 +118,27 @@ def coincident_groups(points: np.ndarray) -> CoincidentGroups:
     return CoincidentGroups(first[order], rank[labels].astype(np.int64), tol)
 
 
+def warn_merged(name: str, groups: CoincidentGroups, what_happened: str, stacklevel: int = 3) -> None:
+    """Warn once (CoincidentPointsWarning) that ``groups`` merged copies; no-op when none were merged.
+
+    Parameters
+    ----------
+    name : str
+        The surface's name, first in the message.
+    groups : CoincidentGroups
+    what_happened : str
+        The rest of the message; ``{}`` is replaced by the number of distinct points.
+    stacklevel : int
+        Passed to :func:`warnings.warn`.
+    """
+    if groups.n_merged == 0:
+        return
+    warnings.warn(
+        f"{name}: {groups.n_merged} of {groups.inverse.size} points coincide with an earlier point "
+        f"(within {groups.tolerance:.3g}); " + what_happened.format(groups.representatives.size) + ".",
+        CoincidentPointsWarning, stacklevel=stacklevel)
+
+
 def _loops_on_representatives(loops, groups: CoincidentGroups):
     """Given boundary loops (``boundary="given"`` of ``fbcp-pc``) renumbered to the representatives.
 
@@ -169,11 +190,8 @@ def run_on_representatives(run: Callable[..., Any], surface: MethodInput, params
     if groups.n_merged == 0:
         return run(surface, **params)
     reps = groups.representatives
-    warnings.warn(
-        f"{surface.name}: {groups.n_merged} of {surface.n_points} points coincide with an earlier point "
-        f"(within {groups.tolerance:.3g}); the method ran on the {reps.size} distinct points and each copy "
-        "gets its representative's uv.",
-        CoincidentPointsWarning, stacklevel=3)
+    warn_merged(surface.name, groups, "the method ran on the {} distinct points and each copy gets its "
+                "representative's uv", stacklevel=4)
     normals = None if surface.normals is None else surface.normals[reps]
     distinct = replace(surface, points=surface.points[reps], faces=None, normals=normals,
                        boundary_loops=_loops_on_representatives(surface.boundary_loops, groups))

@@ -6,6 +6,7 @@ from typing import Any
 
 from parambench.datasets_gen.surface import Surface
 
+from .coincident import coincident_groups, warn_merged
 from .frontend import build_frontend
 from .plugin_support import frontend_candidates
 from .selfcheck import loop_coverage
@@ -27,8 +28,10 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
     Returns
     -------
     dict
-        JSON-serialisable: ``name``, ``n_points``, ``mean_spacing``, ``boundary_loops``
-        (lists of point indices in order, outer first), ``n_boundary_points``,
+        JSON-serialisable: ``name``, ``n_points`` (input points), ``n_coincident_merged``
+        (copies of an earlier point, merged first as ``flatten`` does, with a
+        CoincidentPointsWarning), ``mean_spacing``, ``boundary_loops`` (lists of input point
+        indices in order, outer first), ``n_boundary_points``,
         ``negative_weight_fraction`` {"interior", "boundary"},
         ``reconstruction_error`` {"mean", "max", "unit"} (R_x / l^2), ``ball_size``,
         ``timings`` (seconds per stage), ``params``, the full ``diagnostics`` and
@@ -41,16 +44,23 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
     ParambenchError
         Whatever ``build_frontend`` raises (e.g. NoBoundaryError on a closed surface).
     """
-    fe = build_frontend(surface.points, surface.normals, **frontend_params)
+    # As flatten does: coincident copies are one sample, the front end runs on one
+    # representative per group and indices are reported in the input's numbering.
+    groups = coincident_groups(surface.points)
+    reps = groups.representatives
+    warn_merged(surface.name, groups, "the front end ran on the {} distinct points")
+    normals = None if surface.normals is None else surface.normals[reps]
+    fe = build_frontend(surface.points[reps], normals, **frontend_params)
     diag = fe.diagnostics
     candidates = frontend_candidates(fe)
     coverage = (None if candidates is None else
                 loop_coverage(fe.points, fe.boundary_loops, candidates, fe.knn_indices, fe.mean_spacing))
     return {
         "name": surface.name,
-        "n_points": fe.n_points,
+        "n_points": int(surface.points.shape[0]),
+        "n_coincident_merged": groups.n_merged,
         "mean_spacing": fe.mean_spacing,
-        "boundary_loops": [loop.tolist() for loop in fe.boundary_loops],
+        "boundary_loops": [reps[loop].tolist() for loop in fe.boundary_loops],
         "n_boundary_points": int(fe.boundary_mask.sum()),
         "negative_weight_fraction": dict(diag["negative_weights"]["negative_fraction"]),
         "reconstruction_error": dict(diag["reconstruction_error"]),

@@ -106,3 +106,29 @@ def test_flatten_merges_copies_with_one_line_and_writes_every_row(tmp_path, caps
     is_copy = np.zeros(len(points), dtype=bool)
     is_copy[copies + np.arange(1, len(copies) + 1)] = True  # where np.insert put them
     np.testing.assert_array_equal(uv[is_copy], uv[np.flatnonzero(is_copy) - 1])
+
+
+def test_inspect_merges_copies_as_flatten_does_and_reports_input_indices(tmp_path, capsys):
+    # Before: inspect refused the copies (DuplicatePointsError) that flatten merges.
+    import json
+
+    from parambench.datasets_gen.registry import make_surface
+
+    base = make_surface("bump", 800, sampling="jittered", seed=0).points
+    copies = np.arange(0, len(base), 37)
+    points = np.insert(base, copies + 1, base[copies], axis=0)
+    src, out = tmp_path / "scan.xyz", tmp_path / "scan.json"
+    np.savetxt(src, points, fmt="%.17g")
+    assert main(["inspect", str(src), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "CoincidentPointsWarning" in err and f" {len(copies)} of {len(points)} " in err
+    report = json.loads(out.read_text())
+    assert report["n_points"] == len(points) and report["n_coincident_merged"] == len(copies)
+    assert main(["inspect", str(tmp_path / "plain.xyz"), "-o", str(tmp_path / "plain.json")]) == 2  # missing file
+    np.savetxt(tmp_path / "plain.xyz", base, fmt="%.17g")
+    assert main(["inspect", str(tmp_path / "plain.xyz"), "-o", str(tmp_path / "plain.json")]) == 0
+    plain = json.loads((tmp_path / "plain.json").read_text())
+    # the same loops, in the input numbering of each file: index i of base is i + (copies before it)
+    shift = np.searchsorted(copies, np.arange(len(base)), side="left")
+    expected = [sorted((np.asarray(loop) + shift[loop]).tolist()) for loop in plain["boundary_loops"]]
+    assert [sorted(loop) for loop in report["boundary_loops"]] == expected
