@@ -13,6 +13,7 @@ from parambench.datasets_gen.surface import MethodInput
 from ..base import StageTimer
 from ..hints import Hint, hinted
 from ..spectral import ConformalProblem
+from ..spectral.problem import solve_line_then_direct
 from .pins import farthest_pair
 from .topology import require_connected_disk_like
 from .weights import laplacian, mesh_weights, uniform_vertex_mask
@@ -78,40 +79,15 @@ def k_start_estimate(points: np.ndarray, faces: np.ndarray, lap) -> float:
 
 
 def _line_then_direct(problem: ConformalProblem, mode: str, pins):
-    """The line search; where it finds no bracket, k_opt from the generalised eigenproblem.
-
-    The good region (regular and q >= 0) can be far narrower than a geometric step: DNCP
-    on ``real/bunny10k`` (cotangent, 5 boundary loops) is regular only within about 1e-3
-    of k_opt = 0.97456, and the small holes turn inside out on either side, so stepping
-    up from k = 1 never found it. ``k_search="direct"`` computes that k without stepping.
-    """
-    try:
-        return problem.solve(mode, "line", pins=pins)
-    except ConvergenceError as err:
-        line_error = err
-    try:
-        sol = problem.solve(mode, "direct", pins=pins)
-    except (SolverError, ConvergenceError) as direct_error:
-        # Both searches failed: say so (the line search's own hint, k_search='direct', was
-        # just tried) and point at what does change the landscape.
-        hints = [Hint("try normalized=False", "normalized", False)]
-        if mode == "dncp":
-            # With non-symmetric weights no map has zero energy, so DNCP's answer depends on
-            # the pins: authalic normalized DNCP on real/bump-domain curls (turning 3) at every
-            # k with the farthest pins, and is regular for 7 of 10 other boundary pairs tried.
-            hints.append(Hint("try other pins ('i,j', two boundary vertices)", "pins"))
-        hints.append(Hint("try other weights", "weights"))
-        raise hinted(ConvergenceError,
-                     f"no regular {mode} map at any k: the line search failed ({_first_clause(line_error)}) and "
-                     f"k_search='direct' too ({_first_clause(direct_error)})", *hints) from None
-    sol.diagnostics["k_search_fallback"] = "direct"
-    sol.diagnostics["line_search_error"] = str(line_error)
-    return sol
-
-
-def _first_clause(err: Exception) -> str:
-    """An error's message without its trailing hints (they follow the first '; ')."""
-    return str(err).split("; ")[0].rstrip(".")
+    """:func:`~parambench.methods.spectral.problem.solve_line_then_direct` with the mesh methods' remedies."""
+    hints = [Hint("try normalized=False", "normalized", False)]
+    if mode == "dncp":
+        # With non-symmetric weights no map has zero energy, so DNCP's answer depends on
+        # the pins: authalic normalized DNCP on real/bump-domain curls (turning 3) at every
+        # k with the farthest pins, and is regular for 7 of 10 other boundary pairs tried.
+        hints.append(Hint("try other pins ('i,j', two boundary vertices)", "pins"))
+    hints.append(Hint("try other weights", "weights"))
+    return solve_line_then_direct(problem, mode, pins, hints)
 
 
 def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, weights: str, normalized: bool,

@@ -31,9 +31,11 @@ from ..hints import Hint, hinted
 from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..pointset.hole_filling import fill_point_holes
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
+                                      scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
+from ..spectral.problem import solve_line_then_direct
 from ..spectral.multilevel import FINE_SOLVERS
 
 #: ``solver`` values of ``ocp``: the single-level solve, the two-level one of
@@ -217,6 +219,11 @@ class Ocp(Method):
         return MethodOutput(uv, diag)
 
 
+#: Largest boundary on which a failed line search is followed by ``k_search="direct"``: its
+#: dense pencil costs O(K^3) (451 boundary points: 3.6 s; 4000 would take minutes).
+DIRECT_FALLBACK_MAX_BOUNDARY = 1000
+
+
 def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer):
     """(solution, counts, diagnostics) of the conformal problem of ``front`` on the ``solver`` path.
 
@@ -244,7 +251,13 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer)
         fallback = {}
     with timer("solve"):
         problem = conformal_problem(front, box.pop())
-        sol = problem.solve("scp", params["k_search"])
+        if params["k_search"] == "line" and problem.boundary.size <= DIRECT_FALLBACK_MAX_BOUNDARY:
+            # The line search's own advice is k_search='direct', and the direct search's is
+            # k_search='line': tried here, so a failure of both points upstream instead (a
+            # cut cow from pymeshlab's samples, 1451 points whose second loop was missed).
+            sol = solve_line_then_direct(problem, "scp", hints=BOUNDARY_HINTS)
+        else:
+            sol = problem.solve("scp", params["k_search"])
     return sol, problem.counts, fallback
 
 

@@ -18,7 +18,7 @@ from .frontend import STAGES, FrontEnd, build_frontend
 from .params import frontend_params, method_defaults
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
-           "frontend_candidates", "selfcheck_result", "boundary_doubt"]
+           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
@@ -162,7 +162,8 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
 #: Remedies for loops that miss boundary candidates, in the order offered (the
 #: parameters of every point-set method; :func:`~parambench.methods.hints.fit_hints`
 #: drops those a method lacks).
-_BOUNDARY_HINTS = (Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg"),
+#: Front-end remedies for loops that miss the boundary, first in errors that point upstream.
+BOUNDARY_HINTS = (Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg"),
                    Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor"),
                    Hint("raise k_nn (e.g. 12)", "k_nn"))
 
@@ -203,7 +204,7 @@ def boundary_doubt(surface: MethodInput, exc: ParambenchError) -> ParambenchErro
     doubt = (f"the detected boundary looks wrong: {cov['largest_uncovered_group']} connected boundary candidates "
              f"lie on no loop ({cov['n_uncovered']} of {cov['n_candidates']} off the {len(inputs.loops)} loops: "
              f"a missed boundary or hole), and the solve on it failed ({stem})")
-    return hinted(type(exc), doubt, *_BOUNDARY_HINTS, *hints)
+    return hinted(type(exc), doubt, *BOUNDARY_HINTS, *hints)
 
 
 def require_neighbours(n_points: int, k: Any, param: str) -> None:

@@ -43,3 +43,29 @@ def test_ocp_on_the_cut_bunny_as_bare_points_matches_libigl_on_the_mesh(bunny_to
     # measured: 1.03903 against 1.03736 (+0.16 %)
     assert ours["qc_mean"] == pytest.approx(reference["qc_mean"], rel=0.03)
     assert ours["qc_mean"] >= reference["qc_mean"] * (1 - 1e-3)  # libigl's map on the true mesh is the optimum here
+
+
+COW = pymeshlab_samples_dir() / "cow.obj"
+
+
+@pytest.mark.skipif(not COW.is_file(), reason="pymeshlab's sample cow is not installed")
+def test_a_failed_k_search_on_a_coarse_cut_scan_points_upstream_not_in_a_circle():
+    """pymeshlab's cow (2904 vertices, coarse and very irregular) cut at half its height: two
+    loops, of which the point front end finds one. Before, the line search failed with
+    "use k_search='direct'" and that failed with "use k_search='line'"; now ocp tries both
+    and names front-end remedies (parameters of ocp)."""
+    from parambench.datasets_gen.errors import ConvergenceError
+    from parambench.methods.plugins.ocp import Ocp
+
+    cow = load_surface(COW)
+    height = cow.points[:, 1]
+    above = (height[cow.faces] > np.quantile(height, 0.5)).all(axis=1)
+    cut, _ = repair_surface(Surface(points=cow.points, faces=cow.faces[above], name="cow-top"))
+    assert len(mesh_boundary_loops(cut.faces)) == 2
+    with pytest.warns(UserWarning, match="coincide"), pytest.raises(ConvergenceError) as info:
+        get_method("ocp")(cut.method_input(False))
+    message = str(info.value)
+    assert "the line search failed" in message and "k_search='direct' too" in message
+    assert "use k_search" not in message
+    for name in ("boundary_angle_deg", "ball_eps_factor", "k_nn"):
+        assert name in message and name in Ocp.defaults
