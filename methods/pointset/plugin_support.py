@@ -161,11 +161,10 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
 
 #: Remedies for loops that miss boundary candidates, in the order offered (the
 #: parameters of every point-set method; :func:`~parambench.methods.hints.fit_hints`
-#: drops those a method lacks).
-#: Front-end remedies for loops that miss the boundary, first in errors that point upstream.
+#: drops those a method lacks); first in errors that point upstream.
 BOUNDARY_HINTS = (Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg"),
-                   Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor"),
-                   Hint("raise k_nn (e.g. 12)", "k_nn"))
+                  Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor"),
+                  Hint("raise k_nn (e.g. 12)", "k_nn"))
 
 
 def boundary_doubt(surface: MethodInput, exc: ParambenchError) -> ParambenchError | None:

@@ -235,6 +235,10 @@ class ConformalProblem:
         self._retired_solves += sum(r.n_solves for r in self._reductions.values())
         self._reductions.clear()
 
+    def _area_block(self, keep: np.ndarray) -> np.ndarray:
+        """(K, K) numpy.ndarray of complex128: the area matrix on the kept vertices, dense."""
+        return self.area[keep][:, keep].toarray()
+
     def operator(self, k: float) -> sp.csr_matrix:
         """The sparse conformal operator ``k L / 2 - M``."""
         return conformal_operator(self.laplacian, self.area, k)
@@ -309,7 +313,7 @@ class ConformalProblem:
     # ----------------------------------------------------------- reduced solves
     def _scp_reduced(self, k: float) -> KPoint:
         red = self._reduction()
-        m_kk = self.area[red.keep][:, red.keep].toarray()
+        m_kk = self._area_block(red.keep)
         op = (0.5 * k) * red.schur - m_kk
         vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=1)
         self._counts["eigen_solves"] += 1
@@ -324,7 +328,7 @@ class ConformalProblem:
         pos[keep] = np.arange(keep.size)
         ip = pos[pins]
         free = np.setdiff1d(np.arange(keep.size), ip)
-        m_kk = self.area[keep][:, keep].toarray()
+        m_kk = self._area_block(keep)
         op = (0.5 * k) * red.schur - m_kk
         z_k = np.empty(keep.size, dtype=np.complex128)
         z_k[ip] = pin_values
@@ -625,7 +629,7 @@ class ConformalProblem:
             No near-real positive eigenvalue with a regular map.
         """
         red = self._reduction(extra)
-        m_kk = self.area[red.keep][:, red.keep].toarray()
+        m_kk = self._area_block(red.keep)
         tol = (1e-8 if self.hermitian else 1e-2) if imag_tol is None else float(imag_tol)
         mus, vecs = dense_real_pencil(m_kk, 0.5 * red.schur, hermitian=self.hermitian, imag_tol=tol)
         self._counts["eigen_solves"] += 1
@@ -831,7 +835,7 @@ class ConformalProblem:
         """
         red = self._reduction()
         q = deflation_basis(red.keep.size)
-        m_kk = self.area[red.keep][:, red.keep].toarray()
+        m_kk = self._area_block(red.keep)
         estimates = pencil_k_estimates(0.5 * (q.T @ red.schur @ q), q.T @ m_kk @ q)
         self._counts["eigen_solves"] += 1
         if estimates.size == 0:
