@@ -9,7 +9,8 @@ most of it ``ocp`` at 20k points, with 53 cases; the three real meshes added sin
 
 Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 ``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/cortex-lh``,
-``real/bunny10k``); every generated surface with ``random`` and
+``real/bunny10k``), pymeshlab's Stanford bunny cut open by five planes (``bunny-cut-*``:
+rims that zigzag across triangles, 8.4k-15.5k points); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered, 2000 points). Every method gets positions only.
@@ -50,6 +51,9 @@ import parambench.methods.pointset.frontend as frontend_module
 from parambench.bench.benchmarks.timing import best_of
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.errors import ParambenchError
+from parambench.datasets_gen.io import load_surface
+from parambench.datasets_gen.plane_cut import cut_by_plane
+from parambench.datasets_gen.real import pymeshlab_samples_dir
 from parambench.datasets_gen.registry import dataset_names, make_surface
 from parambench.methods.pointset.boundary import find_boundary
 from parambench.methods.registry import get_method
@@ -67,6 +71,16 @@ NOISE_SIZE = 2000
 CASES = ([(name, 0, "", 0.0) for name in REAL]
          + [(name, n, sampling, 0.0) for n in SIZES for sampling in ("random", "graded") for name in GENERATED]
          + [(name, NOISE_SIZE, "jittered", NOISE) for name in NOISY])
+
+
+#: Plane cuts of pymeshlab's Stanford bunny (28,088 vertices, closed): (axis, quantile,
+#: keep_above). Their rims zigzag across the triangles the plane crossed (8.4k-15.5k points).
+BUNNY = pymeshlab_samples_dir() / "bunny.obj"
+BUNNY_CUTS = [(1, 0.45, True), (1, 0.3, False), (2, 0.5, True), (2, 0.5, False), (0, 0.4, True)]
+
+
+def _cut_id(axis: int, quantile: float, keep_above: bool) -> str:
+    return f"bunny-cut-{'xyz'[axis]}{'above' if keep_above else 'below'}{round(100 * quantile)}"
 
 
 def _case_id(dataset: str, size: int, sampling: str, noise: float) -> str:
@@ -162,9 +176,25 @@ def test_realdata_boundary_and_ocp(benchmark, monkeypatch, dataset, size, sampli
     else:
         surface = make_surface(dataset, size, sampling=sampling, seed=0, noise=noise)
         group = f"realdata-noise{noise:g}" if noise else f"realdata-{size // 1000}k"
+    _measure(benchmark, monkeypatch, surface, group, _case_id(dataset, size, sampling, noise), dataset,
+             sampling or None, noise)
+
+
+@pytest.mark.parametrize("axis,quantile,keep_above", BUNNY_CUTS, ids=[_cut_id(*c) for c in BUNNY_CUTS])
+def test_realdata_bunny_cut_open(benchmark, monkeypatch, axis, quantile, keep_above):
+    if not BUNNY.is_file():
+        pytest.skip("pymeshlab's sample bunny is not installed")
+    surface = cut_by_plane(load_surface(BUNNY), axis, quantile, keep_above=keep_above,
+                           name=f"pymeshlab/{_cut_id(axis, quantile, keep_above)}")
+    _measure(benchmark, monkeypatch, surface, "realdata-real", _cut_id(axis, quantile, keep_above), surface.name,
+             None, 0.0)
+
+
+def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float):
+    """One case: both detectors on the bare points, ocp timed, scp-igl on the mesh; all in extra_info."""
     benchmark.group = group
     given = surface.method_input(False)  # bare positions: no normals, faces or ground truth
-    info = {CASE_KEY: _case_id(dataset, size, sampling, noise), "dataset": dataset, "sampling": sampling or None,
+    info = {CASE_KEY: label, "dataset": dataset, "sampling": sampling,
             "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops)}
     info.update(_detectors(given.points, surface, monkeypatch))
 
