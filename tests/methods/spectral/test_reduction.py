@@ -1,0 +1,57 @@
+"""The boundary reduction's Schur complement from the trailing block of one LU."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import parambench.methods.spectral.reduction as reduction
+from parambench.methods.spectral.ordering import nested_dissection
+from parambench.methods.spectral.reduction import BoundaryReduction
+
+
+def _reductions(case, kind, monkeypatch):
+    lap = case.lap if kind == "cotangent" else case.weights_laplacian(kind)
+    keep = np.concatenate(case.loops)
+    interior = np.setdiff1d(np.arange(lap.shape[0]), keep)
+    perm = nested_dissection(case.points[interior], sp.csr_matrix(lap)[interior][:, interior])
+    trailing = BoundaryReduction(lap, keep, perm)
+    with monkeypatch.context() as patch:
+        patch.setattr(reduction, "TRAILING_SCHUR_MAX", 0)
+        solves = BoundaryReduction(lap, keep, perm)
+    return trailing, solves
+
+
+@pytest.mark.parametrize("kind", ["cotangent", "mean-value"])  # symmetric and not
+def test_trailing_block_gives_the_same_schur_complement_and_extensions(holes, kind, monkeypatch):
+    trailing, solves = _reductions(holes, kind, monkeypatch)
+    assert trailing._trailing is not None and solves._trailing is None
+    s_ref = solves.schur
+    scale = np.abs(s_ref).max()
+    np.testing.assert_allclose(trailing.schur, s_ref, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(trailing.schur.sum(axis=1), 0.0, atol=1e-10 * scale)  # L's zero row sums survive
+    x = np.random.default_rng(0).standard_normal((trailing.keep.size, 3))
+    sx, interior = trailing.apply_schur_extended(x)
+    sx_ref, interior_ref = solves.apply_schur_extended(x)
+    np.testing.assert_allclose(sx, sx_ref, rtol=0, atol=1e-11 * np.abs(sx_ref).max())
+    np.testing.assert_allclose(interior, interior_ref, rtol=0, atol=1e-11 * np.abs(interior_ref).max())
+    z = x[:, 0] + 1j * x[:, 1]
+    full = trailing.extend(z)
+    np.testing.assert_allclose(full, solves.extend(z), rtol=0, atol=1e-11 * np.abs(full).max())
+    # The extension is harmonic: the interior rows of L z vanish.
+    rows = np.asarray(sp.csr_matrix(holes.lap if kind == "cotangent" else holes.weights_laplacian(kind)) @ full)
+    assert np.abs(rows[trailing.interior]).max() <= 1e-10 * np.abs(rows[trailing.keep]).max()
+    # The interior factor is still there for whoever needs it (the two-grid coarse level).
+    b = np.random.default_rng(1).standard_normal(trailing.interior.size)
+    np.testing.assert_allclose(trailing.interior_factor.solve(b), solves.interior_factor.solve(b), rtol=1e-9)
+
+
+def test_pivoting_across_the_blocks_falls_back_to_interior_solves():
+    """A zero interior diagonal whose column is largest in a kept row: SuperLU swaps that
+    row into the interior block, so the trailing block is not S; the interior solves give
+    S = 3 - [5 0] [[0 1] [1 2]]^-1 [5 0]^T = 53."""
+    lap = sp.csr_matrix(np.array([[0.0, 1.0, 5.0], [1.0, 2.0, 0.0], [5.0, 0.0, 3.0]]))
+    red = BoundaryReduction(lap, np.array([2]), np.array([0, 1]))
+    assert red._trailing is None
+    np.testing.assert_allclose(red.schur, [[53.0]])
