@@ -143,17 +143,15 @@ class BoundaryReduction:
         self._schur: np.ndarray | None = None
         self._trailing: _TrailingSchur | None = None
         self._lap, self._perm_interior = lap, perm_interior
+        # S from the whole matrix's LU is tried when S is first asked for; the interior
+        # factorisation is made when a solve with L_II is first needed, so the dense
+        # path (S, then one extension) never makes it and the subspace path (a few
+        # extensions, no S) never pays for the dense trailing block.
+        self._try_trailing = bool(self.interior.size and interior_solver is None and perm_interior is not None
+                                  and self.keep.size <= TRAILING_SCHUR_MAX)
         self._factor = None
-        if (self.interior.size and interior_solver is None and perm_interior is not None
-                and self.keep.size <= TRAILING_SCHUR_MAX):
-            self._trailing = _TrailingSchur.build(lap, self.interior, self.keep, np.asarray(perm_interior))
-        if self._trailing is not None:
-            self._schur = self._trailing.schur
-        elif self.interior.size and interior_solver is not None:
+        if self.interior.size and interior_solver is not None:
             self._factor = interior_solver(submatrix(lap, self.interior, self.interior), self.interior)
-        elif self.interior.size:
-            with single_threaded_blas():
-                self._factor = SparseFactor(submatrix(lap, self.interior, self.interior), perm_interior)
 
     @property
     def boundary_block(self) -> sp.csr_matrix:
@@ -164,10 +162,9 @@ class BoundaryReduction:
     def interior_factor(self):
         """What solves with L_II (a SparseFactor unless ``interior_solver`` was given), or None without interior.
 
-        With S from the whole matrix's LU (few kept vertices), L_II is factorised on
-        first access.
+        A SparseFactor is made on first access.
         """
-        if self._factor is None and self._trailing is not None:
+        if self._factor is None and self.interior.size:
             with single_threaded_blas():
                 self._factor = SparseFactor(submatrix(self._lap, self.interior, self.interior), self._perm_interior)
         return self._factor
@@ -181,6 +178,11 @@ class BoundaryReduction:
     @property
     def schur(self) -> np.ndarray:
         """(K, K) numpy.ndarray of float64: the dense S (from the whole matrix's LU, or on first use by one solve per kept vertex)."""
+        if self._schur is None and self._try_trailing:
+            self._try_trailing = False
+            self._trailing = _TrailingSchur.build(self._lap, self.interior, self.keep, np.asarray(self._perm_interior))
+            if self._trailing is not None:
+                self._schur = self._trailing.schur
         if self._schur is None:
             self._schur = self.apply_schur(np.eye(self.keep.size))
         return self._schur
@@ -264,7 +266,7 @@ class BoundaryReduction:
                 interior[:] = self._trailing.extension(x)
             return self._schur @ x
         out = np.asarray(self._l_kk @ x, dtype=np.float64)
-        if self._factor is None:
+        if self.interior_factor is None:
             return out
         arrays_per_column = self._factor.arrays_per_column
         # An iterative solver may ask for larger blocks (each block costs it a full solve).
@@ -309,7 +311,7 @@ class BoundaryReduction:
         elif self._trailing is not None:
             x = self._trailing.extension(np.column_stack([z_keep.real, z_keep.imag]))
             z[self.interior] = x[:, 0] + 1j * x[:, 1]
-        elif self._factor is not None:
+        elif self.interior_factor is not None:
             rhs = -(self._l_ik @ np.column_stack([z_keep.real, z_keep.imag]))
             with single_threaded_blas():
                 x = self._factor.solve(rhs)

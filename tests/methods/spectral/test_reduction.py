@@ -26,8 +26,9 @@ def _reductions(case, kind, monkeypatch):
 @pytest.mark.parametrize("kind", ["cotangent", "mean-value"])  # symmetric and not
 def test_trailing_block_gives_the_same_schur_complement_and_extensions(holes, kind, monkeypatch):
     trailing, solves = _reductions(holes, kind, monkeypatch)
-    assert trailing._trailing is not None and solves._trailing is None
     s_ref = solves.schur
+    assert trailing.schur is not None and trailing._trailing is not None and solves._trailing is None
+    assert trailing._factor is None  # S and extensions need no interior factorisation
     scale = np.abs(s_ref).max()
     np.testing.assert_allclose(trailing.schur, s_ref, rtol=0, atol=1e-12 * scale)
     np.testing.assert_allclose(trailing.schur.sum(axis=1), 0.0, atol=1e-10 * scale)  # L's zero row sums survive
@@ -47,11 +48,22 @@ def test_trailing_block_gives_the_same_schur_complement_and_extensions(holes, ki
     np.testing.assert_allclose(trailing.interior_factor.solve(b), solves.interior_factor.solve(b), rtol=1e-9)
 
 
+def test_extensions_without_s_use_the_interior_factor_only(holes):
+    """The subspace search extends a few columns and never asks for S: no whole-matrix LU
+    with its dense trailing block then."""
+    keep = np.concatenate(holes.loops)
+    interior = np.setdiff1d(np.arange(holes.lap.shape[0]), keep)
+    red = BoundaryReduction(holes.lap, keep, nested_dissection(holes.points[interior], holes.lap[interior][:, interior]))
+    sx, _ = red.apply_schur_extended(np.eye(keep.size)[:, :4])
+    assert red._trailing is None and red._factor is not None
+    np.testing.assert_allclose(sx, red.schur[:, :4], rtol=0, atol=1e-12 * np.abs(sx).max())
+
+
 def test_pivoting_across_the_blocks_falls_back_to_interior_solves():
     """A zero interior diagonal whose column is largest in a kept row: SuperLU swaps that
     row into the interior block, so the trailing block is not S; the interior solves give
     S = 3 - [5 0] [[0 1] [1 2]]^-1 [5 0]^T = 53."""
     lap = sp.csr_matrix(np.array([[0.0, 1.0, 5.0], [1.0, 2.0, 0.0], [5.0, 0.0, 3.0]]))
     red = BoundaryReduction(lap, np.array([2]), np.array([0, 1]))
-    assert red._trailing is None
     np.testing.assert_allclose(red.schur, [[53.0]])
+    assert red._trailing is None
