@@ -71,9 +71,10 @@ class _TrailingSchur:
         shift = float(kept_diagonal.mean()) if kept_diagonal.size and kept_diagonal.mean() > 0 else 1.0
         a = a + sp.csc_matrix(([shift], ([a.shape[0] - 1], [a.shape[0] - 1])), shape=a.shape)
         try:
-            lu = sla.splu(a, permc_spec="NATURAL", diag_pivot_thresh=0.01,
-                          options=dict(SymmetricMode=True, Equil=False))
-        except RuntimeError:
+            with single_threaded_blas():  # as for SparseFactor: see parambench.methods.spectral.threads
+                lu = sla.splu(a, permc_spec="NATURAL", diag_pivot_thresh=0.01,
+                              options=dict(SymmetricMode=True, Equil=False))
+        except RuntimeError:  # singular: the interior path raises the user-facing SolverError
             return None
         n_i = interior.size
         rows, cols = lu.perm_r[n_i:] - n_i, lu.perm_c[n_i:] - n_i
@@ -93,6 +94,7 @@ class _TrailingSchur:
         out = np.empty((self._n_interior, x.shape[1]))
         out[self._perm] = sol[:self._n_interior]
         return out
+
 
 class BoundaryReduction:
     """Schur complement of a Laplacian onto a kept vertex set.
