@@ -7,6 +7,13 @@ process, with ``TRAILING_SCHUR_MAX = 0`` (an interior factorisation and one solv
 vertex). ``extra_info``: sizes, both times (factorisation and S), their ratio and the
 largest difference of the two S over S's largest entry. Cases: cotangent Laplacians of
 generated meshes (jittered) and pymeshlab's bunny cut open by a plane.
+
+``-k subspace_products``: ``ocp`` end to end on bare points, where its boundary is too long
+for the dense path, with the subspace search's Schur products from that one LU (the
+default while K <= ``TRAILING_PRODUCTS_RATIO`` sqrt(V)) against interior solves
+(``TRAILING_PRODUCTS_MAX = 0``), min of 3 each, alternating, in one process;
+``extra_info``: both times, their ratio, K / sqrt(V) and the two maps' largest distance
+over the map's diameter.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from parambench.datasets_gen.plane_cut import cut_by_plane
 from parambench.datasets_gen.real import pymeshlab_samples_dir
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.mesh.weights import laplacian, mesh_weights
+from parambench.methods.registry import get_method
 from parambench.methods.spectral.ordering import nested_dissection
 
 CASES = [("cap", 5000), ("saddle", 8000), ("bump", 20000), ("bunny-cut", 0)]
@@ -55,3 +63,34 @@ def test_schur_complement_from_one_lu(benchmark, monkeypatch, name, size):
         n_points=int(lap.shape[0]), n_kept=int(keep.size), solves_seconds=solves_seconds,
         time_ratio_vs_solves=benchmark.stats.stats.min / solves_seconds,
         schur_relative_difference=float(np.abs(trailing - by_solves).max() / np.abs(by_solves).max()))
+
+
+PRODUCT_CASES = [("bump", 10000), ("saddle", 10000), ("cap", 10000), ("holes", 10000), ("bump", 50000)]
+
+
+@pytest.mark.parametrize("name,size", PRODUCT_CASES, ids=[f"{n}-{s}" for n, s in PRODUCT_CASES])
+def test_subspace_products_from_one_lu(benchmark, monkeypatch, name, size):
+    surface = make_surface(name, size, sampling="jittered", seed=0)
+    ocp = get_method("ocp")
+    ocp(make_surface(name, 2000, sampling="jittered", seed=0).method_input(False))  # compiled kernels warm
+    baseline = {"seconds": [], "result": None}
+
+    def run_with_interior_solves():  # pedantic's untimed setup: the two paths alternate
+        with monkeypatch.context() as patch:
+            patch.setattr(reduction, "TRAILING_PRODUCTS_MAX", 0)
+            start = time.perf_counter()
+            baseline["result"] = ocp(surface.method_input(False))
+            baseline["seconds"].append(time.perf_counter() - start)
+
+    benchmark.group = "reduction-subspace"
+    result = benchmark.pedantic(lambda: ocp(surface.method_input(False)), setup=run_with_interior_solves,
+                                rounds=3, iterations=1)
+    uv_old = baseline["result"].uv
+    n_kept = int(sum(len(loop) for loop in result.diagnostics["boundary_loops"]))
+    benchmark.extra_info.update(
+        n_points=int(surface.points.shape[0]), n_kept=n_kept,
+        kept_over_sqrt_points=n_kept / np.sqrt(surface.points.shape[0]),
+        backend=result.diagnostics.get("backend"), solves_seconds=min(baseline["seconds"]),
+        time_ratio_vs_solves=benchmark.stats.stats.min / min(baseline["seconds"]),
+        uv_max_difference_over_diameter=float(np.abs(result.uv - uv_old).max() / np.ptp(uv_old, axis=0).max()),
+        selfcheck_passed=bool(result.diagnostics["selfcheck"]["passed"]))

@@ -16,7 +16,9 @@ only z_K. This is the back end of the k searches with B = boundary indicator.
 Up to :data:`TRAILING_SCHUR_MAX` kept vertices, S comes from one factorisation of the
 whole matrix with the kept vertices ordered last instead (:class:`_TrailingSchur`):
 without pivoting across the two blocks, the trailing block of that LU is S's own LU, so
-the K solves (each a pass through every factor) are replaced by one K x K product.
+the K solves (each a pass through every factor) are replaced by one K x K product. The
+subspace search's Schur products use that S too while the kept set is short against V
+(:data:`TRAILING_PRODUCTS_RATIO`): one matmul each instead of one interior solve per column.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ from .ordering import submatrix
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 
-__all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real_pencil", "TRAILING_SCHUR_MAX"]
+__all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real_pencil", "TRAILING_SCHUR_MAX",
+           "TRAILING_PRODUCTS_MAX", "TRAILING_PRODUCTS_RATIO"]
 
 #: Kept sets up to this size get S from the trailing block of one LU of the whole matrix.
 #: Measured on pymeshlab's bunny cut open (15,448 points, 262 kept): S in 0.16 s after a
@@ -41,6 +44,18 @@ __all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real
 #: agreed to 7e-16 of its largest entry. SuperLU factors the trailing block as a dense
 #: one (K^3 / 3 flops without vendor BLAS), hence the bound.
 TRAILING_SCHUR_MAX = 1000
+
+#: Schur *products* (the subspace search's, S never formed otherwise) come from that LU too
+#: up to this many kept vertices, and only while K <= TRAILING_PRODUCTS_RATIO * sqrt(V).
+#: Its dense trailing block costs K^3 / 3 against the interior factorisation's ~V^1.5, so
+#: the extra cost grows as (K / sqrt(V))^3; it buys 70-110 products (the subspace path's
+#: basis and refinements) at one matmul each. Measured, ocp end to end, jittered, min of
+#: 2-5 runs against interior solves: bump / cap / saddle (one loop, K / sqrt(V) 3.3-3.7)
+#: 10k 1.12 / 1.20 / 1.30 -> 1.03 / 1.02 / 1.24 s, 50k bump / cap 6.6 / 5.6 -> 4.8 / 4.5 s,
+#: 100k (K 1041-1176) 13.0 / 14.5 -> 9.9 / 11.8 s; holes (four loops, ratio 6.0): 10k
+#: even, 20k 1.63 -> 1.91 s, 50k (K 1350) 5.1 -> 6.7 s, 100k (K 1905) 10.5 -> 11.2 s.
+TRAILING_PRODUCTS_MAX = 1200
+TRAILING_PRODUCTS_RATIO = 4.5
 
 
 class _TrailingSchur:
@@ -81,7 +96,9 @@ class _TrailingSchur:
         if (rows < 0).any() or (cols < 0).any():
             return None
         with single_threaded_blas():
-            product = (lu.L[n_i:, n_i:] @ lu.U[n_i:, n_i:]).toarray()
+            # dense: the trailing factors are full triangles, and BLAS multiplies them
+            # ~10x faster than a sparse product (368 kept: 3 ms against 30 ms)
+            product = lu.L[n_i:, n_i:].toarray() @ lu.U[n_i:, n_i:].toarray()
         return cls(lu, n_i, perm_interior, product[np.ix_(rows, cols)], shift)
 
     def extension(self, x: np.ndarray) -> np.ndarray:
@@ -145,12 +162,15 @@ class BoundaryReduction:
         self._schur: np.ndarray | None = None
         self._trailing: _TrailingSchur | None = None
         self._lap, self._perm_interior = lap, perm_interior
-        # S from the whole matrix's LU is tried when S is first asked for; the interior
+        # S from the whole matrix's LU is tried when S, or (for a small enough kept set
+        # against V) a first Schur product, is asked for; otherwise the interior
         # factorisation is made when a solve with L_II is first needed, so the dense
-        # path (S, then one extension) never makes it and the subspace path (a few
-        # extensions, no S) never pays for the dense trailing block.
-        self._try_trailing = bool(self.interior.size and interior_solver is None and perm_interior is not None
-                                  and self.keep.size <= TRAILING_SCHUR_MAX)
+        # path (S, then one extension) never makes it and a subspace path with a long
+        # boundary never pays for the dense trailing block.
+        viable = bool(self.interior.size and interior_solver is None and perm_interior is not None)
+        self._try_trailing = viable and self.keep.size <= TRAILING_SCHUR_MAX
+        self._trailing_products = viable and self.keep.size <= min(
+            TRAILING_PRODUCTS_MAX, TRAILING_PRODUCTS_RATIO * np.sqrt(n))
         self._factor = None
         if self.interior.size and interior_solver is not None:
             self._factor = interior_solver(submatrix(lap, self.interior, self.interior), self.interior)
@@ -180,14 +200,21 @@ class BoundaryReduction:
     @property
     def schur(self) -> np.ndarray:
         """(K, K) numpy.ndarray of float64: the dense S (from the whole matrix's LU, or on first use by one solve per kept vertex)."""
-        if self._schur is None and self._try_trailing:
-            self._try_trailing = False
-            self._trailing = _TrailingSchur.build(self._lap, self.interior, self.keep, np.asarray(self._perm_interior))
-            if self._trailing is not None:
-                self._schur = self._trailing.schur
+        self._ensure_trailing()
         if self._schur is None:
             self._schur = self.apply_schur(np.eye(self.keep.size))
         return self._schur
+
+    def _ensure_trailing(self, for_products: bool = False) -> None:
+        """Try S from the whole matrix's LU once, for S itself or for Schur products.
+
+        See :data:`TRAILING_SCHUR_MAX` and :data:`TRAILING_PRODUCTS_MAX` for when.
+        """
+        if self._trailing_products if for_products else self._try_trailing:
+            self._try_trailing = self._trailing_products = False
+            self._trailing = _TrailingSchur.build(self._lap, self.interior, self.keep, np.asarray(self._perm_interior))
+            if self._trailing is not None:
+                self._schur = self._trailing.schur
 
     @property
     def solves_are_iterative(self) -> bool:
@@ -215,8 +242,9 @@ class BoundaryReduction:
         Returns
         -------
         (K, m) numpy.ndarray of float64
-            Costs m solves with the interior factorisation, in blocks bounded by
-            ``max_block_bytes``.
+            A matmul with S where S comes from the whole matrix's LU (see
+            :data:`TRAILING_PRODUCTS_MAX`); otherwise m solves with the interior
+            factorisation, in blocks bounded by ``max_block_bytes``.
         """
         return self._schur_product(x, None)
 
@@ -263,6 +291,8 @@ class BoundaryReduction:
 
     def _schur_product(self, x: np.ndarray, interior: np.ndarray | None, warm: bool = False) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
+        if self._factor is None:  # before the first solve: S from one LU may be cheaper
+            self._ensure_trailing(for_products=True)
         if self._trailing is not None:
             if interior is not None:
                 interior[:] = self._trailing.extension(x)

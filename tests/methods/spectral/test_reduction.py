@@ -59,6 +59,29 @@ def test_extensions_without_s_use_the_interior_factor_only(holes):
     np.testing.assert_allclose(sx, red.schur[:, :4], rtol=0, atol=1e-12 * np.abs(sx).max())
 
 
+def test_products_on_a_short_boundary_come_from_the_whole_matrix_lu(saddle, monkeypatch):
+    """One loop of 146 around 2009 vertices (K / sqrt(V) = 3.3): the subspace search's
+    products are matmuls with S from the trailing block, never interior solves, and agree
+    with them; the holes case (5.9) is the other side of the rule (test above)."""
+    keep = np.concatenate(saddle.loops)
+    interior = np.setdiff1d(np.arange(saddle.lap.shape[0]), keep)
+    perm = nested_dissection(saddle.points[interior], saddle.lap[interior][:, interior])
+    red = BoundaryReduction(saddle.lap, keep, perm)
+    with monkeypatch.context() as patch:
+        patch.setattr(reduction, "TRAILING_PRODUCTS_MAX", 0)
+        patch.setattr(reduction, "TRAILING_SCHUR_MAX", 0)
+        ref = BoundaryReduction(saddle.lap, keep, perm)
+    x = np.random.default_rng(2).standard_normal((keep.size, 5))
+    sx = red.apply_schur(x)
+    assert red._trailing is not None and red._factor is None
+    assert ref._trailing is None
+    sx_ref = ref.apply_schur(x)
+    assert ref._factor is not None
+    np.testing.assert_allclose(sx, sx_ref, rtol=0, atol=1e-12 * np.abs(sx_ref).max())
+    z = x[:, 0] + 1j * x[:, 1]
+    np.testing.assert_allclose(red.extend(z), ref.extend(z), rtol=0, atol=1e-11 * np.abs(z).max())
+
+
 def test_pivoting_across_the_blocks_falls_back_to_interior_solves():
     """A zero interior diagonal whose column is largest in a kept row: SuperLU swaps that
     row into the interior block, so the trailing block is not S; the interior solves give
