@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from ..numba_cache import configure_numba_cache
 from ..pointset.reorder import insert_sorted
 
-__all__ = ["nested_dissection", "symmetric_permutation", "submatrix"]
+__all__ = ["nested_dissection", "nested_dissection_with_root", "symmetric_permutation", "submatrix"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -119,7 +119,24 @@ def _fill_kept(indptr, indices, data, rows, column_of, out_ptr, out_idx, out_val
 
 
 def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int = 64) -> np.ndarray:
-    """Geometric nested-dissection permutation.
+    """Geometric nested-dissection permutation (:func:`nested_dissection_with_root`'s, alone).
+
+    Parameters
+    ----------
+    points : (V, d) numpy.ndarray of float64
+    pattern : (V, V) scipy.sparse matrix
+    leaf_size : int
+
+    Returns
+    -------
+    (V,) numpy.ndarray of int64
+    """
+    return nested_dissection_with_root(points, pattern, leaf_size)[0]
+
+
+def nested_dissection_with_root(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int = 64
+                                ) -> tuple[np.ndarray, int]:
+    """Geometric nested-dissection permutation and the size of its first (root) separator.
 
     Parameters
     ----------
@@ -132,10 +149,15 @@ def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int =
 
     Returns
     -------
-    (V,) numpy.ndarray of int64
+    perm : (V,) numpy.ndarray of int64
         ``perm`` such that ``A[perm][:, perm]`` factorises with little fill.
+    root_separator : int
+        How many vertices the first split's separator has (the last ones of ``perm``;
+        0 when V is at most ``leaf_size`` or cannot be split): the order of the densest
+        front of the factorisation.
     """
     n = points.shape[0]
+    root_separator = 0
     coo = sp.triu(sp.csr_matrix(pattern) + sp.csr_matrix(pattern).T, k=1).tocoo()
     pieces: list[np.ndarray] = []
     # Explicit stack of (vertex ids, local edge endpoints, emit-only flag); children are
@@ -156,6 +178,8 @@ def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int =
         sep = np.zeros(idx.size, dtype=bool)
         # One-sided separator: the left endpoints of the edges that cross the cut.
         sep[np.where(left[a[cross]], a[cross], b[cross])] = True
+        if idx.size == n:
+            root_separator = int(sep.sum())
         part_l = left & ~sep
         part_r = ~left
         children = []
@@ -166,7 +190,7 @@ def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf_size: int =
         stack.append((idx[sep], a[:0], b[:0], True))
         stack.append(children[1])
         stack.append(children[0])
-    return np.concatenate(pieces)
+    return np.concatenate(pieces), root_separator
 
 
 def _median_split(p: np.ndarray) -> np.ndarray | None:

@@ -32,7 +32,7 @@ from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, 
 from ..hints import Hint, hinted
 from .ksearch import DEFAULT_R, KPoint, line_search, root_search_near
 from .operators import area_matrix, boundary_indicator, check_loops, conformal_operator, is_symmetric, rayleigh_energy
-from .ordering import nested_dissection
+from .ordering import nested_dissection, nested_dissection_with_root
 from .reduction import BoundaryReduction, deflation_basis, dense_real_pencil, dense_smallest, pencil_k_estimates
 from .sparse_eigen import SparseFactor, smallest_eigenpair
 from .subspace import DEFAULT_MODES, BoundarySubspace
@@ -263,7 +263,7 @@ class ConformalProblem:
         extra = tuple(int(v) for v in extra if int(v) not in set(self.boundary.tolist()))
         if extra not in self._reductions:
             keep = np.concatenate([self.boundary, np.asarray(extra, dtype=np.int64)])
-            perm = None
+            perm, root = None, None
             if not extra and self._interior_solver is not None:
                 red = BoundaryReduction(self.laplacian, keep, interior_solver=self._interior_solver)
                 self._reductions[extra] = red
@@ -272,8 +272,8 @@ class ConformalProblem:
                 mask = np.ones(self.n, dtype=bool)
                 mask[keep] = False
                 interior = np.flatnonzero(mask)
-                perm = nested_dissection(self.points[interior], self.laplacian[interior][:, interior])
-            red = BoundaryReduction(self.laplacian, keep, perm)
+                perm, root = nested_dissection_with_root(self.points[interior], self.laplacian[interior][:, interior])
+            red = BoundaryReduction(self.laplacian, keep, perm, root_separator=root)
             self._counts["factorizations"] += 1
             self._reductions[extra] = red
         return self._reductions[extra]

@@ -18,7 +18,7 @@ whole matrix with the kept vertices ordered last instead (:class:`_TrailingSchur
 without pivoting across the two blocks, the trailing block of that LU is S's own LU, so
 the K solves (each a pass through every factor) are replaced by one K x K product. The
 subspace search's Schur products use that S too while the kept set is short against V
-(:data:`TRAILING_PRODUCTS_RATIO`): one matmul each instead of one interior solve per column.
+(:data:`TRAILING_PRODUCTS_PER_SEPARATOR`): one matmul each instead of one interior solve per column.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 
 __all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real_pencil", "TRAILING_SCHUR_MAX",
-           "TRAILING_PRODUCTS_MAX", "TRAILING_PRODUCTS_RATIO"]
+           "TRAILING_PRODUCTS_MAX", "TRAILING_PRODUCTS_PER_SEPARATOR"]
 
 #: Kept sets up to this size get S from the trailing block of one LU of the whole matrix.
 #: Measured on pymeshlab's bunny cut open (15,448 points, 262 kept): S in 0.16 s after a
@@ -46,16 +46,18 @@ __all__ = ["BoundaryReduction", "deflation_basis", "dense_smallest", "dense_real
 TRAILING_SCHUR_MAX = 1000
 
 #: Schur *products* (the subspace search's, S never formed otherwise) come from that LU too
-#: up to this many kept vertices, and only while K <= TRAILING_PRODUCTS_RATIO * sqrt(V).
-#: Its dense trailing block costs K^3 / 3 against the interior factorisation's ~V^1.5, so
-#: the extra cost grows as (K / sqrt(V))^3; it buys 70-110 products (the subspace path's
-#: basis and refinements) at one matmul each. Measured, ocp end to end, jittered, min of
-#: 2-5 runs against interior solves: bump / cap / saddle (one loop, K / sqrt(V) 3.3-3.7)
-#: 10k 1.12 / 1.20 / 1.30 -> 1.03 / 1.02 / 1.24 s, 50k bump / cap 6.6 / 5.6 -> 4.8 / 4.5 s,
-#: 100k (K 1041-1176) 13.0 / 14.5 -> 9.9 / 11.8 s; holes (four loops, ratio 6.0): 10k
-#: even, 20k 1.63 -> 1.91 s, 50k (K 1350) 5.1 -> 6.7 s, 100k (K 1905) 10.5 -> 11.2 s.
+#: up to this many kept vertices, and only while K is at most TRAILING_PRODUCTS_PER_SEPARATOR
+#: times the size s of the interior ordering's root separator. The factorisation's densest
+#: front is s x s; kept last, the boundary makes it (s + K) x (s + K), so K / s is what the
+#: extra cost grows with; it buys the subspace path's 70-110 products at one matmul each.
+#: Measured, ocp end to end, min of 2-5 runs against interior solves (K / s in brackets):
+#: jittered bump / cap / saddle 10k (1.25 / - / -) 1.12 / 1.20 / 1.30 -> 1.03 / 1.02 / 1.24 s,
+#: cap 20k (1.08) 3.47 -> 2.44 s, bump / cap 50k 7.95 / 9.49 -> 6.47 / 6.85 s, bump 100k
+#: (1.29, K 1176) 13.0 -> 9.9 s, graded bump 20k (1.40) 6.00 -> 4.67 s; jittered holes
+#: (four loops) 20k (2.85) 1.63 -> 1.91 s, 50k (2.89, K 1350) 5.1 -> 6.7 s, graded holes 20k
+#: (2.47) even. K / sqrt(V) does not separate them (graded bump 4.77 wins, holes 6.0 loses).
 TRAILING_PRODUCTS_MAX = 1200
-TRAILING_PRODUCTS_RATIO = 4.5
+TRAILING_PRODUCTS_PER_SEPARATOR = 2.0
 
 
 class _TrailingSchur:
@@ -131,6 +133,11 @@ class BoundaryReduction:
         :class:`~parambench.methods.spectral.twogrid.TwoGridSolver`; a
         :class:`~parambench.methods.spectral.sparse_eigen.SparseFactor` in ``perm_interior``'s
         order when omitted.
+    root_separator : int, optional
+        Size of the root separator of ``perm_interior``'s nested dissection
+        (:func:`~parambench.methods.spectral.ordering.nested_dissection_with_root`): Schur
+        products come from the whole matrix's LU only when it is given and the kept set is
+        short against it (:data:`TRAILING_PRODUCTS_PER_SEPARATOR`).
     max_block_bytes : int
         Memory bound for the work arrays of one block of right-hand sides. Wider blocks
         solve faster per right-hand side (measured with a single-precision factor at
@@ -148,7 +155,7 @@ class BoundaryReduction:
     """
 
     def __init__(self, laplacian: sp.spmatrix, keep: np.ndarray, perm_interior: np.ndarray | None = None,
-                 max_block_bytes: int = 128 * 2**20, interior_solver=None) -> None:
+                 max_block_bytes: int = 128 * 2**20, interior_solver=None, root_separator: int | None = None) -> None:
         lap = sp.csr_matrix(laplacian)
         n = lap.shape[0]
         self.keep = np.asarray(keep, dtype=np.int64)
@@ -169,8 +176,8 @@ class BoundaryReduction:
         # boundary never pays for the dense trailing block.
         viable = bool(self.interior.size and interior_solver is None and perm_interior is not None)
         self._try_trailing = viable and self.keep.size <= TRAILING_SCHUR_MAX
-        self._trailing_products = viable and self.keep.size <= min(
-            TRAILING_PRODUCTS_MAX, TRAILING_PRODUCTS_RATIO * np.sqrt(n))
+        self._trailing_products = viable and root_separator is not None and self.keep.size <= min(
+            TRAILING_PRODUCTS_MAX, TRAILING_PRODUCTS_PER_SEPARATOR * root_separator)
         self._factor = None
         if self.interior.size and interior_solver is not None:
             self._factor = interior_solver(submatrix(lap, self.interior, self.interior), self.interior)

@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 import parambench.methods.spectral.reduction as reduction
-from parambench.methods.spectral.ordering import nested_dissection
+from parambench.methods.spectral.ordering import nested_dissection, nested_dissection_with_root
+from parambench.datasets_gen.registry import make_surface
 from parambench.methods.spectral.reduction import BoundaryReduction
 
 
@@ -59,27 +61,57 @@ def test_extensions_without_s_use_the_interior_factor_only(holes):
     np.testing.assert_allclose(sx, red.schur[:, :4], rtol=0, atol=1e-12 * np.abs(sx).max())
 
 
-def test_products_on_a_short_boundary_come_from_the_whole_matrix_lu(saddle, monkeypatch):
-    """One loop of 146 around 2009 vertices (K / sqrt(V) = 3.3): the subspace search's
-    products are matmuls with S from the trailing block, never interior solves, and agree
-    with them; the holes case (5.9) is the other side of the rule (test above)."""
-    keep = np.concatenate(saddle.loops)
-    interior = np.setdiff1d(np.arange(saddle.lap.shape[0]), keep)
-    perm = nested_dissection(saddle.points[interior], saddle.lap[interior][:, interior])
-    red = BoundaryReduction(saddle.lap, keep, perm)
+@pytest.fixture(scope="module")
+def point_laplacians():
+    """ocp's Laplacians (W^tan, 27-30 nonzeros per row) of bare points, with their loops."""
+    from parambench.methods.plugins.ocp import ocp_laplacian
+    from parambench.methods.pointset.frontend import build_frontend
+
+    out = {}
+    for name in ("bump", "holes"):
+        front = build_frontend(make_surface(name, 3000, sampling="jittered", seed=0).points)
+        lap = ocp_laplacian(front)
+        out[name] = (sp.csr_matrix(lap[0] if isinstance(lap, tuple) else lap), front.points, front.boundary_loops)
+    return out
+
+
+@pytest.mark.parametrize("name,from_lu", [("bump", True), ("holes", False)])
+def test_products_come_from_the_whole_matrix_lu_when_the_boundary_is_short(point_laplacians, name, from_lu,
+                                                                           monkeypatch):
+    """bump: one loop of 200 points around 2962, K / s = 1.3 for the interior ordering's
+    root separator s: the subspace search's products are matmuls with S from the trailing
+    block, never interior solves. holes: four loops, 324 points against s = 113 (2.9):
+    interior solves. Either way products and extensions agree with interior solves'."""
+    lap, points, loops = point_laplacians[name]
+    keep = np.concatenate(loops)
+    interior = np.setdiff1d(np.arange(lap.shape[0]), keep)
+    perm, root = nested_dissection_with_root(points[interior], lap[interior][:, interior])
+    assert (keep.size <= reduction.TRAILING_PRODUCTS_PER_SEPARATOR * root) == from_lu
+    red = BoundaryReduction(lap, keep, perm, root_separator=root)
     with monkeypatch.context() as patch:
         patch.setattr(reduction, "TRAILING_PRODUCTS_MAX", 0)
         patch.setattr(reduction, "TRAILING_SCHUR_MAX", 0)
-        ref = BoundaryReduction(saddle.lap, keep, perm)
+        ref = BoundaryReduction(lap, keep, perm, root_separator=root)
     x = np.random.default_rng(2).standard_normal((keep.size, 5))
     sx = red.apply_schur(x)
-    assert red._trailing is not None and red._factor is None
-    assert ref._trailing is None
+    assert (red._trailing is not None) == from_lu and (red._factor is None) == from_lu
     sx_ref = ref.apply_schur(x)
-    assert ref._factor is not None
-    np.testing.assert_allclose(sx, sx_ref, rtol=0, atol=1e-12 * np.abs(sx_ref).max())
+    assert ref._trailing is None and ref._factor is not None
+    np.testing.assert_allclose(sx, sx_ref, rtol=0, atol=1e-11 * np.abs(sx_ref).max())
     z = x[:, 0] + 1j * x[:, 1]
-    np.testing.assert_allclose(red.extend(z), ref.extend(z), rtol=0, atol=1e-11 * np.abs(z).max())
+    np.testing.assert_allclose(red.extend(z), ref.extend(z), rtol=0, atol=1e-10 * np.abs(z).max())
+
+
+def test_root_separator_is_the_end_of_the_permutation(saddle):
+    """The root separator splits the rest: no edge of the graph joins the vertices ordered
+    before it on the two sides of the first split."""
+    perm, root = nested_dissection_with_root(saddle.points, saddle.lap)
+    assert 0 < root < perm.size // 4
+    np.testing.assert_array_equal(perm, nested_dissection(saddle.points, saddle.lap))
+    rest = perm[:-root]
+    pattern = (abs(saddle.lap) > 0).astype(np.int8).tocsr()[rest][:, rest]
+    n_components, _ = connected_components(pattern, directed=False)
+    assert n_components >= 2
 
 
 def test_pivoting_across_the_blocks_falls_back_to_interior_solves():
