@@ -67,6 +67,51 @@ def test_self_intersecting_boundary_falls_back_to_delaunay():
     assert tri.faces.max() < len(square)
 
 
+def _brute_winding(query, polygon):
+    """Crossing-rule winding number, one query x every edge: the reference."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    qx, qy = query[:, :1], query[:, 1:]
+    cross = (b[:, 0] - a[:, 0]) * (qy - a[:, 1]) - (b[:, 1] - a[:, 1]) * (qx - a[:, 0])
+    up = (a[:, 1] <= qy) & (b[:, 1] > qy) & (cross > 0)
+    down = (a[:, 1] > qy) & (b[:, 1] <= qy) & (cross < 0)
+    return up.sum(axis=1) - down.sum(axis=1)
+
+
+@pytest.mark.parametrize("max_pairs", [4_000_000, 7])  # one block of edges, and many
+def test_banded_winding_matches_every_edge_against_every_query(max_pairs):
+    from parambench.methods.pointset.uv_triangulation import _winding
+
+    rng = np.random.default_rng(0)
+    # A loop wound twice (winding 2 inside the small circle) and random self-crossing polygons.
+    t = np.linspace(0, 4 * np.pi, 80, endpoint=False)
+    polygons = [np.c_[np.cos(t), np.sin(t)] * (1 + 0.2 * (t > 2 * np.pi))[:, None]]
+    polygons += [rng.standard_normal((int(rng.integers(3, 150)), 2)) for _ in range(10)]
+    for poly in polygons:
+        q = rng.standard_normal((3000, 2))
+        q[:40] = poly[rng.integers(0, len(poly), 40)]  # on vertices
+        q[40:80, 1] = poly[rng.integers(0, len(poly), 40), 1]  # level with vertices
+        np.testing.assert_array_equal(_winding(q, poly, max_pairs=max_pairs), _brute_winding(q, poly))
+    assert _winding(np.zeros((1, 2)), polygons[0])[0] == 2
+
+
+def test_cdt_regions_classify_like_every_centroid():
+    """Flooding Triangle's neighbours without crossing a loop gives each face the class its
+    own centroid has (the grid with a round hole, and the same map sheared)."""
+    from parambench.methods.pointset.uv_triangulation import _inside
+
+    pts, outer, rim = _grid_with_hole(n=31, hole=6.0)
+    for uv in (pts[:, :2], pts[:, :2] @ np.array([[1.0, 0.3], [0.0, 1.0]])):
+        tri = triangulate_uv(uv, [outer, rim])
+        assert tri.kind == "cdt" and tri.n_removed > 0
+        assert _inside(uv[tri.faces].mean(axis=1), uv, [outer, rim]).all()
+        assert _area(uv, tri.faces).sum() == pytest.approx(_area(uv, triangulate_uv(uv).faces).sum()
+                                                           - abs(_polygon_area(uv[rim])), rel=1e-9)
+
+
+def _polygon_area(p):
+    return 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
+
+
 def test_identity_and_mirror_of_a_flat_patch_pass():
     pts, outer, rim = _grid_with_hole()
     normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
