@@ -67,6 +67,8 @@ class _CheckInputs:
     spacing: float
     loops: list
     candidates: np.ndarray | None
+    #: Median predicted error of the normals stage's kNN fits (degrees), None if not fitted.
+    normal_error_deg: float | None = None
 
 
 #: Front-end facts of the last run on each surface, taken (and dropped) by
@@ -105,8 +107,11 @@ def _check_inputs(front: FrontEnd) -> _CheckInputs:
         candidates = frontend_candidates(front)
     except Exception:  # the check is optional; a changed front end must not fail a method
         candidates = None
+    fit = (front.diagnostics or {}).get("normal_fit") or {}
+    median = (fit.get("predicted_error_deg") or {}).get("median")
     return _CheckInputs(normals=front.normals, knn_indices=front.knn_indices, spacing=front.mean_spacing,
-                        loops=list(front.boundary_loops), candidates=candidates)
+                        loops=list(front.boundary_loops), candidates=candidates,
+                        normal_error_deg=None if median is None else float(median))
 
 
 def _estimated_inputs(surface: MethodInput, result) -> _CheckInputs:
@@ -150,7 +155,7 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
         inputs = _CHECK_INPUTS.pop(surface, None) or _estimated_inputs(surface, result)
         check = check_pointset_map(surface.points, result.uv, inputs.normals, inputs.loops,
                                    knn_indices=inputs.knn_indices, spacing=inputs.spacing,
-                                   candidates=inputs.candidates)
+                                   candidates=inputs.candidates, normal_error_deg=inputs.normal_error_deg)
     except Exception as exc:  # checking must never hide a result
         check = {"passed": False, "reason": f"the self-check could not run ({type(exc).__name__}: {exc})",
                  "failed": ["check-error"]}

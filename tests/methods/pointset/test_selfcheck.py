@@ -461,3 +461,24 @@ def test_a_solver_error_on_loops_that_miss_candidates_is_restated_with_front_end
     support._CHECK_INPUTS[surface] = support._CheckInputs(normals, knn, 1.0, [outer, rim], candidates)
     assert support.boundary_doubt(surface, solver_error()) is None
     assert support.boundary_doubt(surface, solver_error()) is None  # nothing left to check with
+
+
+def test_ocp_check_takes_the_normals_stage_fit_error_unchanged(monkeypatch):
+    """The check's normal tolerance comes from the front end's kNN fits instead of fitting
+    the same graph again: it is handed the median error, and the tolerance is the one the
+    recomputation gives."""
+    from parambench.datasets_gen.registry import make_surface
+    from parambench.methods.pointset import selfcheck
+    from parambench.methods.pointset.frontend import build_frontend
+    from parambench.methods.registry import get_method
+
+    surface = make_surface("bump", 2500, sampling="jittered", seed=0, noise=0.05)
+    expected = selfcheck.normal_tolerance_deg(surface.points, build_frontend(surface.points).knn_indices)
+    assert 0.0 < expected < selfcheck.NORMAL_TOL_DEG  # neither a noise-free plane nor the cap
+    handed = []
+    original = selfcheck.normal_tolerance_deg
+    monkeypatch.setattr(selfcheck, "normal_tolerance_deg",
+                        lambda points, knn, median=None: (handed.append(median), original(points, knn, median))[1])
+    result = get_method("ocp")(surface.method_input(False))
+    assert handed and all(m is not None for m in handed)
+    assert result.diagnostics["selfcheck"]["normal_tol_deg"] == pytest.approx(round(expected, 3), abs=1e-3)
