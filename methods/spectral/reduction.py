@@ -56,6 +56,9 @@ TRAILING_SCHUR_MAX = 1000
 #: (1.29, K 1176) 13.0 -> 9.9 s, graded bump 20k (1.40) 6.00 -> 4.67 s; jittered holes
 #: (four loops) 20k (2.85) 1.63 -> 1.91 s, 50k (2.89, K 1350) 5.1 -> 6.7 s, graded holes 20k
 #: (2.47) even. K / sqrt(V) does not separate them (graded bump 4.77 wins, holes 6.0 loses).
+#: Between: jittered cylinder 20k (two loops, 1.84) 3.13 -> 2.47 s, random plane 20k (1.63)
+#: 2.32 -> 2.13 s; forced past the bound, slit 20k (2.01) 2.05 -> 1.91 s and holes-bumped
+#: 20k (2.63) 4.17 -> 4.00 s: about even from 2 on, so the bound stays there.
 TRAILING_PRODUCTS_MAX = 1200
 TRAILING_PRODUCTS_PER_SEPARATOR = 2.0
 
