@@ -109,8 +109,8 @@ def _local_spacing(points: np.ndarray, knn: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[knn] - points[:, None, :], axis=-1).mean(axis=1)
 
 
-def _longest_edge(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    p = points[faces]
+def _longest_edge(points: np.ndarray, faces: np.ndarray, corners: np.ndarray | None = None) -> np.ndarray:
+    p = points[faces] if corners is None else corners  # (M, 3, 3) corner positions when the caller has them
     edges = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 1], p[:, 0] - p[:, 2]], axis=1)
     return np.sqrt(np.einsum("mij,mij->mi", edges, edges)).max(axis=1)
 
@@ -242,19 +242,20 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
                 tol_deg: float = NORMAL_TOL_DEG) -> tuple[dict, int]:
     p = points[faces]
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    longest = _longest_edge(points, faces)
+    longest = _longest_edge(points, faces, p)
     bridging = _bridging(longest, faces, spacing_pt)
     n_dropped = 0
     if drop_bridging:
         n_dropped = int(bridging.sum())
         keep = ~bridging
-        faces, e1, e2, longest, bridging = faces[keep], e1[keep], e2[keep], longest[keep], bridging[keep]
+        faces, p, e1, e2, longest, bridging = (faces[keep], p[keep], e1[keep], e2[keep], longest[keep],
+                                               bridging[keep])
     area = np.abs(triangle_signed_areas(uv, faces))  # faces are uv-CCW
     zero = area <= ZERO_AREA_REL * (np.median(area) if area.size else 0.0)
     normal3d = np.cross(e1, e2)
     mean_normal = normals[faces].sum(axis=1)
     agree = np.einsum("mi,mi->m", normal3d, mean_normal)
-    tangent_sliver, uncertain = _tangent_sliver(points[faces], normal3d, mean_normal, tol_deg)
+    tangent_sliver, uncertain = _tangent_sliver(p, normal3d, mean_normal, tol_deg)
     # Never judged: slivers both in the tangent plane and in 3D (three nearly collinear
     # points). A tangent-plane sliver that is well shaped in 3D was stood up by noise:
     # its sign is uncertain, counted with the others.
