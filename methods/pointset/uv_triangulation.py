@@ -73,18 +73,17 @@ def _winding(query: np.ndarray, polygon: np.ndarray, max_pairs: int = 4_000_000)
     start = np.searchsorted(ys, np.minimum(a[:, 1], b[:, 1]), side="left")
     stop = np.searchsorted(ys, np.maximum(a[:, 1], b[:, 1]), side="left")
     counts = stop - start
+    ends = np.cumsum(counts)  # pairs up to and including each edge
     edge = 0
-    while edge < len(polygon):  # edge blocks of at most max_pairs pairs (at least one edge)
-        total = np.cumsum(counts[edge:])
-        last = edge + max(1, int(np.searchsorted(total, max_pairs, side="right")))
-        block = np.arange(edge, last)
-        edge = last
-        n_pairs = int(counts[block].sum())
+    while edge < len(polygon):  # blocks of edges with at most max_pairs pairs (at least one edge)
+        before = ends[edge - 1] if edge else 0
+        last = max(edge + 1, int(np.searchsorted(ends, before + max_pairs, side="right")))
+        block, edge = np.arange(edge, last), last
+        n_pairs = int(ends[last - 1] - before)
         if n_pairs == 0:
             continue
         e = np.repeat(block, counts[block])
-        offsets = np.arange(n_pairs) - np.repeat(np.cumsum(counts[block]) - counts[block], counts[block])
-        q = order[start[e] + offsets]
+        q = order[start[e] + np.arange(n_pairs) - (np.repeat(ends[block] - counts[block], counts[block]) - before)]
         qx, qy = query[q, 0], query[q, 1]
         ax, ay, bx, by = a[e, 0], a[e, 1], b[e, 0], b[e, 1]
         cross = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
