@@ -73,8 +73,11 @@ def hinted(error_cls: type[ParambenchError], stem: str, *hints: Hint) -> Parambe
     Returns
     -------
     ParambenchError
-        To be raised by the caller (``raise hinted(...) from None``).
+        To be raised by the caller (``raise hinted(...) from None``). A hint given twice
+        (a restated error adds remedies its cause may already offer) is said once, where
+        it first appears.
     """
+    hints = tuple(dict.fromkeys(hints))
     exc = error_cls(_render(stem, hints))
     exc.parambench_hints = (stem, hints)
     return exc

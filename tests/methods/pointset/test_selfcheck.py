@@ -445,7 +445,9 @@ def test_a_solver_error_on_loops_that_miss_candidates_is_restated_with_front_end
     surface = MethodInput(points=pts, name="grid")
 
     def solver_error():
-        return hinted(ConvergenceError, "no t = 1 crossing found", Hint("use k_search='direct'", "k_search", "direct"))
+        # The cause may offer front-end remedies of its own (the line search does).
+        return hinted(ConvergenceError, "no t = 1 crossing found", Hint("use k_search='direct'", "k_search", "direct"),
+                      *support.BOUNDARY_HINTS)
 
     # The hole's rim is on no loop: the error says the boundary first, with its remedies.
     support._CHECK_INPUTS[surface] = support._CheckInputs(normals, knn, 1.0, [outer], candidates)
@@ -457,6 +459,8 @@ def test_a_solver_error_on_loops_that_miss_candidates_is_restated_with_front_end
     assert text.startswith(f"the detected boundary looks wrong: {len(rim)} connected boundary candidates lie on no loop")
     assert "no t = 1 crossing found" in text
     assert text.index("boundary_angle_deg") < text.index("k_search='direct'")
+    for hint in support.BOUNDARY_HINTS:  # restating adds no remedy twice (real/cortex-lh said each twice)
+        assert text.count(hint.text) == 1
     # With both loops the boundary is not in doubt: the solver's own error stands.
     support._CHECK_INPUTS[surface] = support._CheckInputs(normals, knn, 1.0, [outer, rim], candidates)
     assert support.boundary_doubt(surface, solver_error()) is None
