@@ -240,6 +240,36 @@ def test_slit_lips_are_two_spacings_apart(sampling, n):
         assert abs(s.params["spacing"] / h - 1) < 0.08
 
 
+def slot_width_over_local_spacing(s) -> np.ndarray:
+    """Per point of the slot's straight lips: the slot's width over the mean 6-NN distance
+    of the points beside it (their own neighbours, slot points excluded: a lip point's
+    kNN reach across the slot and overstate its spacing)."""
+    hole = s.boundary_loops[1]
+    uv = s.exact_uv
+    width = 2.0 * np.abs(uv[hole, 1]).max()
+    lips = hole[np.abs(uv[hole, 0]) < 0.5]
+    others = np.setdiff1d(np.arange(len(uv)), hole)
+    tree = cKDTree(uv[others])
+    spacing = tree.query(uv[others], 7)[0][:, 1:].mean(axis=1)
+    beside = tree.query(uv[lips], 6)[1]
+    return width / spacing[beside].mean(axis=1)
+
+
+@pytest.mark.parametrize("n", [2000, 20000])
+def test_graded_slit_keeps_its_slot_two_spacings_wide(n):
+    """A graded sampling's sparse plateau is about twice the nominal spacing, so without the
+    slit's refinement the lips there were under one local spacing apart (ratio 0.81-0.85
+    at the sparsest tenth): a slot no sampling of that density shows. Refined, the slot is
+    as wide in local spacings as on the uniform samplings."""
+    graded = slot_width_over_local_spacing(make_surface("slit", n, sampling="graded", seed=0))
+    jittered = slot_width_over_local_spacing(make_surface("slit", n, sampling="jittered", seed=0))
+    assert np.percentile(graded, 10) > 1.3
+    assert np.median(graded) == pytest.approx(np.median(jittered), rel=0.15)
+    shape = gap_shape("slit", n)  # the refinement is local: nothing changes 6 spacings away
+    assert shape.refinement(np.array([[0.0, 0.0], [0.0, 7.0 * shape.spacing + 0.5 * 2.0 * shape.spacing]])) \
+        == pytest.approx([0.6, 0.0])
+
+
 @pytest.mark.parametrize("n", [2000, 20000])
 def test_fold_sheets_close_from_2_5_to_2_spacings(n):
     s = make_surface("fold", n, sampling="blue-noise", seed=0)
