@@ -322,13 +322,22 @@ class BoundaryReduction:
             for start in range(0, x.shape[1], block):
                 cols = slice(start, min(start + block, x.shape[1]))
                 rhs = np.ascontiguousarray(self._l_ik @ x[:, cols])
-                if warm and self.solves_are_iterative:
-                    sol = self._factor.solve(rhs, guess=-interior[:, cols])
+                # No block-sized temporary beyond the solver's own arrays
+                # (``arrays_per_column``): an iterative solve returns its solution in
+                # rhs, the warm start is the kept values negated in place (they are
+                # overwritten below, and a start only changes the cycles' count).
+                if self.solves_are_iterative:
+                    guess = None
+                    if warm and interior is not None:
+                        guess = interior[:, cols]
+                        np.negative(guess, out=guess)
+                    sol = self._factor.solve(rhs, guess=guess, overwrite_rhs=True)
                 else:
                     sol = self._factor.solve(rhs)
+                del rhs
                 out[:, cols] -= self._l_ki @ sol
                 if interior is not None:
-                    interior[:, cols] = -sol
+                    np.negative(sol, out=interior[:, cols])
         return out
 
     def extend(self, z_keep: np.ndarray, interior: np.ndarray | None = None) -> np.ndarray:

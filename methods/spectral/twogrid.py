@@ -50,27 +50,26 @@ _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 
 @numba.njit(cache=_CACHE, nogil=True, fastmath=True)
-def _gauss_seidel(indptr, indices, data, diag, b, x, c0, c1, sweeps, backward):  # pragma: no cover - compiled
-    """In-place Gauss-Seidel sweeps on columns c0:c1 of the block x (rows in order or reversed).
+def _gauss_seidel(indptr, indices, data, diag, b, b0, x, sweeps, backward):  # pragma: no cover - compiled
+    """In-place Gauss-Seidel sweeps on the block x, right-hand sides columns b0: of b (rows in order or reversed).
 
     The diagonal term is summed with the others and added back, so the inner loop over
     the columns has no branch and vectorises (2.3x faster at 11 columns).
     """
-    n = x.shape[0]
-    width = c1 - c0
+    n, width = x.shape
     acc = np.empty(width)
     for _ in range(sweeps):
         for step in range(n):
             i = n - 1 - step if backward else step
             for c in range(width):
-                acc[c] = b[i, c0 + c]
+                acc[c] = b[i, b0 + c]
             for p in range(indptr[i], indptr[i + 1]):
                 a = data[p]
-                xj = x[indices[p], c0:c1]
+                xj = x[indices[p]]
                 for c in range(width):
                     acc[c] -= a * xj[c]
             di = diag[i]
-            xi = x[i, c0:c1]
+            xi = x[i]
             for c in range(width):
                 xi[c] = (acc[c] + di * xi[c]) / di
 
@@ -116,7 +115,9 @@ class TwoGridSolver:
         Always False (the attribute :class:`~parambench.methods.spectral.reduction.BoundaryReduction` reads).
     arrays_per_column : int
         Work arrays of the matrix's size per right-hand side (block-size budget): the
-        right-hand side's copy per worker, the solution and the returned copy.
+        right-hand side and the workers' solutions, written into it when the caller
+        lets the solve overwrite it (``overwrite_rhs``); a permuted copy more when the
+        rows are reordered.
     max_block_bytes : int
         The block-size budget this solver asks for (larger than a factorisation's).
     iterative : bool
@@ -125,7 +126,6 @@ class TwoGridSolver:
     """
 
     mixed = False
-    arrays_per_column = 3
     #: Column blocks up to this size (:class:`~parambench.methods.spectral.reduction.BoundaryReduction`):
     #: every block costs its own cycles (at 1M points 9 per block: 21 columns in one
     #: block took 21 s, in three blocks of at most 8 columns 44 s).
@@ -162,13 +162,24 @@ class TwoGridSolver:
             self._fall_back()
 
     @property
+    def arrays_per_column(self) -> int:
+        """2 in the caller's order, 3 when the rows are permuted (a permuted copy of the block).
+
+        The workers read their columns of the right-hand side in place (read-only, so no
+        cache lines are shared for writing) and copy their solutions into it at the end:
+        2 arrays per column instead of 3, so at 1M points the 41 right-hand sides of
+        "holes" fit one block of cycles instead of two.
+        """
+        return 2 if self._identity else 3
+
+    @property
     def fell_back(self) -> bool:
         return self._direct is not None
 
     def _fall_back(self) -> None:
         self._direct = SparseFactor(self._a)
 
-    def solve(self, rhs: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, guess: np.ndarray | None = None, *, overwrite_rhs: bool = False) -> np.ndarray:
         """Solve for a vector or an (n, c) block of right-hand sides (real or complex).
 
         Parameters
@@ -177,6 +188,10 @@ class TwoGridSolver:
         guess : (n, c) numpy.ndarray of float64, optional
             Starting values of a real block (a solution to a looser tolerance: the
             cycles then only go on from its residual, 2-3 cycles per factor 100).
+        overwrite_rhs : bool
+            Let the solve return the solution in ``rhs``'s own memory (a C-contiguous
+            float64 block; otherwise a copy is made and ``rhs`` left alone): one array of
+            the block's size less at the peak.
 
         Returns
         -------
@@ -189,25 +204,29 @@ class TwoGridSolver:
             if guess is not None:
                 raise ValueError("a starting guess is taken for real right-hand sides only.")
             block = rhs.reshape(rhs.shape[0], -1)
-            x = self._solve_real(np.hstack([block.real, block.imag]))
+            x = self._solve_real(np.hstack([block.real, block.imag]), overwrite=True)
             half = block.shape[1]
             return (x[:, :half] + 1j * x[:, half:]).reshape(rhs.shape)
         shape = rhs.shape
         if guess is not None and np.shape(guess) != shape:
             raise ValueError(f"guess must have the right-hand side's shape {shape}, got {np.shape(guess)}.")
         g = None if guess is None else np.asarray(guess, dtype=np.float64).reshape(shape[0], -1)
-        return self._solve_real(rhs.reshape(shape[0], -1), g).reshape(shape)
+        b = rhs.reshape(shape[0], -1)
+        if not (overwrite_rhs and b.dtype == np.float64 and b.flags.c_contiguous and b.flags.writeable):
+            b = np.array(b, dtype=np.float64, order="C")  # the solve's own copy, free to overwrite
+        return self._solve_real(b, g, overwrite=True).reshape(shape)
 
-    def _solve_real(self, b: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
-        """Solve for an (n, c) real block in the caller's order."""
+    def _solve_real(self, b: np.ndarray, guess: np.ndarray | None = None, overwrite: bool = False) -> np.ndarray:
+        """Solve for an (n, c) real block in the caller's order (into ``b`` when ``overwrite``)."""
         if self._identity:
-            return self._solve_ordered(np.asarray(b, dtype=np.float64), guess)
-        x = np.empty((b.shape[0], b.shape[1]), dtype=np.float64)
-        x[self._order] = self._solve_ordered(np.ascontiguousarray(b[self._order], dtype=np.float64),
-                                             None if guess is None else guess[self._order])
+            return self._solve_ordered(np.ascontiguousarray(b, dtype=np.float64), guess, overwrite)
+        solution = self._solve_ordered(np.ascontiguousarray(b[self._order], dtype=np.float64),
+                                       None if guess is None else guess[self._order], True)
+        x = b if overwrite else np.empty((b.shape[0], b.shape[1]), dtype=np.float64)
+        x[self._order] = solution
         return x
 
-    def _solve_ordered(self, b: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+    def _solve_ordered(self, b: np.ndarray, guess: np.ndarray | None = None, overwrite: bool = False) -> np.ndarray:
         if self._direct is not None:
             return self._direct.solve(b)
         norm_b = np.linalg.norm(b, axis=0)
@@ -216,15 +235,15 @@ class TwoGridSolver:
         # writing neighbouring columns of one (n, c) array share its cache lines, which
         # made two threads slower than one (measured at 1M points, 21 columns: one
         # Gauss-Seidel sweep 0.22-0.37 s on two threads sharing the array, 0.16 s on one
-        # thread, 0.13 s on two threads with their own arrays). The workers also restrict
+        # thread, 0.13 s on two threads with their own arrays); the right-hand side is
+        # only read, so the workers share it in place. The workers also restrict
         # their residual and add their share of the coarse correction, so no (n, c)
         # array is gathered or formed per cycle.
         cols = b.shape[1]
         chunks = max(1, min(self.workers, cols))
         bounds = [(c * cols // chunks, (c + 1) * cols // chunks) for c in range(chunks)]
-        bs = [np.ascontiguousarray(b[:, lo:hi]) for lo, hi in bounds]
-        xs = [np.zeros_like(part) if guess is None else np.array(guess[:, lo:hi], dtype=np.float64, order="C")
-              for part, (lo, hi) in zip(bs, bounds)]
+        xs = [np.zeros((b.shape[0], hi - lo)) if guess is None else np.array(guess[:, lo:hi], dtype=np.float64, order="C")
+              for lo, hi in bounds]
         m = self._p.shape[1]
         restricted = [np.empty((m, hi - lo)) for lo, hi in bounds]
         squares = [np.empty(hi - lo) for lo, hi in bounds]
@@ -237,16 +256,19 @@ class TwoGridSolver:
             def pre(t):
                 # The residual after the pre-smoothing both feeds the coarse correction
                 # and decides convergence: one product with A per cycle instead of two.
-                self._sweep(bs[t], xs[t], backward=False)
-                _restricted_residual(a.indptr, a.indices, a.data, bs[t], xs[t], p.indptr, p.indices, p.data,
-                                     restricted[t], squares[t])
+                self._sweep(b, bounds[t][0], xs[t], backward=False)
+                _restricted_residual(a.indptr, a.indices, a.data, b, bounds[t][0], xs[t], p.indptr, p.indices,
+                                     p.data, restricted[t], squares[t])
 
             for cycle in range(self.max_cycles):
                 each(pre)
                 rel = float((np.sqrt(np.concatenate(squares)) / norm_b).max())
                 if rel <= self.rtol:
-                    bs.clear()  # before the copy out: one (n, c) array less at the peak
-                    return np.hstack(xs)
+                    if not overwrite:
+                        return np.hstack(xs)
+                    for (lo, hi), part in zip(bounds, xs):
+                        b[:, lo:hi] = part
+                    return b
                 if cycle >= 3 and rel > self.stall * previous:
                     break
                 previous = rel
@@ -255,21 +277,22 @@ class TwoGridSolver:
                     # The coarse solves run in the workers too (SuperLU releases the GIL).
                     coarse = np.ascontiguousarray(self._coarse_solve(restricted[t]))
                     _add_csr_product(p.indptr, p.indices, p.data, coarse, xs[t])
-                    self._sweep(bs[t], xs[t], backward=True)
+                    self._sweep(b, bounds[t][0], xs[t], backward=True)
 
                 each(post)
                 self.n_cycles += 1
         self._fall_back()
         return self._direct.solve(b)
 
-    def _sweep(self, b: np.ndarray, x: np.ndarray, backward: bool) -> None:
+    def _sweep(self, b: np.ndarray, b0: int, x: np.ndarray, backward: bool) -> None:
+        """Gauss-Seidel sweeps on a worker's block x, whose right-hand sides are columns b0: of b."""
         a = self._a
-        _gauss_seidel(a.indptr, a.indices, a.data, self._diag, b, x, 0, x.shape[1], self.sweeps, backward)
+        _gauss_seidel(a.indptr, a.indices, a.data, self._diag, b, b0, x, self.sweeps, backward)
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _restricted_residual(indptr, indices, data, b, x, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
-    """``out = P^T (b - A x)`` for a column block, and each column's squared residual norm.
+def _restricted_residual(indptr, indices, data, b, b0, x, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
+    """``out = P^T (b - A x)`` for a column block x (right-hand sides: columns b0: of b), and each column's squared residual norm.
 
     Each row's residual (summed in CSR order, as scipy's product) is scattered through
     its row of P and never stored: no (n, c) residual array.
@@ -286,9 +309,8 @@ def _restricted_residual(indptr, indices, data, b, x, p_ptr, p_idx, p_val, out, 
             xj = x[indices[p]]
             for c in range(width):
                 ri[c] += a * xj[c]
-        bi = b[i]
         for c in range(width):
-            ri[c] = bi[c] - ri[c]
+            ri[c] = b[i, b0 + c] - ri[c]
             squares[c] += ri[c] * ri[c]
         for q in range(p_ptr[i], p_ptr[i + 1]):
             w = p_val[q]

@@ -174,10 +174,11 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     _, _, _, l_ii, p_ii = cap_problem
     p_ii = sp.csr_matrix(p_ii)
     rng = np.random.default_rng(4)
-    x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 5))
-    residual = b - l_ii @ x
+    # A worker's block x holds columns 3:8 of the right-hand sides b, read in place.
+    x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 8))
+    residual = b[:, 3:] - l_ii @ x
     restricted, squares = np.empty((p_ii.shape[1], 5)), np.empty(5)
-    _restricted_residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, p_ii.indptr, p_ii.indices, p_ii.data,
+    _restricted_residual(l_ii.indptr, l_ii.indices, l_ii.data, b, 3, x, p_ii.indptr, p_ii.indices, p_ii.data,
                          restricted, squares)
     expected = p_ii.T @ residual
     np.testing.assert_allclose(restricted, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
@@ -194,6 +195,54 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     np.testing.assert_array_equal(permuted.indptr, expected.indptr)
     np.testing.assert_array_equal(permuted.indices, expected.indices)
     np.testing.assert_array_equal(permuted.data, expected.data)
+
+
+def test_gauss_seidel_reads_the_workers_columns_of_the_right_hand_side():
+    """One sweep on a worker's block, its right-hand sides columns b0: of a wider b, equals
+    the textbook forward Gauss-Seidel step on those columns."""
+    from parambench.methods.spectral.twogrid import _gauss_seidel
+
+    rng = np.random.default_rng(5)
+    n = 40
+    a = sp.random(n, n, density=0.15, random_state=6, format="csr")
+    a = (a + a.T + sp.diags(np.full(n, 4.0 + n * 0.3))).tocsr()
+    a.sort_indices()
+    b = rng.standard_normal((n, 6))
+    x = rng.standard_normal((n, 4))
+    expected = x.copy()
+    dense = a.toarray()
+    for i in range(n):  # forward sweep, newest values used
+        expected[i] = (b[i, 2:] - dense[i] @ expected + dense[i, i] * expected[i]) / dense[i, i]
+    _gauss_seidel(a.indptr, a.indices, a.data, a.diagonal(), b, 2, x, 1, False)
+    np.testing.assert_allclose(x, expected, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("identity", [True, False])
+def test_overwrite_rhs_returns_the_solution_in_the_right_hand_sides_memory(cap_problem, identity):
+    """With ``overwrite_rhs`` the solution comes back in rhs's own array (one block-sized
+    array less at the peak), equal to the copying solve's; without, rhs is left alone.
+    In the caller's order (multilevel's) a solve holds 2 arrays per column, 3 when it
+    permutes the rows."""
+    _, _, _, l_ii, p_ii = cap_problem
+    coarse_solve = _coarse_solver(l_ii, p_ii)
+    order = np.arange(l_ii.shape[0]) if identity else None
+    assert TwoGridSolver(l_ii, p_ii, coarse_solve, order=order).arrays_per_column == (2 if identity else 3)
+    b = np.random.default_rng(8).standard_normal((l_ii.shape[0], 5))
+    kept = b.copy()
+    copied = TwoGridSolver(l_ii, p_ii, coarse_solve, rtol=1e-10, workers=2, order=order).solve(b)
+    np.testing.assert_array_equal(b, kept)
+    rhs = b.copy()
+    in_place = TwoGridSolver(l_ii, p_ii, coarse_solve, rtol=1e-10, workers=2, order=order).solve(rhs, overwrite_rhs=True)
+    assert np.shares_memory(in_place, rhs)
+    np.testing.assert_array_equal(in_place, copied)
+    exact = sla.spsolve(sp.csc_matrix(l_ii), kept)
+    assert np.abs(in_place - exact).max() <= 1e-8 * np.abs(exact).max()
+    # A block it cannot write into (Fortran order) is copied, and left as it was.
+    fortran = np.asfortranarray(kept)
+    out = TwoGridSolver(l_ii, p_ii, coarse_solve, rtol=1e-10, workers=2, order=order).solve(fortran, overwrite_rhs=True)
+    assert not np.shares_memory(out, fortran)
+    np.testing.assert_array_equal(fortran, kept)
+    np.testing.assert_array_equal(out, copied)
 
 
 def test_a_warm_start_reaches_a_tighter_tolerance_in_fewer_cycles(cap_problem):
