@@ -15,12 +15,14 @@ which lets a whole solve be wrapped once around its many small dense calls.
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 from contextlib import contextmanager
 
 from threadpoolctl import threadpool_limits
 
-__all__ = ["single_threaded_blas"]
+__all__ = ["single_threaded_blas", "solver_threads"]
 
 #: Open contexts per thread: OpenBLAS's thread count set from one thread is not reliably
 #: restored from another (measured: a restore from a second thread left the limit at 1),
@@ -44,3 +46,23 @@ def single_threaded_blas():
         _STATE.depth = depth
         if limiter is not None:
             limiter.restore_original_limits()
+
+
+def solver_threads() -> int:
+    """Threads for work split by columns (triangular solves): as many as the compiled kernels use.
+
+    ``numba.config.NUMBA_NUM_THREADS`` when numba is loaded (the point-set front end's
+    kernels), otherwise the ``NUMBA_NUM_THREADS`` environment variable or the cores this
+    process may run on, so one setting governs both; importing numba only for this
+    number would cost a mesh method 0.24 s.
+    """
+    numba = sys.modules.get("numba")
+    if numba is not None and hasattr(numba, "config"):
+        return max(1, int(numba.config.NUMBA_NUM_THREADS))
+    env = os.environ.get("NUMBA_NUM_THREADS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
