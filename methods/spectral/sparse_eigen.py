@@ -171,9 +171,12 @@ class SparseFactor:
         side (80 right-hand sides of a 90k-row Laplacian, 2 cores: 0.66-0.91 s on one
         thread, 0.42-0.51 s on two). Each thread takes chunks of at most a quarter of
         the block per thread, so the chunk copies SuperLU makes stay under half the block.
+        Only the main thread shares out: a solve called from workers that already
+        share the cores (the two-grid cycles' coarse corrections) stays on its thread.
         """
         workers = solver_threads()
-        if rhs.ndim == 1 or workers < 2 or rhs.shape[1] < 2 * SPLIT_MIN_COLUMNS:
+        nested = threading.current_thread() is not threading.main_thread()
+        if rhs.ndim == 1 or workers < 2 or nested or rhs.shape[1] < 2 * SPLIT_MIN_COLUMNS:
             return self._lu.solve(rhs)
         cols = rhs.shape[1]
         n_chunks = min(2 * workers, cols // SPLIT_MIN_COLUMNS)

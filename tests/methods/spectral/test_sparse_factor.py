@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -114,4 +116,9 @@ def test_many_right_hand_sides_are_shared_out_among_threads_and_solved_exactly(m
     assert block.dtype == one_by_one.dtype == (np.complex128 if kind == "complex" else np.float64)
     if precision == "double":
         np.testing.assert_allclose(block, one_by_one, rtol=0, atol=1e-13 * np.abs(one_by_one).max())
+    # From a worker thread (a two-grid cycle's coarse correction) the block stays whole.
+    calls.clear()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pool.submit(factor.solve, rhs).result()
+    assert calls[0] == 37
     assert np.linalg.norm(a @ block - rhs) <= 1e-10 * np.linalg.norm(rhs)
