@@ -17,7 +17,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
-from parambench.datasets_gen.surface import MIN_POINTS, require_unique_points, validate_normals, validate_points
+from parambench.datasets_gen.surface import (MIN_POINTS, duplicate_tolerance, require_unique_points, validate_normals,
+                                             validate_points)
 
 from ..base import StageTimer
 from .boundary import find_boundary, no_boundary_error
@@ -179,8 +180,9 @@ def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[
         An option outside its allowed values, or bad arrays.
     TooFewPointsError
         Fewer than ``k_nn + 1`` points.
-    DuplicatePointsError
-        Coincident points.
+
+    Coincident points are refused by :func:`knn_stage`, from the kNN graph's distances
+    (a separate check built its own kd-tree: 1.3 s at a million points).
     """
     k_nn = params.k_nn
     if params.dem_variant not in DEM_VARIANTS:
@@ -192,7 +194,6 @@ def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[
     if int(k_nn) != k_nn or k_nn < 2:
         raise InvalidInputError(f"k_nn must be an integer >= 2, got {k_nn}.")
     pts = validate_points(points, min_points=max(MIN_POINTS, int(k_nn) + 1))
-    require_unique_points(pts)
     nrm = None if normals is None else validate_normals(normals, pts.shape[0])
     # Checked after the arrays, as before the stages were split (the first error reported stays the same).
     if params.spacing not in SPACING_MODES:
@@ -243,7 +244,8 @@ class Neighbourhoods(NamedTuple):
     h_local: np.ndarray
 
 
-def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode: str = "local") -> Neighbourhoods:
+def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode: str = "local", *,
+              unique_checked: bool = False) -> Neighbourhoods:
     """Stage ``knn``: kd-tree order, the kNN graph, its connectedness, and the spacing fields.
 
     Parameters
@@ -253,6 +255,8 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode
     k_nn : int
     neighbours : {"auto", "euclidean", "surface", "pruned"}
     spacing_mode : {"local", "global"}
+    unique_checked : bool
+        The points were found free of copies already (a second graph on the same points).
 
     Returns
     -------
@@ -260,6 +264,8 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode
 
     Raises
     ------
+    DuplicatePointsError
+        Coincident points (within :func:`~parambench.datasets_gen.surface.duplicate_tolerance`).
     DisconnectedError
         The kNN graph has several components.
     """
@@ -278,6 +284,11 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode
         graph, nbr_diag = gap_aware_knn_graph(p, k_nn)
     else:
         graph, nbr_diag = knn_graph(p, k_nn), {}
+    # A point with a copy has it as its nearest neighbour in the Euclidean graph; the
+    # other graphs may leave it out, so they are checked on their own.
+    euclidean = neighbours in ("euclidean", "auto") and not nbr_diag.get("pruned", False)
+    if not unique_checked and (not euclidean or graph.distances[:, 0].min() <= duplicate_tolerance(pts)):
+        require_unique_points(pts)  # the exact check, and its message naming a pair
     adjacency = symmetric_adjacency(graph)
     require_connected(adjacency, k_nn)
     spacing = graph.mean_spacing
@@ -580,7 +591,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     if screened:
         with timer("knn"):
             suspects = gap_suspected(nb.points, nb.graph, oriented)
-            nb = (knn_stage(pts, k_nn, "auto", params.spacing) if suspects
+            nb = (knn_stage(pts, k_nn, "auto", params.spacing, unique_checked=True) if suspects
                   else nb._replace(neighbour_diagnostics={"pruned": False, "n_gap_edges": 0}))
             nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, screen_suspects=suspects))
         if nb.neighbour_diagnostics["pruned"]:

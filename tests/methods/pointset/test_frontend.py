@@ -87,10 +87,29 @@ def test_nan_points(bump):
         build_frontend(pts)
 
 
-def test_duplicate_points(bump):
+@pytest.mark.parametrize("neighbours", ["auto", "euclidean", "pruned", "surface"])
+def test_duplicate_points(bump, neighbours):
     pts = np.vstack([bump.points, bump.points[10:11]])
-    with pytest.raises(DuplicatePointsError, match="duplicate"):
-        build_frontend(pts)
+    with pytest.raises(DuplicatePointsError, match=f"duplicate points \\(first: 10 and {len(bump.points)}\\)"):
+        build_frontend(pts, neighbours=neighbours)
+    near = pts.copy()  # a copy within the tolerance, not bit for bit
+    near[-1] += 1e-12 * np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))
+    with pytest.raises(DuplicatePointsError):
+        build_frontend(near, neighbours=neighbours)
+
+
+def test_distinct_points_are_checked_from_the_knn_graph_without_another_tree(bump, monkeypatch):
+    """The Euclidean kNN graph's nearest distances show copies; the pairwise check (its own
+    kd-tree, 1.3 s at a million points) runs only where they do, or on other graphs."""
+    import parambench.methods.pointset.frontend as frontend
+
+    calls = []
+    real = frontend.require_unique_points
+    monkeypatch.setattr(frontend, "require_unique_points", lambda pts: calls.append(len(pts)) or real(pts))
+    build_frontend(bump.points)
+    assert calls == []
+    build_frontend(bump.points, neighbours="pruned")
+    assert calls == [len(bump.points)]
 
 
 def test_fewer_points_than_k(bump):
