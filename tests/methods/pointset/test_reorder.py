@@ -33,3 +33,24 @@ def test_renumbered_rows_keeps_padding():
     got = renumbered_rows(idx, rows, order)
     assert got.dtype == np.int64
     np.testing.assert_array_equal(got, want)
+
+
+def test_spatial_order_is_reused_for_the_same_array_only(monkeypatch):
+    """The front end and the two-level solve order the same point array: the second call
+    returns the kept order without another kd-tree; another array (even with the same
+    values) is ordered afresh, and the order is read-only."""
+    from parambench.methods.pointset import reorder
+
+    pts = np.random.default_rng(3).random((500, 3))
+    built = []
+    real = reorder.cKDTree
+    monkeypatch.setattr(reorder, "cKDTree", lambda *a, **k: built.append(1) or real(*a, **k))
+    first = reorder.spatial_order(pts)
+    again = reorder.spatial_order(pts)
+    assert again is first and len(built) == 1
+    assert np.array_equal(np.sort(first), np.arange(500))
+    with pytest.raises(ValueError):
+        first[0] = 1
+    other = reorder.spatial_order(pts.copy())
+    assert len(built) == 2 and np.array_equal(other, first)
+    assert reorder.spatial_order(pts[:400]).size == 400 and len(built) == 3
