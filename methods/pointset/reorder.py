@@ -52,13 +52,14 @@ def spatial_order(points: np.ndarray) -> np.ndarray:
         ``points[order]`` is the reordered set.
     """
     global _LAST_ORDER
-    if _LAST_ORDER is not None and _LAST_ORDER[0]() is points and _LAST_ORDER[1].size == len(points):
-        return _LAST_ORDER[1]
+    last = _LAST_ORDER  # one read: another thread may replace it meanwhile
+    if last is not None and last[0]() is points and last[1].size == len(points):
+        return last[1]
     order = np.asarray(cKDTree(points, leafsize=16).indices, dtype=np.int64)
     order.flags.writeable = False
     try:
         _LAST_ORDER = (weakref.ref(points), order)
-    except TypeError:  # not weakly referenceable (a view's base is): no reuse
+    except TypeError:  # not an array (a list of points): nothing to recognise it by
         _LAST_ORDER = None
     return order
 

@@ -30,8 +30,8 @@ from .threads import single_threaded_blas, solver_threads
 
 __all__ = ["SparseFactor", "EigenResult", "smallest_eigenpair", "MIXED_PRECISION_FROM"]
 
-#: Right-hand sides per thread from which a block's triangular solves are shared out by
-#: columns (SuperLU releases the GIL): below it one thread solves the block.
+#: Fewest right-hand sides per chunk when a block's triangular solves are shared out by
+#: columns (SuperLU releases the GIL); smaller blocks are solved on one thread.
 SPLIT_MIN_COLUMNS = 8
 
 #: Real systems at least this large are factorised in single precision by default
@@ -169,17 +169,19 @@ class SparseFactor:
 
         SuperLU releases the GIL, and its solves with one BLAS thread each run side by
         side (80 right-hand sides of a 90k-row Laplacian, 2 cores: 0.66-0.91 s on one
-        thread, 0.42-0.51 s on two). Each thread takes chunks of at most a quarter of
-        the block per thread, so the chunk copies SuperLU makes stay under half the block.
-        Only the main thread shares out: a solve called from workers that already
-        share the cores (the two-grid cycles' coarse corrections) stays on its thread.
+        thread, 0.42-0.51 s on two). The block is cut into two chunks per thread, of at
+        least ``SPLIT_MIN_COLUMNS`` columns each, so the copies SuperLU makes of the
+        chunks being solved are at most half the block at any time (the memory budget
+        of :attr:`arrays_per_column` counts the block itself). Only the main thread
+        shares out: a solve called from workers that already share the cores (the
+        two-grid cycles' coarse corrections) stays on its thread.
         """
         workers = solver_threads()
         nested = threading.current_thread() is not threading.main_thread()
-        if rhs.ndim == 1 or workers < 2 or nested or rhs.shape[1] < 2 * SPLIT_MIN_COLUMNS:
+        n_chunks = 2 * workers
+        if rhs.ndim == 1 or workers < 2 or nested or rhs.shape[1] < n_chunks * SPLIT_MIN_COLUMNS:
             return self._lu.solve(rhs)
         cols = rhs.shape[1]
-        n_chunks = min(2 * workers, cols // SPLIT_MIN_COLUMNS)
         bounds = [(c * cols // n_chunks, (c + 1) * cols // n_chunks) for c in range(n_chunks)]
         out = np.empty((rhs.shape[0], cols), dtype=self._factor_dtype)  # SuperLU solves in its factors' type
 

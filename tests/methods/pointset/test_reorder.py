@@ -54,3 +54,6 @@ def test_spatial_order_is_reused_for_the_same_array_only(monkeypatch):
     other = reorder.spatial_order(pts.copy())
     assert len(built) == 2 and np.array_equal(other, first)
     assert reorder.spatial_order(pts[:400]).size == 400 and len(built) == 3
+    listed = pts.tolist()  # not an array: ordered, never recognised again
+    assert np.array_equal(reorder.spatial_order(listed), first) and reorder._LAST_ORDER is None
+    assert len(built) == 4

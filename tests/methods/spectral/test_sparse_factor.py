@@ -116,6 +116,11 @@ def test_many_right_hand_sides_are_shared_out_among_threads_and_solved_exactly(m
     assert block.dtype == one_by_one.dtype == (np.complex128 if kind == "complex" else np.float64)
     if precision == "double":
         np.testing.assert_allclose(block, one_by_one, rtol=0, atol=1e-13 * np.abs(one_by_one).max())
+    # Under two chunks of 8 per thread the block stays whole: the chunk copies solved at
+    # once would exceed half the block.
+    calls.clear()
+    factor.solve(rhs[:, :31])
+    assert calls[0] == 31
     # From a worker thread (a two-grid cycle's coarse correction) the block stays whole.
     calls.clear()
     with ThreadPoolExecutor(max_workers=1) as pool:
