@@ -105,6 +105,11 @@ _EMPTY_GRID = 32
 #: Boundary points examined when bridging beyond the ball.
 _BRIDGE_K = 16
 
+#: A dead end's hairpin step (:func:`hairpin_successors`) reaches this many bridge reaches ...
+_HAIRPIN_REACH = 1.5
+#: ... to a candidate whose outward direction has a cosine below minus this with its own.
+_HAIRPIN_FACING = 0.5
+
 #: Rounds of "drop points on too-small cycles, walk again".
 _MAX_PRUNE_ROUNDS = 20
 
@@ -395,6 +400,59 @@ def bridge_successors(points: np.ndarray, e1: np.ndarray, e2: np.ndarray, candid
     d = points[np.where(near >= 0, near, 0)] - points[rows, None, :]
     c = np.stack([np.einsum("nki,ni->nk", d, e1[rows]), np.einsum("nki,ni->nk", d, e2[rows])], axis=-1)
     out[rows] = _best_ahead(rows, near, c, candidates, outward, bisector)
+    return out
+
+
+def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.ndarray, succ: np.ndarray,
+                       reach: float | np.ndarray) -> np.ndarray:
+    """Turn the walk around the end of a slot: a dead end steps to the facing lip.
+
+    At the end of a slot 1.5-2 spacings wide the boundary turns by 180 degrees within
+    about one spacing, below what the angle criterion resolves: the lip's last candidate
+    finds nothing ahead, even after :func:`bridge_successors`. Its successor is then the
+    nearest candidate that faces it (outward directions opposed, cosine below
+    ``-_HAIRPIN_FACING``), lies on its open side (along its outward direction) within
+    ``_HAIRPIN_REACH`` times ``reach``, and has no predecessor yet; where two dead ends
+    pick the same point, the nearer gets it.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    candidates : (N,) numpy.ndarray of bool
+    outward : (N, 3) numpy.ndarray of float64
+        Outward gap direction of each point in 3D.
+    succ : (N,) numpy.ndarray of int64
+        Successors so far (-1 = missing); not modified.
+    reach : float or (N,) numpy.ndarray of float64
+        The bridges' reach (:func:`bridge_successors`).
+
+    Returns
+    -------
+    (N,) numpy.ndarray of int64
+    """
+    out = succ.copy()
+    rows = np.flatnonzero(candidates & (succ < 0))
+    cand_idx = np.flatnonzero(candidates)
+    if rows.size == 0 or cand_idx.size < 2:
+        return out
+    radius = _HAIRPIN_REACH * np.broadcast_to(np.asarray(reach, dtype=float), candidates.shape)[rows]
+    k = min(_BRIDGE_K, cand_idx.size)
+    dist, near = cKDTree(points[cand_idx]).query(points[rows], k=k, distance_upper_bound=float(radius.max()))
+    found = np.isfinite(dist) & (dist <= radius[:, None])
+    near = cand_idx[np.minimum(near, cand_idx.size - 1)]
+    has_pred = np.zeros(candidates.shape[0], dtype=bool)
+    has_pred[succ[succ >= 0]] = True
+    facing = np.einsum("nki,ni->nk", outward[near], outward[rows]) < -_HAIRPIN_FACING
+    ahead = np.einsum("nki,ni->nk", points[near] - points[rows, None, :], outward[rows]) > 0
+    ok = found & facing & ahead & ~has_pred[near] & (near != rows[:, None])
+    best = np.argmax(ok, axis=1)  # nearest first
+    pick = np.arange(rows.size)
+    has = ok[pick, best]
+    rows, target, gap = rows[has], near[pick, best][has], dist[pick, best][has]
+    first = np.lexsort((gap, target))
+    keep = np.ones(first.size, dtype=bool)
+    keep[1:] = target[first][1:] != target[first][:-1]
+    out[rows[first][keep]] = target[first][keep]
     return out
 
 
@@ -743,6 +801,7 @@ def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarra
     for _ in range(_MAX_PRUNE_ROUNDS):
         succ = successors(ball_indices, coords, active, outward, bisector)
         succ = bridge_successors(points, e1, e2, active, outward, bisector, succ, reach)
+        succ = hairpin_successors(points, active, outward, succ, reach)
         all_cycles = cycles(succ, np.flatnonzero(active))
         small = [c for c in all_cycles if c.size < min_loop_size]
         if not small:

@@ -26,6 +26,7 @@ from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
+from .slot_cuts import slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
 from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
@@ -42,7 +43,7 @@ from .tangent_weights import (
 )
 
 __all__ = ["FrontEnd", "FrontEndParams", "build_frontend", "WEIGHT_KINDS", "DEM_VARIANTS", "STAGES",
-           "Neighbourhoods", "validate_inputs", "knn_stage", "normals_stage", "dem_stage", "weights_stage",
+           "Neighbourhoods", "validate_inputs", "knn_stage", "slot_stage", "normals_stage", "dem_stage", "weights_stage",
            "boundary_stage", "stage_diagnostics"]
 
 WEIGHT_KINDS = ("tangent", "lle3d")
@@ -299,6 +300,41 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode
     h_local = local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local" else np.full(n, spacing)
     return Neighbourhoods(order=order, inv=inv, points=p, graph=graph, neighbour_diagnostics=nbr_diag,
                           adjacency=adjacency, spacing=spacing, h_around=h_around, h_local=h_local)
+
+
+def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode: str = "local") -> Neighbourhoods:
+    """Part of stage ``knn``: the graph without its edges across slots (:mod:`.slot_cuts`).
+
+    Parameters
+    ----------
+    nb : Neighbourhoods
+    normals : (N, 3) numpy.ndarray of float64
+        Normals of ``nb.points`` (orientation does not matter).
+    k_nn : int
+    spacing_mode : {"local", "global"}
+
+    Returns
+    -------
+    Neighbourhoods
+        ``nb`` with ``neighbour_diagnostics["slots"]`` (:func:`.slot_cuts.slot_cut_graph`'s
+        facts); where edges were cut, its graph, adjacency and spacing fields follow the
+        cut graph.
+
+    Raises
+    ------
+    DisconnectedError
+        The cut graph has several components.
+    """
+    graph, facts = slot_cut_graph(nb.points, nb.graph, normals, nb.h_local)
+    diagnostics = dict(nb.neighbour_diagnostics, slots=facts)
+    if not facts["n_slot_edges"]:
+        return nb._replace(neighbour_diagnostics=diagnostics)
+    adjacency = symmetric_adjacency(graph)
+    require_connected(adjacency, k_nn)
+    h_local = (local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local"
+               else np.full(graph.indices.shape[0], graph.mean_spacing))
+    return nb._replace(graph=graph, neighbour_diagnostics=diagnostics, adjacency=adjacency,
+                       spacing=graph.mean_spacing, h_around=local_spacing(graph, passes=1), h_local=h_local)
 
 
 def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spacing: float, *,
@@ -597,16 +633,42 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         if nb.neighbour_diagnostics["pruned"]:
             oriented, frame_normals, normal_fit = fit_normals(nb)
 
-    with timer("dem"):
-        balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=params.ball_k,
-                          ball_eps_factor=float(params.ball_eps_factor), dem=params.dem,
-                          max_ball=int(params.max_ball), dem_variant=params.dem_variant)
+    def dem_to_boundary(nb: Neighbourhoods, frame_normals: np.ndarray):
+        with timer("dem"):
+            balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=params.ball_k,
+                              ball_eps_factor=float(params.ball_eps_factor), dem=params.dem,
+                              max_ball=int(params.max_ball), dem_variant=params.dem_variant)
+        with timer("weights"):
+            w, r_x = weights_stage(nb.points, balls, params.weights, params.reg_eps)
+        with timer("boundary"):
+            bnd, retried = boundary_stage(nb, frame_normals, balls, params)
+        return balls, w, r_x, bnd, retried
 
-    with timer("weights"):
-        w, r_x = weights_stage(nb.points, balls, params.weights, params.reg_eps)
+    uncut = None
+    if params.neighbours == "auto" and params.slot_cuts:
+        with timer("knn"):
+            cut_nb = slot_stage(nb, oriented, k_nn, params.spacing)
+        if cut_nb.neighbour_diagnostics["slots"]["n_slot_edges"]:
+            uncut = (nb, oriented, frame_normals, normal_fit)
+            oriented, frame_normals, normal_fit = fit_normals(cut_nb)
+        nb = cut_nb
+    try:
+        balls, w, r_x, bnd, retried = dem_to_boundary(nb, frame_normals)
+        confirmed = uncut is None or slots_on_loops(uncut[0].graph, nb.graph, bnd.mask)
+    except NoBoundaryError:
+        if uncut is None:
+            raise
+        confirmed = False
+    if not confirmed:
+        # The cut lips are on no loop: the walk did not close around the slot, and a
+        # graph cut open without a boundary there gives a worse map than the uncut one.
+        slots = dict(nb.neighbour_diagnostics["slots"], reverted=True)
+        nb, oriented, frame_normals, normal_fit = uncut
+        nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, slots=slots))
+        balls, w, r_x, bnd, retried = dem_to_boundary(nb, frame_normals)
+    del uncut
 
     with timer("boundary"):
-        bnd, retried = boundary_stage(nb, frame_normals, balls, params)
         nb = nb._replace(adjacency=None)  # not needed any more; large at 1M points
         loops = [_from_sorted(loop, order) for loop in bnd.loops]
         loops = [np.roll(loop, -int(np.argmin(loop))) for loop in loops]  # deterministic start

@@ -102,6 +102,11 @@ class FrontEndParams:
         boundary edges of the points' tangent-plane Delaunay one-rings with an alpha-shape
         test (:mod:`parambench.methods.pointset.boundary_rings`): finds slits of regular samplings
         narrower than the balls; otherwise measured on par with "angle".
+    slot_cuts : bool
+        With ``neighbours="auto"``, also cut the edges that cross a slot: an empty strip
+        of the tangent plane at least 1.4 local spacings wide and 8 long
+        (:mod:`parambench.methods.pointset.slot_cuts`), so the lips of a cut or a narrow
+        hole become boundary.
     """
 
     # Field order is the order of the methods' ``defaults`` (and of build_frontend's old
@@ -121,6 +126,7 @@ class FrontEndParams:
     spacing: str = field(default="local", metadata=_METHOD)
     neighbours: str = field(default="auto", metadata=_METHOD)
     boundary_method: str = field(default="angle", metadata=_METHOD)
+    slot_cuts: bool = True
 
 
 #: Names of the fields every point-set method accepts, in field order. The other fields

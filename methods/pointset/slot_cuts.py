@@ -1,0 +1,523 @@
+"""Neighbourhoods that do not reach across a slot: an in-plane gap narrower than a neighbourhood.
+
+Where a surface has a slot (the two lips of a cut, a hole 1.5-2 spacings wide), a lip
+point's K nearest neighbours include points of the other lip. The lips then look like
+interior points to the angle criterion (their neighbourhoods are full discs) and the
+slot is lost. The gap tests of :mod:`parambench.methods.pointset.surface_neighbours`
+look along the normal and see nothing here: both lips lie in one tangent plane.
+
+An edge crosses a slot when it crosses an empty strip of its tangent plane: the strip is
+at least :data:`MIN_WIDTH` spacings wide, measured across it between the edge's ends;
+the middle of that span (all but :data:`MARGIN` of it at each side) is empty over
+:data:`STRIP_LENGTH` local spacings, half on each side of the edge; and points line
+both its sides at both ends (a strip that runs off the surface is empty on its outer
+half without being a slot). Widths are measured against the larger of the smooth local
+spacing and the spacing over one ring: where a graded sampling's density changes fast
+the smooth one lags, and the sparse side's own gaps would pass for strips.
+
+A uniform random sampling still leaves such a strip empty now and then (about e^-11
+per place and direction at the threshold): on `holes`, random 20k, the strip test
+fires on 124 edges. Those strips are short; a slot gives crossings all along it. So
+crossings are cut only where they line up, side by side, over :data:`MIN_CUT_EXTENT`
+spacings (:func:`elongated_groups`); the others are counted (``n_lone_crossings``)
+and left.
+
+The strip test needs :data:`STRIP_NEIGHBOURS` neighbours per point (a kd-tree search
+that would take seconds at a million points), so it runs only on the points that three
+cheap screens leave: (1) kNN edges at least :data:`MIN_LENGTH` spacings long whose
+midpoint lies at least :data:`CLEARANCE` spacings from every neighbour of both ends;
+(1b) of those, the edges that cross a strip :data:`SCREEN_HALF_LENGTH` spacings each
+way, empty among the points two graph steps from the edge's first end (a necessary
+condition, without a search); (2) of those, the edges that line up with others over
+:data:`MIN_EXTENT` spacings. On jittered samplings without a slot screen 1b leaves
+0-1 edges of 20k points.
+
+The walk of :mod:`parambench.methods.pointset.boundary` then needs a hairpin step at
+the slot's ends (:func:`~parambench.methods.pointset.boundary.hairpin_successors`):
+the boundary turns by 180 degrees within about a spacing there.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numba
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from ..numba_cache import configure_numba_cache
+from .neighbourhoods import KnnGraph, local_spacing
+
+__all__ = ["slot_cut_graph", "slots_on_loops", "void_edges", "elongated_groups", "strip_crossings", "MIN_WIDTH", "STRIP_LENGTH"]
+
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
+#: The cuts are kept only when at least this share of their ends lies on or next to a
+#: boundary loop found on the cut graph (:func:`slots_on_loops`).
+MIN_ON_LOOP = 0.5
+
+#: Screen 1: an edge at least this many local spacings long ...
+MIN_LENGTH = 1.2
+#: ... whose midpoint is at least this far (local spacings) from its ends' neighbours.
+#: The crossing edges of a slot 1.4-1.7 spacings wide measure 0.71-1.0 (graded and
+#: random samplings; 0.96 jittered).
+CLEARANCE = 0.65
+#: Screen 2: screened edges whose midpoints lie within this many (median local) spacings ...
+LINK = 6.0
+#: ... whose directions agree to this cosine ...
+ALIGNED = 0.5
+#: ... and whose midpoints are side by side (the step along the edge at most this many spacings) are linked ...
+SIDE_STEP = 0.75
+#: ... and a group is examined when its midpoints span at least this many spacings.
+MIN_EXTENT = 6.0
+
+#: Screen 1b: the strip's half length judged on the graph's two-ring (which reaches about
+#: three spacings).
+SCREEN_HALF_LENGTH = 1.5
+
+#: Crossings are cut only where they line up (as in screen 2) over this many spacings.
+MIN_CUT_EXTENT = 6.0
+
+#: The strip: at least this wide across (local spacings) ...
+MIN_WIDTH = 1.25
+#: ... empty but for this share of its width at each side ...
+MARGIN = 0.1
+#: ... over this length along it, half on each side of the edge.
+STRIP_LENGTH = 8.0
+#: The strip must be lined by points on both sides at both ends (within this many spacings
+#: of its sides, from this share of its half length on): a strip that runs off the
+#: surface across its boundary is empty on the outside half without being a slot.
+FLANK_WIDTH = 2.0
+FLANK_FROM = 0.75
+#: Strip directions tried, evenly spread over 180 degrees.
+N_ORIENTATIONS = 24
+#: Neighbours per examined point that the emptiness is judged on (they reach about
+#: 6 spacings, the strip's half length plus the edge's).
+STRIP_NEIGHBOURS = 128
+#: Candidates per examined point, in units of K: a row whose edges across are cut is
+#: filled up from these.
+POOL_FACTOR = 3
+
+
+@numba.njit(cache=_CACHE)
+def _clear_of(points, indices, a, i, j, cx, cy, cz, r2):
+    """Whether every neighbour of ``a`` but ``i`` and ``j`` lies at least sqrt(r2) from c."""
+    for m in range(indices.shape[1]):
+        q = indices[a, m]
+        if q == i or q == j:
+            continue
+        ex, ey, ez = points[q, 0] - cx, points[q, 1] - cy, points[q, 2] - cz
+        if ex * ex + ey * ey + ez * ez < r2:
+            return False
+    return True
+
+
+@numba.njit(parallel=True, cache=_CACHE)
+def _void_edges(points, indices, h, min_length, clearance, out):
+    n, k = indices.shape
+    for r in numba.prange(n):
+        i = np.int64(r)
+        for c in range(k):
+            j = indices[i, c]
+            dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+            if dx * dx + dy * dy + dz * dz < (min_length * h[i]) ** 2:
+                continue
+            cx = 0.5 * (points[i, 0] + points[j, 0])
+            cy = 0.5 * (points[i, 1] + points[j, 1])
+            cz = 0.5 * (points[i, 2] + points[j, 2])
+            r2 = (clearance * h[i]) ** 2
+            out[i, c] = (_clear_of(points, indices, i, i, j, cx, cy, cz, r2)
+                         and _clear_of(points, indices, j, i, j, cx, cy, cz, r2))
+
+
+def void_edges(points: np.ndarray, graph: KnnGraph, h: np.ndarray, *, min_length: float = MIN_LENGTH,
+               clearance: float = CLEARANCE) -> np.ndarray:
+    """Screen 1: long kNN edges whose midpoint has no neighbour of either end nearby.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    graph : KnnGraph
+        K nearest neighbours of ``points``.
+    h : (N,) numpy.ndarray of float64
+        Local spacing of each point (length units).
+    min_length, clearance : float
+        In units of the row's local spacing.
+
+    Returns
+    -------
+    (N, K) numpy.ndarray of bool
+        Edge ``i -> graph.indices[i, c]`` passes.
+    """
+    out = np.zeros(graph.indices.shape, dtype=bool)
+    _void_edges(points, graph.indices, np.ascontiguousarray(h, dtype=np.float64), float(min_length),
+                float(clearance), out)
+    return out
+
+
+def elongated_groups(midpoints: np.ndarray, directions: np.ndarray, spacing: np.ndarray, *, link: float = LINK,
+                     min_extent: float = MIN_EXTENT) -> np.ndarray:
+    """Screen 2: edges that line up, side by side, over ``min_extent`` spacings.
+
+    Two edges are linked when their midpoints lie within ``link`` spacings, their
+    directions agree (``|cos| >= ALIGNED``: the edges across a slot lean up to about 45
+    degrees either way) and the step between the midpoints runs across them (along
+    their mean direction it is at most ``SIDE_STEP`` spacings), as the midpoints of the
+    edges across a slot line up along it.
+
+    Parameters
+    ----------
+    midpoints : (E, 3) numpy.ndarray of float64
+    directions : (E, 3) numpy.ndarray of float64
+        Unit edge directions (sign does not matter).
+    spacing : (E,) numpy.ndarray of float64
+        Local spacing at each midpoint.
+    link, min_extent : float
+        In spacings (the median of ``spacing``, and each group's median).
+
+    Returns
+    -------
+    (E,) numpy.ndarray of bool
+        The edges of linked groups whose midpoints span at least ``min_extent`` times
+        the group's median spacing along the group's principal direction.
+    """
+    e = midpoints.shape[0]
+    if e < 2:
+        return np.zeros(e, dtype=bool)
+    h = float(np.median(spacing))
+    pairs = cKDTree(midpoints).query_pairs(link * h, output_type="ndarray")
+    a, b = pairs[:, 0], pairs[:, 1]
+    cos = np.einsum("ei,ei->e", directions[a], directions[b])
+    aligned = np.abs(cos) >= ALIGNED
+    # Across both edges: their mean direction (the slot's normal where they cross one).
+    across = directions[a] + np.sign(cos)[:, None] * directions[b]
+    across /= np.maximum(np.linalg.norm(across, axis=1), 1e-300)[:, None]
+    step = midpoints[b] - midpoints[a]
+    side = np.abs(np.einsum("ei,ei->e", step, across)) <= SIDE_STEP * h
+    a, b = a[aligned & side], b[aligned & side]
+    adj = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(e, e))
+    n_groups, label = connected_components(adj, directed=False)
+    count = np.bincount(label, minlength=n_groups).astype(float)
+    centre = np.stack([np.bincount(label, midpoints[:, d], n_groups) for d in range(3)], axis=1) / count[:, None]
+    q = midpoints - centre[label]
+    cov = np.zeros((n_groups, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.bincount(label, q[:, i] * q[:, j], n_groups)
+    axis = np.linalg.eigh(cov)[1][:, :, -1]
+    along = np.einsum("ei,ei->e", q, axis[label])
+    lo = np.full(n_groups, np.inf)
+    hi = np.full(n_groups, -np.inf)
+    np.minimum.at(lo, label, along)
+    np.maximum.at(hi, label, along)
+    order = np.lexsort((spacing, label))
+    start = np.searchsorted(label[order], np.arange(n_groups))
+    median_h = spacing[order][start + (count.astype(np.int64) - 1) // 2]
+    return ((hi - lo) >= min_extent * median_h)[label]
+
+
+@numba.njit(cache=_CACHE)
+def _frame(nx, ny, nz):
+    """An orthonormal tangent basis (e1, e2) of the unit normal n."""
+    if abs(nx) < 0.9:
+        ax, ay, az = 1.0, 0.0, 0.0
+    else:
+        ax, ay, az = 0.0, 1.0, 0.0
+    d = ax * nx + ay * ny + az * nz
+    e1x, e1y, e1z = ax - d * nx, ay - d * ny, az - d * nz
+    norm = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
+    e1x, e1y, e1z = e1x / norm, e1y / norm, e1z / norm
+    return e1x, e1y, e1z, ny * e1z - nz * e1y, nz * e1x - nx * e1z, nx * e1y - ny * e1x
+
+
+@numba.njit(cache=_CACHE)
+def _lined(xs, ys, cx, cy, ax, ay, bx, by, lo, hi, cover, h, half_length):
+    """Whether neighbours line the strip on both sides beside both its far ends."""
+    flanks = 0  # bit: near (u <= lo) or far side, positive or negative end
+    for m in range(xs.shape[0]):
+        u = xs[m] * bx + ys[m] * by
+        v = (xs[m] - cx) * ax + (ys[m] - cy) * ay
+        if abs(v) < FLANK_FROM * half_length or abs(v) > cover:
+            continue
+        if lo - FLANK_WIDTH * h < u <= lo:
+            flanks |= 1 if v > 0 else 4
+        elif hi <= u < hi + FLANK_WIDTH * h:
+            flanks |= 2 if v > 0 else 8
+        if flanks == 15:
+            return True
+    return False
+
+
+@numba.njit(cache=_CACHE)
+def _crosses_strip(qx, qy, xs, ys, reach, h, hw, min_width, margin, half_length, n_orient, lined=True):
+    """The direction index of an empty strip of the neighbours (xs, ys) that 0 -> q crosses, or -1.
+
+    ``half_length`` is in units of the local spacing ``h``, ``min_width`` in units of
+    ``hw`` (at least ``h``: see :func:`slot_cut_graph`). With
+    ``lined`` False the strip need not be lined by neighbours (the screen on the graph's
+    two-ring, which does not reach the strip's ends).
+    """
+    half_length = half_length * h
+    if qx * qx + qy * qy < (min_width * hw) ** 2:
+        return -1
+    cx, cy = 0.5 * qx, 0.5 * qy
+    cn = np.sqrt(cx * cx + cy * cy)
+    for o in range(n_orient):
+        phi = np.pi * o / n_orient
+        ax, ay = np.cos(phi), np.sin(phi)
+        bx, by = -ay, ax
+        delta = qx * bx + qy * by
+        if delta < 0:
+            bx, by, delta = -bx, -by, -delta
+        if delta < min_width * hw:
+            continue
+        # The neighbours cover the strip this far each way from the edge's midpoint.
+        cover = np.sqrt(max(reach * reach - delta * delta, 0.0)) - cn
+        if cover < half_length:
+            continue
+        lo, hi = margin * delta, (1.0 - margin) * delta
+        # Empty: no neighbour inside the strip within half_length of the edge (the nearest
+        # neighbours come first, and most strips are refuted by one of them).
+        empty = True
+        for m in range(xs.shape[0]):
+            u = xs[m] * bx + ys[m] * by
+            if lo < u < hi and abs((xs[m] - cx) * ax + (ys[m] - cy) * ay) < half_length:
+                empty = False
+                break
+        if empty and (not lined or _lined(xs, ys, cx, cy, ax, ay, bx, by, lo, hi, cover, h, half_length)):
+            return o
+    return -1
+
+
+@numba.njit(parallel=True, cache=_CACHE)
+def _two_ring_screen(points, normals, indices, a, b, h, hw, min_width, margin, half_length, n_orient, out):
+    k = indices.shape[1]
+    for e in numba.prange(a.shape[0]):
+        i, j = a[e], b[e]
+        e1x, e1y, e1z, e2x, e2y, e2z = _frame(normals[i, 0], normals[i, 1], normals[i, 2])
+        xs = np.empty(k + k * k)
+        ys = np.empty(k + k * k)
+        m = 0
+        for s in range(k):
+            q = indices[i, s]
+            for t in range(-1, k):
+                w = q if t < 0 else indices[q, t]
+                if w == i:
+                    continue
+                dx, dy, dz = points[w, 0] - points[i, 0], points[w, 1] - points[i, 1], points[w, 2] - points[i, 2]
+                xs[m] = dx * e1x + dy * e1y + dz * e1z
+                ys[m] = dx * e2x + dy * e2y + dz * e2z
+                m += 1
+        dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+        out[e] = _crosses_strip(dx * e1x + dy * e1y + dz * e1z, dx * e2x + dy * e2y + dz * e2z, xs[:m], ys[:m],
+                                np.inf, h[i], hw[i], min_width, margin, half_length, n_orient, False) >= 0
+
+
+@numba.njit(parallel=True, cache=_CACHE)
+def _strip_crossings(points, normals, rows, pool, around, reach, h, hw, min_width, margin, half_length, n_orient,
+                     out):
+    for r in numba.prange(rows.shape[0]):
+        i = rows[r]
+        e1x, e1y, e1z, e2x, e2y, e2z = _frame(normals[i, 0], normals[i, 1], normals[i, 2])
+        m_count = around.shape[1]
+        xs = np.empty(m_count)
+        ys = np.empty(m_count)
+        for m in range(m_count):
+            j = around[r, m]
+            dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+            xs[m] = dx * e1x + dy * e1y + dz * e1z
+            ys[m] = dx * e2x + dy * e2y + dz * e2z
+        n_pool = pool.shape[1]
+        px = np.empty(n_pool)
+        py = np.empty(n_pool)
+        for c in range(n_pool):
+            j = pool[r, c]
+            dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+            px[c] = dx * e1x + dy * e1y + dz * e1z
+            py[c] = dx * e2x + dy * e2y + dz * e2z
+        for c in range(n_pool):
+            o = _crosses_strip(px[c], py[c], xs, ys, reach[r], h[i], hw[i], min_width, margin, half_length, n_orient)
+            out[r, c] = o >= 0
+
+
+def strip_crossings(points: np.ndarray, normals: np.ndarray, rows: np.ndarray, pool: np.ndarray,
+                    around: np.ndarray, reach: np.ndarray, h: np.ndarray,
+                    h_width: np.ndarray | None = None) -> np.ndarray:
+    """Which edges ``rows[r] -> pool[r, c]`` cross an empty strip (see the module docstring).
+
+    Parameters
+    ----------
+    points, normals : (N, 3) numpy.ndarray of float64
+        Points and unit normals (the tangent planes the strips lie in).
+    rows : (R,) numpy.ndarray of int64
+        The points examined.
+    pool : (R, C) numpy.ndarray of int64
+        Their candidate neighbours.
+    around : (R, M) numpy.ndarray of int64
+        Their nearest neighbours, on which emptiness is judged.
+    reach : (R,) numpy.ndarray of float64
+        Distance of each row's farthest member of ``around``: no strip is judged beyond it.
+    h : (N,) numpy.ndarray of float64
+        Local spacing: the unit of the strip's length.
+    h_width : (N,) numpy.ndarray of float64, optional
+        The unit of the strip's width; ``h`` when omitted.
+
+    Returns
+    -------
+    (R, C) numpy.ndarray of bool
+    """
+    out = np.zeros(pool.shape, dtype=bool)
+    if rows.size:
+        _strip_crossings(points, normals, rows, pool, around, reach, h, h if h_width is None else h_width, MIN_WIDTH, MARGIN, 0.5 * STRIP_LENGTH,
+                         N_ORIENTATIONS, out)
+    return out
+
+
+def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
+                   h: np.ndarray) -> tuple[KnnGraph, dict]:
+    """The K nearest neighbours without the edges that cross a slot.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    graph : KnnGraph
+        K nearest neighbours (any graph whose rows are nearest first).
+    normals : (N, 3) numpy.ndarray of float64
+        Unit normals (orientation does not matter).
+    h : (N,) numpy.ndarray of float64
+        Local spacing of each point.
+
+    Returns
+    -------
+    graph : KnnGraph
+        ``graph`` itself when no edge crosses a slot; otherwise the rows of the points
+        whose edges were cut hold their K nearest candidates (of
+        :data:`POOL_FACTOR` K) that cross no slot, nearest first.
+    diagnostics : dict
+        ``n_void_edges`` (screen 1, undirected), ``n_short_strips`` (screen 1b),
+        ``n_examined_points`` (after screen 2),
+        ``n_lone_crossings`` (crossings of a strip that did not line up with others over
+        :data:`MIN_CUT_EXTENT` spacings: left), ``n_slot_edges`` (distinct edges cut).
+    """
+    n, k = graph.indices.shape
+    # A smoothed spacing lags behind where the density changes fast (graded samplings):
+    # on the sparse side it is too small, and the sampling's own gaps there look like
+    # strips (bump, graded 2k: 26 edges cut, the map worse). Widths are measured against
+    # the larger of it and the spacing over one ring, which follows the density closely;
+    # lengths against the smooth one (128 neighbours reach 4 of them).
+    h_width = np.maximum(h, local_spacing(graph, passes=1))
+    void = void_edges(points, graph, h_width)
+    r, c = np.nonzero(void)
+    j = graph.indices[r, c]
+    # Each undirected edge once (the screen is symmetric up to the two ends' spacings).
+    first = np.unique(np.minimum(r, j) * n + np.maximum(r, j), return_index=True)[1]
+    r, j = r[first], j[first]
+    diagnostics = {"n_void_edges": int(r.size), "n_short_strips": 0, "n_examined_points": 0, "n_lone_crossings": 0,
+                   "n_slot_edges": 0}
+    # Screen 1b: a shorter strip, empty among the points two graph steps from r: a
+    # necessary condition of the strip test that needs no kd-tree search.
+    short = np.zeros(r.size, dtype=bool)
+    _two_ring_screen(points, normals, graph.indices, r, j, h, h_width, MIN_WIDTH, MARGIN, SCREEN_HALF_LENGTH, N_ORIENTATIONS,
+                     short)
+    r, j = r[short], j[short]
+    diagnostics["n_short_strips"] = int(r.size)
+    if r.size == 0:
+        return graph, diagnostics
+    grouped = _edge_groups(points, r, j, h, MIN_EXTENT)
+    rows = np.unique(np.concatenate([r[grouped], j[grouped]]))
+    diagnostics["n_examined_points"] = int(rows.size)
+    m = min(n - 1, STRIP_NEIGHBOURS)
+    if rows.size == 0 or m <= k:
+        return graph, diagnostics
+    dist, near = cKDTree(points).query(points[rows], k=m + 1, workers=-1)
+    around, reach = np.ascontiguousarray(near[:, 1:]), dist[:, -1]
+    c_pool = min(m, POOL_FACTOR * k)
+    pool, pool_dist = np.ascontiguousarray(around[:, :c_pool]), dist[:, 1:c_pool + 1]
+    cut = strip_crossings(points, normals, rows, pool, around, reach, h, h_width)
+    if not cut.any():
+        return graph, diagnostics
+    cr, cc = np.nonzero(cut)
+    a, b = rows[cr], pool[cr, cc]
+    # A slot gives crossings all along it; one empty strip of a random sampling (at the
+    # threshold, a chance of about e^-11 per place and direction) gives a short run.
+    lined_up = _edge_groups(points, a, b, h, MIN_CUT_EXTENT)
+    diagnostics["n_lone_crossings"] = int((~lined_up).sum())
+    a, b = a[lined_up], b[lined_up]
+    if a.size == 0:
+        return graph, diagnostics
+    ends = np.concatenate([a, b])
+    pairs = np.unique(np.concatenate([a * n + b, b * n + a]))
+    diagnostics["n_slot_edges"] = int(pairs.size // 2)
+    # The cut is symmetric: an end that was not examined gets its own candidates.
+    touched = np.unique(ends)
+    extra = np.setdiff1d(touched, rows)
+    if extra.size:
+        x_dist, x_near = cKDTree(points).query(points[extra], k=c_pool + 1, workers=-1)
+        rows = np.concatenate([rows, extra])
+        pool = np.concatenate([pool, x_near[:, 1:]])
+        pool_dist = np.concatenate([pool_dist, x_dist[:, 1:]])
+    at = np.searchsorted(rows, touched, sorter=np.argsort(rows))
+    at = np.argsort(rows)[at]
+    return _refilled(graph, touched, pool[at], pool_dist[at], pairs), diagnostics
+
+
+def slots_on_loops(before: KnnGraph, after: KnnGraph, boundary: np.ndarray, *,
+                   min_share: float = MIN_ON_LOOP) -> bool:
+    """Whether the boundary found on the cut graph runs along the cuts.
+
+    Parameters
+    ----------
+    before, after : KnnGraph
+        The graph before and after :func:`slot_cut_graph`.
+    boundary : (N,) numpy.ndarray of bool
+        Points on the boundary loops found with ``after``.
+    min_share : float
+        Share of the cut edges' ends that must lie on a loop or next to one (a kNN
+        neighbour on it in ``after``).
+
+    Returns
+    -------
+    bool
+        True when no edge was cut, or when at least ``min_share`` of the cut ends are
+        on or next to a loop.
+    """
+    removed = ~(before.indices[:, :, None] == after.indices[:, None, :]).any(axis=2)
+    rows = np.flatnonzero(removed.any(axis=1))
+    if rows.size == 0:
+        return True
+    ends = np.unique(np.concatenate([rows, before.indices[rows][removed[rows]]]))
+    near = boundary[ends] | boundary[after.indices[ends]].any(axis=1)
+    return bool(near.mean() >= min_share)
+
+
+def _edge_groups(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray, min_extent: float) -> np.ndarray:
+    """:func:`elongated_groups` of the edges ``a[e]``-``b[e]``."""
+    direction = points[b] - points[a]
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    return elongated_groups(0.5 * (points[a] + points[b]), direction, 0.5 * (h[a] + h[b]), min_extent=min_extent)
+
+
+def _refilled(graph: KnnGraph, rows: np.ndarray, pool: np.ndarray, pool_dist: np.ndarray,
+              pairs: np.ndarray) -> KnnGraph:
+    """``graph`` whose ``rows`` lose their edges in ``pairs`` and fill up from ``pool``.
+
+    A row keeps its uncut members and takes pool members beyond its farthest one (so the
+    edges a gap-aware graph left out stay out), its K nearest in all. A row left with
+    fewer than K fills up with its nearest cut edges (the graph stays K-regular); with
+    :data:`POOL_FACTOR` K candidates this has not been seen.
+    """
+    n, k = graph.indices.shape
+    indices, distances = graph.indices.copy(), graph.distances.copy()
+    cand = np.concatenate([indices[rows], pool], axis=1)
+    dist = np.concatenate([distances[rows], pool_dist], axis=1)
+    beyond = np.concatenate([np.ones((rows.size, k), dtype=bool), pool_dist > distances[rows, -1:]], axis=1)
+    cut = np.isin(rows[:, None] * n + cand, pairs)
+    rank = np.where(beyond & ~cut, 0, np.where(beyond, 1, 2))  # kept, then cut, never skipped pool members
+    order = np.lexsort((dist, rank), axis=1)[:, :k]
+    sel, sel_dist = np.take_along_axis(cand, order, axis=1), np.take_along_axis(dist, order, axis=1)
+    resort = np.argsort(sel_dist, axis=1, kind="stable")
+    indices[rows] = np.take_along_axis(sel, resort, axis=1)
+    distances[rows] = np.take_along_axis(sel_dist, resort, axis=1)
+    return KnnGraph(indices=indices, distances=distances, mean_spacing=float(distances.mean()))

@@ -1,0 +1,157 @@
+"""Edges across a slot are cut (``slot_cuts``), and the boundary walk turns around the slot's ends."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parambench.bench.run_cell import surface_for
+from parambench.methods.pointset.boundary import hairpin_successors
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.neighbourhoods import knn_graph, local_spacing
+from parambench.methods.pointset.normals import pca_normals
+from parambench.methods.pointset.slot_cuts import slot_cut_graph, strip_crossings
+
+
+def _recall_precision(found: np.ndarray, true: np.ndarray) -> tuple[float, float]:
+    hit = (found & true).sum()
+    return hit / true.sum(), hit / max(found.sum(), 1)
+
+
+def _slot_cut(points: np.ndarray):
+    graph = knn_graph(points, 8)
+    h = local_spacing(graph, 10)
+    return graph, h, slot_cut_graph(points, graph, pca_normals(points, graph.indices), h)
+
+
+def _grid_with_band(width: float, length: float) -> np.ndarray:
+    """A unit square lattice 41 x 41 without the points strictly inside a band |y| < width/2, |x| < length/2."""
+    x, y = np.meshgrid(np.arange(-20.0, 21.0), np.arange(-20.0, 21.0))
+    pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    inside = (np.abs(pts[:, 1]) < 0.5 * width) & (np.abs(pts[:, 0]) < 0.5 * length)
+    return pts[~inside]
+
+
+def test_strip_test_on_a_lattice_band():
+    """An edge across an empty band 2 spacings wide and 30 long is cut; across the lattice's own rows it is not."""
+    pts = _grid_with_band(1.5, 30.0)  # removes the row y = 0 for |x| < 15: the rows y = -1, 1 are 2 apart
+    graph = knn_graph(pts, 8)
+    h = local_spacing(graph, 10)
+    normals = np.tile([0.0, 0.0, 1.0], (pts.shape[0], 1))
+    lower = int(np.flatnonzero((pts[:, 0] == 0) & (pts[:, 1] == -1))[0])
+    upper = int(np.flatnonzero((pts[:, 0] == 0) & (pts[:, 1] == 1))[0])
+    far_row = int(np.flatnonzero((pts[:, 0] == 0) & (pts[:, 1] == -12))[0])
+    twelve_up = int(np.flatnonzero((pts[:, 0] == 0) & (pts[:, 1] == -10))[0])
+    from scipy.spatial import cKDTree
+    rows = np.array([lower, far_row])
+    dist, near = cKDTree(pts).query(pts[rows], k=129)
+    pool = np.array([[upper], [twelve_up]])
+    cut = strip_crossings(pts, normals, rows, pool, np.ascontiguousarray(near[:, 1:]), dist[:, -1], h)
+    assert cut[0, 0]  # across the band
+    assert not cut[1, 0]  # two rows apart inside the lattice: a row of points lies between
+
+
+@pytest.mark.parametrize("n", [2000, 20000])
+def test_slit_lips_are_separated_and_become_boundary(n):
+    """Jittered slit: the slot's lips are a second loop (before: one loop, the lips' edges bridging the slot)."""
+    s = surface_for("slit", n, "jittered", 0.0, 0)
+    without = build_frontend(s.points, slot_cuts=False)
+    with_cuts = build_frontend(s.points)
+    assert len(without.boundary_loops) == 1
+    assert len(with_cuts.boundary_loops) == len(s.boundary_loops) == 2
+    recall, precision = _recall_precision(with_cuts.boundary_mask, s.boundary_mask)
+    assert recall >= 0.95 and precision >= 0.99
+    assert with_cuts.diagnostics["neighbours"]["slots"]["n_slot_edges"] > 0
+
+
+def test_cut_edges_all_cross_the_slot():
+    """Every cut edge joins the two lips; none is left across the slot away from its ends."""
+    s = surface_for("slit", 20000, "jittered", 0.0, 0)
+    p = s.points
+    graph, h, (cut_graph, facts) = _slot_cut(p)
+    assert facts["n_slot_edges"] > 0
+    rows = np.broadcast_to(np.arange(p.shape[0])[:, None], graph.indices.shape)
+    removed = ~(graph.indices[:, :, None] == cut_graph.indices[:, None, :]).any(axis=2)
+    i, j = rows[removed], graph.indices[removed]
+    assert i.size > 0
+    assert np.all(np.sign(p[i, 1]) != np.sign(p[j, 1]))  # the slot lies along y = 0
+    assert np.all(np.abs(p[i, 0]) < 0.65)  # slot_length 1.2: within its ends
+    # Away from the ends (more than 5 spacings in), no edge across is left.
+    spacing = float(np.median(h))
+    inner = np.abs(p[:, 0]) < 0.6 - 5 * spacing
+    across = (np.sign(p[:, 1])[:, None] != np.sign(p[cut_graph.indices, 1])) & (np.abs(p[:, 1]) < 0.05)[:, None]
+    assert not (across & inner[:, None]).any()
+    # The graph stays K-regular and nearest first.
+    assert cut_graph.indices.shape == graph.indices.shape
+    assert np.all(np.diff(cut_graph.distances, axis=1) >= 0)
+
+
+@pytest.mark.parametrize("name", ["bump", "holes", "plane", "cap"])
+def test_no_slot_no_cut(name):
+    """Jittered surfaces without a slot keep their graph bit for bit."""
+    s = surface_for(name, 20000, "jittered", 0.0, 0)
+    graph, _, (cut_graph, facts) = _slot_cut(s.points)
+    assert facts["n_slot_edges"] == 0
+    assert cut_graph is graph
+
+
+def test_random_strips_do_not_line_up():
+    """A random sampling's empty strips are short: they are found but left (lone crossings), the loops unchanged."""
+    s = surface_for("holes", 20000, "random", 0.0, 0)
+    fe = build_frontend(s.points)
+    facts = fe.diagnostics["neighbours"]["slots"]
+    assert facts["n_lone_crossings"] > 0  # the strip test does fire on chance strips ...
+    assert len(fe.boundary_loops) == 4  # ... yet no spurious loop appears
+    recall, precision = _recall_precision(fe.boundary_mask, s.boundary_mask)
+    assert recall >= 0.99 and precision >= 0.99
+
+
+def test_hairpin_steps_to_the_facing_lip():
+    # Lip ends of a slot along x: 0 and 1 on the lower lip facing +y, 2 and 3 on the upper lip facing -y.
+    points = np.array([[0.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.3, 1.5, 0.0], [-0.7, 1.5, 0.0],
+                       [0.5, -1.0, 0.0],  # behind point 0 (against its outward direction), facing +y too
+                       [0.2, 0.8, 0.0]])  # ahead of 0 and near, but facing sideways
+    outward = np.array([[0, 1, 0], [0, 1, 0], [0, -1, 0], [0, -1, 0], [0, -1, 0], [1, 0, 0]], dtype=float)
+    candidates = np.ones(6, dtype=bool)
+    succ = np.array([-1, 0, 3, -1, -1, -1])  # 1 -> 0 along the lower lip, 2 -> 3 along the upper one
+    out = hairpin_successors(points, candidates, outward, succ, 1.5)
+    assert out[0] == 2  # the nearest facing candidate ahead without a predecessor
+    assert out[3] == 1  # the upper lip's end steps down to 1 (0 is farther); 0 would be next
+    assert out[5] == -1  # faces sideways: no candidate faces it
+    assert out[4] == -1  # 4 faces -y: nothing lies on that side facing it within reach
+    assert np.array_equal(out[[1, 2]], succ[[1, 2]])  # existing successors are kept
+    # Out of reach: nothing.
+    assert hairpin_successors(points, candidates, outward, succ, 0.5)[0] == -1
+
+
+def test_hairpin_two_dead_ends_one_target_nearer_wins():
+    points = np.array([[0.0, 0.0, 0.0], [0.6, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    outward = np.array([[0, 1, 0], [0, 1, 0], [0, -1, 0]], dtype=float)
+    succ = np.array([-1, -1, 1])
+    out = hairpin_successors(points, np.ones(3, dtype=bool), outward, succ, 2.0)
+    assert out[0] == 2 and out[1] == -1
+
+
+def test_cuts_without_a_loop_along_them_are_undone():
+    """Random slit 20k: the lips are cut but the walk does not close around the slot's ends; the
+    front end then returns what it returns without cuts (a graph cut open where no loop runs
+    folded the map: self-check failed), and says so."""
+    s = surface_for("slit", 20000, "random", 0.0, 0)
+    fe = build_frontend(s.points)
+    plain = build_frontend(s.points, slot_cuts=False)
+    slots = fe.diagnostics["neighbours"]["slots"]
+    assert slots["n_slot_edges"] > 0 and slots["reverted"]
+    assert np.array_equal(fe.knn_indices, plain.knn_indices)
+    assert np.array_equal(fe.boundary_mask, plain.boundary_mask)
+    assert (fe.W != plain.W).nnz == 0
+
+
+def test_slots_on_loops_counts_cut_ends_near_a_loop():
+    from parambench.methods.pointset.neighbourhoods import KnnGraph
+    from parambench.methods.pointset.slot_cuts import slots_on_loops
+    before = KnnGraph(indices=np.array([[1, 2], [0, 2], [0, 1], [2, 1]]), distances=np.ones((4, 2)), mean_spacing=1.0)
+    after = KnnGraph(indices=np.array([[1, 3], [0, 3], [0, 1], [2, 1]]), distances=np.ones((4, 2)), mean_spacing=1.0)
+    # Edges 0-2 and 1-2 were cut (rows 0 and 1 lost 2): ends 0, 1, 2.
+    assert slots_on_loops(before, after, np.array([False, False, False, True]))  # all next to 3 on the loop
+    assert not slots_on_loops(before, after, np.array([False, False, False, False]))
+    assert slots_on_loops(before, before, np.zeros(4, dtype=bool))  # nothing cut
