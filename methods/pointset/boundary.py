@@ -404,7 +404,7 @@ def bridge_successors(points: np.ndarray, e1: np.ndarray, e2: np.ndarray, candid
 
 
 def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.ndarray, succ: np.ndarray,
-                       reach: float | np.ndarray) -> np.ndarray:
+                       reach: float | np.ndarray, bridged: np.ndarray | None = None) -> np.ndarray:
     """Turn the walk around the end of a slot: a dead end steps to the facing lip.
 
     At the end of a slot 1.5-2 spacings wide the boundary turns by 180 degrees within
@@ -413,7 +413,10 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     nearest candidate that faces it (outward directions opposed, cosine below
     ``-_HAIRPIN_FACING``), lies on its open side (along its outward direction) within
     ``_HAIRPIN_REACH`` times ``reach``, and has no predecessor yet; where two dead ends
-    pick the same point, the nearer gets it.
+    pick the same point, the nearer gets it. A bridge (:func:`bridge_successors`) from
+    such a point that reaches farther than the facing candidate is replaced by the
+    hairpin: at a slot's end the bridge otherwise leaves the lip for a sampling gap
+    several spacings away (slit, random 2k: 5 spacings, against 2 across the slot).
 
     Parameters
     ----------
@@ -422,15 +425,21 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     outward : (N, 3) numpy.ndarray of float64
         Outward gap direction of each point in 3D.
     succ : (N,) numpy.ndarray of int64
-        Successors so far (-1 = missing); not modified.
+        Successors from the balls (:func:`successors`; -1 = missing); not modified.
     reach : float or (N,) numpy.ndarray of float64
         The bridges' reach (:func:`bridge_successors`).
+    bridged : (N,) numpy.ndarray of int64, optional
+        ``succ`` with the bridges filled in; the dead ends are those of ``succ``, and a
+        bridge is kept where it is nearer than the hairpin step.
 
     Returns
     -------
     (N,) numpy.ndarray of int64
+        ``bridged`` (or ``succ``) with the hairpin steps.
     """
-    out = succ.copy()
+    if bridged is None:
+        bridged = succ
+    out = bridged.copy()
     rows = np.flatnonzero(candidates & (succ < 0))
     cand_idx = np.flatnonzero(candidates)
     if rows.size == 0 or cand_idx.size < 2:
@@ -441,7 +450,7 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     found = np.isfinite(dist) & (dist <= radius[:, None])
     near = cand_idx[np.minimum(near, cand_idx.size - 1)]
     has_pred = np.zeros(candidates.shape[0], dtype=bool)
-    has_pred[succ[succ >= 0]] = True
+    has_pred[succ[succ >= 0]] = True  # the balls' steps; bridges may be overruled
     facing = np.einsum("nki,ni->nk", outward[near], outward[rows]) < -_HAIRPIN_FACING
     ahead = np.einsum("nki,ni->nk", points[near] - points[rows, None, :], outward[rows]) > 0
     ok = found & facing & ahead & ~has_pred[near] & (near != rows[:, None])
@@ -449,6 +458,10 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     pick = np.arange(rows.size)
     has = ok[pick, best]
     rows, target, gap = rows[has], near[pick, best][has], dist[pick, best][has]
+    bridge = out[rows]
+    bridge_len = np.where(bridge >= 0, np.linalg.norm(points[np.maximum(bridge, 0)] - points[rows], axis=1), np.inf)
+    shorter = gap < bridge_len
+    rows, target, gap = rows[shorter], target[shorter], gap[shorter]
     first = np.lexsort((gap, target))
     keep = np.ones(first.size, dtype=bool)
     keep[1:] = target[first][1:] != target[first][:-1]
@@ -799,9 +812,9 @@ def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarra
     active = candidates.copy()
     n_pruned = 0
     for _ in range(_MAX_PRUNE_ROUNDS):
-        succ = successors(ball_indices, coords, active, outward, bisector)
-        succ = bridge_successors(points, e1, e2, active, outward, bisector, succ, reach)
-        succ = hairpin_successors(points, active, outward, succ, reach)
+        in_ball = successors(ball_indices, coords, active, outward, bisector)
+        succ = bridge_successors(points, e1, e2, active, outward, bisector, in_ball, reach)
+        succ = hairpin_successors(points, active, outward, in_ball, reach, bridged=succ)
         all_cycles = cycles(succ, np.flatnonzero(active))
         small = [c for c in all_cycles if c.size < min_loop_size]
         if not small:

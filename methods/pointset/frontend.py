@@ -692,7 +692,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
                 "boundary_decimate": int(params.boundary_decimate), "weights": params.weights,
                 "max_ball": int(params.max_ball), "min_loop_size": int(params.min_loop_size),
                 "dem_variant": params.dem_variant, "spacing": params.spacing, "neighbours": params.neighbours,
-                "boundary_method": params.boundary_method}
+                "boundary_method": params.boundary_method, "slot_cuts": bool(params.slot_cuts)}
     return FrontEnd(points=pts, normals=oriented[inv], knn_indices=renumbered_rows(nb.graph.indices, inv, order),
                     mean_spacing=float(nb.spacing),
                     local_spacing=_interior_spacing(nb.h_local, nb.graph.indices, bnd.mask)[inv],

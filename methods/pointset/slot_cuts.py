@@ -77,6 +77,15 @@ MIN_EXTENT = 6.0
 #: three spacings).
 SCREEN_HALF_LENGTH = 1.5
 
+#: Near each end of a slot (this many spacings), edges across its line with a clear
+#: midpoint are cut too (:func:`_tip_crossings`).
+TIP_REACH = 5.0
+#: A point within this share of the slot's width (its cut edges' median span across
+#: its line) of the line ends the slot ...
+TIP_BLOCK = 0.3
+#: ... and a cut edge's midpoint must be this share of the width clear of every point.
+TIP_CLEARANCE = 0.4
+
 #: Crossings are cut only where they line up (as in screen 2) over this many spacings.
 MIN_CUT_EXTENT = 6.0
 
@@ -157,6 +166,25 @@ def void_edges(points: np.ndarray, graph: KnnGraph, h: np.ndarray, *, min_length
     return out
 
 
+def _link_groups(midpoints: np.ndarray, directions: np.ndarray, spacing: np.ndarray,
+                 link: float = LINK) -> tuple[int, np.ndarray]:
+    """Connected groups of edges linked as :func:`elongated_groups` describes: (count, label per edge)."""
+    e = midpoints.shape[0]
+    h = float(np.median(spacing))
+    pairs = cKDTree(midpoints).query_pairs(link * h, output_type="ndarray")
+    a, b = pairs[:, 0], pairs[:, 1]
+    cos = np.einsum("ei,ei->e", directions[a], directions[b])
+    aligned = np.abs(cos) >= ALIGNED
+    # Across both edges: their mean direction (the slot's normal where they cross one).
+    across = directions[a] + np.sign(cos)[:, None] * directions[b]
+    across /= np.maximum(np.linalg.norm(across, axis=1), 1e-300)[:, None]
+    step = midpoints[b] - midpoints[a]
+    side = np.abs(np.einsum("ei,ei->e", step, across)) <= SIDE_STEP * h
+    a, b = a[aligned & side], b[aligned & side]
+    adj = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(e, e))
+    return connected_components(adj, directed=False)
+
+
 def elongated_groups(midpoints: np.ndarray, directions: np.ndarray, spacing: np.ndarray, *, link: float = LINK,
                      min_extent: float = MIN_EXTENT) -> np.ndarray:
     """Screen 2: edges that line up, side by side, over ``min_extent`` spacings.
@@ -186,19 +214,7 @@ def elongated_groups(midpoints: np.ndarray, directions: np.ndarray, spacing: np.
     e = midpoints.shape[0]
     if e < 2:
         return np.zeros(e, dtype=bool)
-    h = float(np.median(spacing))
-    pairs = cKDTree(midpoints).query_pairs(link * h, output_type="ndarray")
-    a, b = pairs[:, 0], pairs[:, 1]
-    cos = np.einsum("ei,ei->e", directions[a], directions[b])
-    aligned = np.abs(cos) >= ALIGNED
-    # Across both edges: their mean direction (the slot's normal where they cross one).
-    across = directions[a] + np.sign(cos)[:, None] * directions[b]
-    across /= np.maximum(np.linalg.norm(across, axis=1), 1e-300)[:, None]
-    step = midpoints[b] - midpoints[a]
-    side = np.abs(np.einsum("ei,ei->e", step, across)) <= SIDE_STEP * h
-    a, b = a[aligned & side], b[aligned & side]
-    adj = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(e, e))
-    n_groups, label = connected_components(adj, directed=False)
+    n_groups, label = _link_groups(midpoints, directions, spacing, link)
     count = np.bincount(label, minlength=n_groups).astype(float)
     centre = np.stack([np.bincount(label, midpoints[:, d], n_groups) for d in range(3)], axis=1) / count[:, None]
     q = midpoints - centre[label]
@@ -399,7 +415,8 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
         ``n_void_edges`` (screen 1, undirected), ``n_short_strips`` (screen 1b),
         ``n_examined_points`` (after screen 2),
         ``n_lone_crossings`` (crossings of a strip that did not line up with others over
-        :data:`MIN_CUT_EXTENT` spacings: left), ``n_slot_edges`` (distinct edges cut).
+        :data:`MIN_CUT_EXTENT` spacings: left), ``n_tip_edges`` (edges cut near the slots'
+        ends, :func:`_tip_crossings`), ``n_slot_edges`` (distinct edges cut).
     """
     n, k = graph.indices.shape
     # A smoothed spacing lags behind where the density changes fast (graded samplings):
@@ -447,6 +464,9 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     a, b = a[lined_up], b[lined_up]
     if a.size == 0:
         return graph, diagnostics
+    ta, tb = _tip_crossings(points, a, b, h, h_width)
+    diagnostics["n_tip_edges"] = int(ta.size)
+    a, b = np.concatenate([a, ta]), np.concatenate([b, tb])
     ends = np.concatenate([a, b])
     pairs = np.unique(np.concatenate([a * n + b, b * n + a]))
     diagnostics["n_slot_edges"] = int(pairs.size // 2)
@@ -490,6 +510,83 @@ def slots_on_loops(before: KnnGraph, after: KnnGraph, boundary: np.ndarray, *,
     ends = np.unique(np.concatenate([rows, before.indices[rows][removed[rows]]]))
     near = boundary[ends] | boundary[after.indices[ends]].any(axis=1)
     return bool(near.mean() >= min_share)
+
+
+def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray,
+                   h_width: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edges across a slot within its last strip half-length, where the strip test cannot see.
+
+    The strip test wants the strip empty :data:`STRIP_LENGTH` / 2 each way, so the last
+    4 spacings of a slot at each end keep their edges across: the boundary walk then
+    loses the lips there (recall) or wanders off at the end. Near each end of a group of
+    cut edges (:data:`TIP_REACH` spacings), an edge is cut too when its ends lie on the
+    two sides of the group's line (fitted to the cut edges' midpoints within
+    :data:`TIP_REACH` of the end), its midpoint is on that line (within half a
+    spacing), before the first point on the line beyond the last cut (within
+    :data:`TIP_BLOCK` of the slot's width: where the slot ends), and no point lies
+    within :data:`TIP_CLEARANCE` of the width of the midpoint.
+
+    Returns
+    -------
+    a, b : (T,) numpy.ndarray of int64
+        Ends of the further edges to cut.
+    """
+    direction = points[b] - points[a]
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    mid = 0.5 * (points[a] + points[b])
+    n_groups, label = _link_groups(mid, direction, 0.5 * (h[a] + h[b]))
+    tree = cKDTree(points)
+    found_a, found_b = [], []
+    for g in range(n_groups):
+        members = np.flatnonzero(label == g)
+        if members.size < 2:
+            continue
+        hg = float(np.median(h[a[members]]))
+        m = mid[members]
+        axis = np.linalg.eigh((m - m.mean(0)).T @ (m - m.mean(0)))[1][:, -1]
+        t = (m - m.mean(0)) @ axis
+        for end, sign in ((np.argmax(t), 1.0), (np.argmin(t), -1.0)):
+            near_end = np.abs(t - t[end]) <= TIP_REACH * hg
+            local = m[near_end]
+            line_axis = axis if local.shape[0] < 3 else np.linalg.eigh(
+                (local - local.mean(0)).T @ (local - local.mean(0)))[1][:, -1]
+            line_axis = line_axis * np.sign(line_axis @ axis) * sign  # towards the tip
+            across = direction[members][near_end] * np.sign(direction[members][near_end] @ direction[members[end]])[:, None]
+            across = across.mean(0) - (across.mean(0) @ line_axis) * line_axis
+            across /= np.linalg.norm(across)
+            origin = local.mean(0)
+            edges = members[near_end]
+            width = float(np.median(np.abs((points[b[edges]] - points[a[edges]]) @ across)))
+            rows = np.asarray(tree.query_ball_point(m[end], 2.0 * TIP_REACH * hg), dtype=np.int64)
+            if rows.size < 2:
+                continue
+            # The slot ends at the first point on its line beyond the last cut.
+            ahead = (points[rows] - m[end]) @ line_axis
+            on_line = (np.abs((points[rows] - origin) @ across) < TIP_BLOCK * width) & (ahead > 0)
+            tip = float(ahead[on_line].min()) if on_line.any() else TIP_REACH * hg
+            k = min(points.shape[0] - 1, POOL_FACTOR * 8)
+            _, pool = tree.query(points[rows], k=k + 1)
+            i = np.repeat(rows, k)
+            j = pool[:, 1:].ravel()
+            side_i = (points[i] - origin) @ across
+            side_j = (points[j] - origin) @ across
+            c = 0.5 * (points[i] + points[j])
+            off_line = np.abs((c - origin) @ across)
+            along = (c - m[end]) @ line_axis
+            ok = ((side_i * side_j < 0) & (off_line <= 0.5 * hg) & (along > -TIP_REACH * hg)
+                  & (along < min(tip, TIP_REACH * hg)))
+            if not ok.any():
+                continue
+            i, j, c = i[ok], j[ok], c[ok]
+            dist, idx = tree.query(c, k=3)
+            nearest = np.where((idx[:, 0] == i) | (idx[:, 0] == j),
+                               np.where((idx[:, 1] == i) | (idx[:, 1] == j), dist[:, 2], dist[:, 1]), dist[:, 0])
+            clear = nearest >= TIP_CLEARANCE * width
+            found_a.append(i[clear])
+            found_b.append(j[clear])
+    if not found_a:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(found_a), np.concatenate(found_b)
 
 
 def _edge_groups(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray, min_extent: float) -> np.ndarray:
