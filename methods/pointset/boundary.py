@@ -105,6 +105,9 @@ _EMPTY_GRID = 32
 #: Boundary points examined when bridging beyond the ball.
 _BRIDGE_K = 16
 
+#: Angle criterion of the points on a slot's lips (see :func:`find_boundary`).
+_LIP_ANGLE_DEG = 60.0
+
 #: A dead end's hairpin step (:func:`hairpin_successors`) reaches this many bridge reaches ...
 _HAIRPIN_REACH = 1.5
 #: ... to a candidate whose outward direction has a cosine below minus this with its own.
@@ -691,7 +694,7 @@ def _perimeter(points: np.ndarray, loop: np.ndarray) -> float:
 def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndarray, coords: np.ndarray, *,
                   angle_deg: float = 120.0, decimate: int = 1,
                   min_loop_size: int = DEFAULT_MIN_LOOP_SIZE, require_loop: bool = True,
-                  local_spacing: np.ndarray | None = None) -> BoundaryLoops:
+                  local_spacing: np.ndarray | None = None, lips: np.ndarray | None = None) -> BoundaryLoops:
     """Boundary points and loops of a point set from its geodesic balls.
 
     Parameters
@@ -720,6 +723,12 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         sampled along itself about as densely as the surface around it), and so are
         loops of fewer than 32 points whose largest empty disk inside
         (:func:`empty_radius_inside`) is narrower than 1.9 of their mean steps.
+    lips : (N,) numpy.ndarray of bool, optional
+        Points whose edges across a slot were cut
+        (:mod:`parambench.methods.pointset.slot_cuts`): they are candidates from a gap of
+        ``_LIP_ANGLE_DEG`` on. At a slot's end the lip's last points see the other lip
+        beyond the end (gaps of 90-120 degrees on the slit at 2k points) and were left
+        out of the loop.
 
     Returns
     -------
@@ -739,6 +748,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     mask = ball_indices >= 0
     gap, bisector = angular_gaps(coords, mask)
     candidates = gap > np.deg2rad(angle_deg)
+    if lips is not None:
+        candidates |= lips & (gap > np.deg2rad(min(_LIP_ANGLE_DEG, angle_deg)))
     e1, e2 = tangent_frames(normals)
     ball_radius = _ball_radii(coords)
     # Bridges span up to twice the typical ball radius, or twice the point's own ball

@@ -26,7 +26,7 @@ from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
-from .slot_cuts import slot_cut_graph, slots_on_loops
+from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
 from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
@@ -232,6 +232,8 @@ class Neighbourhoods(NamedTuple):
     h_local : (N,) numpy.ndarray of float64
         Spacing field of balls and area terms: ten averages for ``spacing="local"``,
         ``l`` everywhere for "global".
+    lips : (N,) numpy.ndarray of bool or None
+        Ends of the edges :func:`slot_stage` cut (the lips of slots); None when none was cut.
     """
 
     order: np.ndarray
@@ -243,6 +245,7 @@ class Neighbourhoods(NamedTuple):
     spacing: float
     h_around: np.ndarray
     h_local: np.ndarray
+    lips: np.ndarray | None = None
 
 
 def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode: str = "local", *,
@@ -334,7 +337,8 @@ def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode:
     h_local = (local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local"
                else np.full(graph.indices.shape[0], graph.mean_spacing))
     return nb._replace(graph=graph, neighbour_diagnostics=diagnostics, adjacency=adjacency,
-                       spacing=graph.mean_spacing, h_around=local_spacing(graph, passes=1), h_local=h_local)
+                       spacing=graph.mean_spacing, h_around=local_spacing(graph, passes=1), h_local=h_local,
+                       lips=cut_ends(nb.graph, graph))
 
 
 def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spacing: float, *,
@@ -482,7 +486,7 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     p, spacing = nb.points, nb.spacing
     min_loop_size = int(params.min_loop_size)
     bnd_args = dict(angle_deg=float(params.boundary_angle_deg), decimate=int(params.boundary_decimate),
-                    min_loop_size=min_loop_size, require_loop=False, local_spacing=nb.h_around)
+                    min_loop_size=min_loop_size, require_loop=False, local_spacing=nb.h_around, lips=nb.lips)
     retried = False
     if params.boundary_method == "rings":
         bnd = find_boundary_rings(p, frame_normals, nb.h_around, decimate=int(params.boundary_decimate),

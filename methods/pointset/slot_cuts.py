@@ -50,7 +50,7 @@ from scipy.spatial import cKDTree
 from ..numba_cache import configure_numba_cache
 from .neighbourhoods import KnnGraph, local_spacing
 
-__all__ = ["slot_cut_graph", "slots_on_loops", "void_edges", "elongated_groups", "strip_crossings", "MIN_WIDTH", "STRIP_LENGTH"]
+__all__ = ["slot_cut_graph", "slots_on_loops", "cut_ends", "void_edges", "elongated_groups", "strip_crossings", "MIN_WIDTH", "STRIP_LENGTH"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -503,13 +503,29 @@ def slots_on_loops(before: KnnGraph, after: KnnGraph, boundary: np.ndarray, *,
         True when no edge was cut, or when at least ``min_share`` of the cut ends are
         on or next to a loop.
     """
-    removed = ~(before.indices[:, :, None] == after.indices[:, None, :]).any(axis=2)
-    rows = np.flatnonzero(removed.any(axis=1))
-    if rows.size == 0:
+    ends = np.flatnonzero(cut_ends(before, after))
+    if ends.size == 0:
         return True
-    ends = np.unique(np.concatenate([rows, before.indices[rows][removed[rows]]]))
     near = boundary[ends] | boundary[after.indices[ends]].any(axis=1)
     return bool(near.mean() >= min_share)
+
+
+def cut_ends(before: KnnGraph, after: KnnGraph) -> np.ndarray:
+    """Points with an edge of ``before`` that ``after`` lacks, or the other end of one.
+
+    Parameters
+    ----------
+    before, after : KnnGraph
+        The graph before and after :func:`slot_cut_graph`.
+
+    Returns
+    -------
+    (N,) numpy.ndarray of bool
+    """
+    removed = ~(before.indices[:, :, None] == after.indices[:, None, :]).any(axis=2)
+    ends = removed.any(axis=1)
+    ends[before.indices[removed]] = True
+    return ends
 
 
 def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray,

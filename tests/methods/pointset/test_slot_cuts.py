@@ -53,7 +53,7 @@ def test_strip_test_on_a_lattice_band():
 
 @pytest.mark.parametrize("n,sampling,min_recall", [(2000, "jittered", 0.95), (20000, "jittered", 0.98),
                                                     (2000, "random", 0.95), (20000, "random", 0.98),
-                                                    (2000, "graded", 0.95), (20000, "graded", 0.98)])
+                                                    (2000, "graded", 0.97), (20000, "graded", 0.98)])
 def test_slit_lips_are_separated_and_become_boundary(n, sampling, min_recall):
     """The slot's lips are a second loop (before: one loop, the lips' edges bridging the slot).
 
@@ -66,7 +66,7 @@ def test_slit_lips_are_separated_and_become_boundary(n, sampling, min_recall):
     assert len(without.boundary_loops) == 1
     assert len(with_cuts.boundary_loops) == len(s.boundary_loops) == 2
     recall, precision = _recall_precision(with_cuts.boundary_mask, s.boundary_mask)
-    assert recall >= min_recall and precision >= 0.99
+    assert recall >= min_recall and precision >= 0.98  # the lips' second row joins the loop here and there
     slots = with_cuts.diagnostics["neighbours"]["slots"]
     assert slots["n_slot_edges"] > 0 and not slots.get("reverted", False)
 
