@@ -29,8 +29,7 @@ from parambench.datasets_gen.surface import MethodInput
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, hinted
 from ..mesh.holes import HOLES_MODES, solve_with_holes
-from ..pointset.boundary import empty_radius_inside
-from ..pointset.hole_filling import fill_point_holes
+from ..pointset.hole_filling import fill_point_holes, is_slot
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
                                       scale_to_spacing)
@@ -232,8 +231,8 @@ class Ocp(Method):
                            ready: dict, thin: list) -> tuple[MethodInput, int]:
         """``surface`` with its thin holes filled (``holes="auto"``), and how many.
 
-        A hole whose largest empty disk has a radius under ``THIN_HOLE_RADIUS`` local
-        spacings (a slot: the slit's lips 2 spacings apart) turns inside out with a free
+        A slot (:func:`~parambench.methods.pointset.hole_filling.is_slot`: the slit's, its
+        lips 2 spacings apart) turns inside out with a free
         boundary, and finding that out costs the failed k search first: 6.6 s at 2k points
         and 330 s at 20k on the random slit, against 0.4 and 2 s filled. Such holes are
         filled before the first attempt; the others stay free as ``holes="auto"`` says.
@@ -243,18 +242,13 @@ class Ocp(Method):
         front = run_frontend(surface, params, timer)
         loops = front.boundary_loops
         thin.extend(loop for loop in loops[1:]
-                    if empty_radius_inside(front.points, loop) < THIN_HOLE_RADIUS * float(np.median(front.local_spacing[loop])))
+                    if is_slot(front.points, front.normals, loop, float(np.median(front.local_spacing[loop]))))
         if not thin:
             ready[id(surface)] = front
             return surface, 0
         fronts.append(front.without_balls())
         with timer("fill_holes"):
             return fill_point_holes(surface, front.normals, [loops[0], *thin], front.local_spacing)
-
-
-#: Holes whose largest empty disk is narrower (in local spacings) are filled before the first
-#: solve with ``holes="auto"`` (:meth:`Ocp._thin_holes_filled`).
-THIN_HOLE_RADIUS = 1.5
 
 
 #: Largest boundary on which a failed line search is followed by ``k_search="direct"``: its

@@ -233,7 +233,10 @@ class Neighbourhoods(NamedTuple):
         Spacing field of balls and area terms: ten averages for ``spacing="local"``,
         ``l`` everywhere for "global".
     lips : (N,) numpy.ndarray of bool or None
-        Ends of the edges :func:`slot_stage` cut (the lips of slots); None when none was cut.
+        Points that lost a kNN edge to :func:`slot_stage`, and those edges' other ends (the
+        slots' front rows); None when nothing was cut.
+    slot_ends : (N,) numpy.ndarray of bool or None
+        Ends of every edge :func:`slot_stage` cut (also candidates beyond the K nearest).
     """
 
     order: np.ndarray
@@ -246,6 +249,7 @@ class Neighbourhoods(NamedTuple):
     h_around: np.ndarray
     h_local: np.ndarray
     lips: np.ndarray | None = None
+    slot_ends: np.ndarray | None = None
 
 
 def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode: str = "local", *,
@@ -328,7 +332,7 @@ def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode:
     DisconnectedError
         The cut graph has several components.
     """
-    graph, facts = slot_cut_graph(nb.points, nb.graph, normals, nb.h_local)
+    graph, facts, lips = slot_cut_graph(nb.points, nb.graph, normals, nb.h_local)
     diagnostics = dict(nb.neighbour_diagnostics, slots=facts)
     if not facts["n_slot_edges"]:
         return nb._replace(neighbour_diagnostics=diagnostics)
@@ -338,7 +342,7 @@ def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode:
                else np.full(graph.indices.shape[0], graph.mean_spacing))
     return nb._replace(graph=graph, neighbour_diagnostics=diagnostics, adjacency=adjacency,
                        spacing=graph.mean_spacing, h_around=local_spacing(graph, passes=1), h_local=h_local,
-                       lips=cut_ends(nb.graph, graph))
+                       lips=cut_ends(nb.graph, graph), slot_ends=lips)
 
 
 def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spacing: float, *,
@@ -486,7 +490,8 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     p, spacing = nb.points, nb.spacing
     min_loop_size = int(params.min_loop_size)
     bnd_args = dict(angle_deg=float(params.boundary_angle_deg), decimate=int(params.boundary_decimate),
-                    min_loop_size=min_loop_size, require_loop=False, local_spacing=nb.h_around, lips=nb.lips)
+                    min_loop_size=min_loop_size, require_loop=False, local_spacing=nb.h_around, lips=nb.lips,
+                    slot_ends=nb.slot_ends)
     retried = False
     if params.boundary_method == "rings":
         bnd = find_boundary_rings(p, frame_normals, nb.h_around, decimate=int(params.boundary_decimate),
@@ -658,7 +663,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         nb = cut_nb
     try:
         balls, w, r_x, bnd, retried = dem_to_boundary(nb, frame_normals)
-        confirmed = uncut is None or slots_on_loops(uncut[0].graph, nb.graph, bnd.mask)
+        confirmed = uncut is None or slots_on_loops(nb.slot_ends, nb.graph, bnd.mask)
     except NoBoundaryError:
         if uncut is None:
             raise

@@ -50,7 +50,8 @@ from scipy.spatial import cKDTree
 from ..numba_cache import configure_numba_cache
 from .neighbourhoods import KnnGraph, local_spacing
 
-__all__ = ["slot_cut_graph", "slots_on_loops", "cut_ends", "void_edges", "elongated_groups", "strip_crossings", "MIN_WIDTH", "STRIP_LENGTH"]
+__all__ = ["slot_cut_graph", "slots_on_loops", "cut_ends", "void_edges", "elongated_groups", "strip_crossings",
+           "MIN_WIDTH", "STRIP_LENGTH"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -386,13 +387,14 @@ def strip_crossings(points: np.ndarray, normals: np.ndarray, rows: np.ndarray, p
     """
     out = np.zeros(pool.shape, dtype=bool)
     if rows.size:
-        _strip_crossings(points, normals, rows, pool, around, reach, h, h if h_width is None else h_width, MIN_WIDTH, MARGIN, 0.5 * STRIP_LENGTH,
+        _strip_crossings(points, normals, rows, pool, around, reach, h, h if h_width is None else h_width, MIN_WIDTH,
+                         MARGIN, 0.5 * STRIP_LENGTH,
                          N_ORIENTATIONS, out)
     return out
 
 
 def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
-                   h: np.ndarray) -> tuple[KnnGraph, dict]:
+                   h: np.ndarray) -> tuple[KnnGraph, dict, np.ndarray | None]:
     """The K nearest neighbours without the edges that cross a slot.
 
     Parameters
@@ -417,6 +419,8 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
         ``n_lone_crossings`` (crossings of a strip that did not line up with others over
         :data:`MIN_CUT_EXTENT` spacings: left), ``n_tip_edges`` (edges cut near the slots'
         ends, :func:`_tip_crossings`), ``n_slot_edges`` (distinct edges cut).
+    lips : (N,) numpy.ndarray of bool or None
+        The ends of the cut edges (the slots' lips); None when none was cut.
     """
     n, k = graph.indices.shape
     # A smoothed spacing lags behind where the density changes fast (graded samplings):
@@ -432,29 +436,29 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     first = np.unique(np.minimum(r, j) * n + np.maximum(r, j), return_index=True)[1]
     r, j = r[first], j[first]
     diagnostics = {"n_void_edges": int(r.size), "n_short_strips": 0, "n_examined_points": 0, "n_lone_crossings": 0,
-                   "n_slot_edges": 0}
+                   "n_tip_edges": 0, "n_slot_edges": 0}
     # Screen 1b: a shorter strip, empty among the points two graph steps from r: a
     # necessary condition of the strip test that needs no kd-tree search.
     short = np.zeros(r.size, dtype=bool)
-    _two_ring_screen(points, normals, graph.indices, r, j, h, h_width, MIN_WIDTH, MARGIN, SCREEN_HALF_LENGTH, N_ORIENTATIONS,
-                     short)
+    _two_ring_screen(points, normals, graph.indices, r, j, h, h_width, MIN_WIDTH, MARGIN, SCREEN_HALF_LENGTH,
+                     N_ORIENTATIONS, short)
     r, j = r[short], j[short]
     diagnostics["n_short_strips"] = int(r.size)
     if r.size == 0:
-        return graph, diagnostics
+        return graph, diagnostics, None
     grouped = _edge_groups(points, r, j, h, MIN_EXTENT)
     rows = np.unique(np.concatenate([r[grouped], j[grouped]]))
     diagnostics["n_examined_points"] = int(rows.size)
     m = min(n - 1, STRIP_NEIGHBOURS)
     if rows.size == 0 or m <= k:
-        return graph, diagnostics
+        return graph, diagnostics, None
     dist, near = cKDTree(points).query(points[rows], k=m + 1, workers=-1)
     around, reach = np.ascontiguousarray(near[:, 1:]), dist[:, -1]
     c_pool = min(m, POOL_FACTOR * k)
     pool, pool_dist = np.ascontiguousarray(around[:, :c_pool]), dist[:, 1:c_pool + 1]
     cut = strip_crossings(points, normals, rows, pool, around, reach, h, h_width)
     if not cut.any():
-        return graph, diagnostics
+        return graph, diagnostics, None
     cr, cc = np.nonzero(cut)
     a, b = rows[cr], pool[cr, cc]
     # A slot gives crossings all along it; one empty strip of a random sampling (at the
@@ -463,8 +467,8 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     diagnostics["n_lone_crossings"] = int((~lined_up).sum())
     a, b = a[lined_up], b[lined_up]
     if a.size == 0:
-        return graph, diagnostics
-    ta, tb = _tip_crossings(points, a, b, h, h_width)
+        return graph, diagnostics, None
+    ta, tb = _tip_crossings(points, a, b, h, h_width, c_pool)
     diagnostics["n_tip_edges"] = int(ta.size)
     a, b = np.concatenate([a, ta]), np.concatenate([b, tb])
     ends = np.concatenate([a, b])
@@ -480,38 +484,46 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
         pool_dist = np.concatenate([pool_dist, x_dist[:, 1:]])
     at = np.searchsorted(rows, touched, sorter=np.argsort(rows))
     at = np.argsort(rows)[at]
-    return _refilled(graph, touched, pool[at], pool_dist[at], pairs), diagnostics
+    lips = np.zeros(n, dtype=bool)
+    lips[touched] = True
+    return _refilled(graph, touched, pool[at], pool_dist[at], pairs), diagnostics, lips
 
 
-def slots_on_loops(before: KnnGraph, after: KnnGraph, boundary: np.ndarray, *,
+def slots_on_loops(lips: np.ndarray, graph: KnnGraph, boundary: np.ndarray, *,
                    min_share: float = MIN_ON_LOOP) -> bool:
     """Whether the boundary found on the cut graph runs along the cuts.
 
     Parameters
     ----------
-    before, after : KnnGraph
-        The graph before and after :func:`slot_cut_graph`.
+    lips : (N,) numpy.ndarray of bool
+        Ends of the cut edges (:func:`slot_cut_graph`).
+    graph : KnnGraph
+        The cut graph.
     boundary : (N,) numpy.ndarray of bool
-        Points on the boundary loops found with ``after``.
+        Points on the boundary loops found with ``graph``.
     min_share : float
         Share of the cut edges' ends that must lie on a loop or next to one (a kNN
-        neighbour on it in ``after``).
+        neighbour on it).
 
     Returns
     -------
     bool
-        True when no edge was cut, or when at least ``min_share`` of the cut ends are
-        on or next to a loop.
+        True when at least ``min_share`` of the cut ends are on or next to a loop (or
+        nothing was cut).
     """
-    ends = np.flatnonzero(cut_ends(before, after))
+    ends = np.flatnonzero(lips)
     if ends.size == 0:
         return True
-    near = boundary[ends] | boundary[after.indices[ends]].any(axis=1)
+    near = boundary[ends] | boundary[graph.indices[ends]].any(axis=1)
     return bool(near.mean() >= min_share)
 
 
 def cut_ends(before: KnnGraph, after: KnnGraph) -> np.ndarray:
-    """Points with an edge of ``before`` that ``after`` lacks, or the other end of one.
+    """Points that lost a kNN edge in the cut, and the other ends of those edges.
+
+    Unlike the cut's ``lips`` (:func:`slot_cut_graph`, which also holds the ends of the
+    cut candidates beyond the K nearest: the lips' second rows), these are the points
+    whose own neighbourhoods reached across, the slot's front rows.
 
     Parameters
     ----------
@@ -528,8 +540,8 @@ def cut_ends(before: KnnGraph, after: KnnGraph) -> np.ndarray:
     return ends
 
 
-def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray,
-                   h_width: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray, h_width: np.ndarray,
+                   n_pool: int) -> tuple[np.ndarray, np.ndarray]:
     """Edges across a slot within its last strip half-length, where the strip test cannot see.
 
     The strip test wants the strip empty :data:`STRIP_LENGTH` / 2 each way, so the last
@@ -540,7 +552,8 @@ def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarr
     :data:`TIP_REACH` of the end), its midpoint is on that line (within half a
     spacing), before the first point on the line beyond the last cut (within
     :data:`TIP_BLOCK` of the slot's width: where the slot ends), and no point lies
-    within :data:`TIP_CLEARANCE` of the width of the midpoint.
+    within :data:`TIP_CLEARANCE` of the width of the midpoint. The edges examined are
+    each nearby point's ``n_pool`` nearest.
 
     Returns
     -------
@@ -567,7 +580,8 @@ def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarr
             line_axis = axis if local.shape[0] < 3 else np.linalg.eigh(
                 (local - local.mean(0)).T @ (local - local.mean(0)))[1][:, -1]
             line_axis = line_axis * np.sign(line_axis @ axis) * sign  # towards the tip
-            across = direction[members][near_end] * np.sign(direction[members][near_end] @ direction[members[end]])[:, None]
+            lean = direction[members][near_end]
+            across = lean * np.sign(lean @ direction[members[end]])[:, None]
             across = across.mean(0) - (across.mean(0) @ line_axis) * line_axis
             across /= np.linalg.norm(across)
             origin = local.mean(0)
@@ -580,7 +594,7 @@ def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarr
             ahead = (points[rows] - m[end]) @ line_axis
             on_line = (np.abs((points[rows] - origin) @ across) < TIP_BLOCK * width) & (ahead > 0)
             tip = float(ahead[on_line].min()) if on_line.any() else TIP_REACH * hg
-            k = min(points.shape[0] - 1, POOL_FACTOR * 8)
+            k = min(points.shape[0] - 1, n_pool)
             _, pool = tree.query(points[rows], k=k + 1)
             i = np.repeat(rows, k)
             j = pool[:, 1:].ravel()

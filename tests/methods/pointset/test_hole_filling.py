@@ -73,3 +73,33 @@ def test_fill_point_holes_keeps_the_original_rows_first_and_skips_the_outer_loop
     # Only the outer loop: nothing to fill, the same object back.
     same, none = fill_point_holes(surface, nrm, [outer], np.full(len(pts), H))
     assert same is surface and none == 0
+
+
+def test_loop_width_of_a_slot_and_a_disc():
+    from parambench.methods.pointset.hole_filling import loop_width
+    # A 10 x 1 rectangle, sampled every 0.1 along its sides, tilted out of the xy plane.
+    t = np.arange(0.0, 10.0, 0.1)
+    s = np.arange(0.0, 1.0, 0.1)
+    xy = np.vstack([np.column_stack([t, np.zeros_like(t)]), np.column_stack([np.full_like(s, 10.0), s]),
+                    np.column_stack([10.0 - t, np.ones_like(t)]), np.column_stack([np.zeros_like(s), 1.0 - s])])
+    rot = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.7), np.sin(0.7)], [0.0, -np.sin(0.7), np.cos(0.7)]])
+    pts = np.column_stack([xy, np.zeros(len(xy))]) @ rot.T
+    normals = np.tile(rot @ np.array([0.0, 0.0, 1.0]), (len(pts), 1))
+    loop = np.arange(len(pts))
+    assert abs(loop_width(pts, normals, loop) - 2 * 10.0 / 22.0) < 1e-9
+    assert abs(loop_width(pts, normals, loop[::-1]) - 2 * 10.0 / 22.0) < 1e-9  # orientation does not matter
+    a = np.linspace(0.0, 2 * np.pi, 400, endpoint=False)
+    circle = np.column_stack([3.0 * np.cos(a), 3.0 * np.sin(a), np.zeros_like(a)])
+    assert abs(loop_width(circle, np.tile([0.0, 0.0, 1.0], (400, 1)), np.arange(400)) - 3.0) < 1e-3
+
+
+def test_is_slot_needs_narrow_and_long():
+    from parambench.methods.pointset.hole_filling import is_slot
+    a = np.linspace(0.0, 2 * np.pi, 200, endpoint=False)
+    up = np.tile([0.0, 0.0, 1.0], (200, 1))
+    disc = np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)])  # width 1
+    slot = np.column_stack([20.0 * np.cos(a), 0.5 * np.sin(a), np.zeros_like(a)])  # about 1 wide, 80 around
+    loop = np.arange(200)
+    assert not is_slot(disc, up, loop, 1.0)  # narrow, but round
+    assert is_slot(slot, up, loop, 1.0)
+    assert not is_slot(slot, up, loop, 0.2)  # 5 spacings wide: not narrow

@@ -75,7 +75,7 @@ def test_cut_edges_all_cross_the_slot():
     """Every cut edge joins the two lips; none is left across the slot away from its ends."""
     s = surface_for("slit", 20000, "jittered", 0.0, 0)
     p = s.points
-    graph, h, (cut_graph, facts) = _slot_cut(p)
+    graph, h, (cut_graph, facts, lips) = _slot_cut(p)
     assert facts["n_slot_edges"] > 0
     rows = np.broadcast_to(np.arange(p.shape[0])[:, None], graph.indices.shape)
     removed = ~(graph.indices[:, :, None] == cut_graph.indices[:, None, :]).any(axis=2)
@@ -97,9 +97,9 @@ def test_cut_edges_all_cross_the_slot():
 def test_no_slot_no_cut(name):
     """Jittered surfaces without a slot keep their graph bit for bit."""
     s = surface_for(name, 20000, "jittered", 0.0, 0)
-    graph, _, (cut_graph, facts) = _slot_cut(s.points)
+    graph, _, (cut_graph, facts, lips) = _slot_cut(s.points)
     assert facts["n_slot_edges"] == 0
-    assert cut_graph is graph
+    assert cut_graph is graph and lips is None
 
 
 def test_random_strips_do_not_line_up():
@@ -159,12 +159,13 @@ def test_cuts_without_a_loop_along_them_are_undone(monkeypatch):
 def test_slots_on_loops_counts_cut_ends_near_a_loop():
     from parambench.methods.pointset.neighbourhoods import KnnGraph
     from parambench.methods.pointset.slot_cuts import slots_on_loops
-    before = KnnGraph(indices=np.array([[1, 2], [0, 2], [0, 1], [2, 1]]), distances=np.ones((4, 2)), mean_spacing=1.0)
-    after = KnnGraph(indices=np.array([[1, 3], [0, 3], [0, 1], [2, 1]]), distances=np.ones((4, 2)), mean_spacing=1.0)
-    # Edges 0-2 and 1-2 were cut (rows 0 and 1 lost 2): ends 0, 1, 2.
-    assert slots_on_loops(before, after, np.array([False, False, False, True]))  # all next to 3 on the loop
-    assert not slots_on_loops(before, after, np.array([False, False, False, False]))
-    assert slots_on_loops(before, before, np.zeros(4, dtype=bool))  # nothing cut
+    graph = KnnGraph(indices=np.array([[1, 3], [0, 3], [0, 1], [2, 1]]), distances=np.ones((4, 2)), mean_spacing=1.0)
+    lips = np.array([True, True, True, False])
+    # 0 and 1 have 3 (on the loop) as a neighbour, 2 has not: 2 of 3 cut ends are next to the loop.
+    assert slots_on_loops(lips, graph, np.array([False, False, False, True]))
+    assert not slots_on_loops(lips, graph, np.array([False, False, False, False]))
+    assert not slots_on_loops(lips, graph, np.array([False, False, False, True]), min_share=0.9)
+    assert slots_on_loops(np.zeros(4, dtype=bool), graph, np.zeros(4, dtype=bool))  # nothing cut
 
 
 def test_hairpin_overrules_a_longer_bridge_only():
