@@ -246,8 +246,13 @@ def scale_to_spacing(uv: np.ndarray, front: FrontEnd) -> np.ndarray:
 
 
 def frontend_diagnostics(front: FrontEnd) -> dict:
-    """The facts of the front end worth keeping with a result (JSON-serialisable)."""
+    """The facts of the front end worth keeping with a result (JSON-serialisable).
+
+    ``slots`` (:mod:`parambench.methods.pointset.slot_cuts`' facts) is there only where
+    edges across a slot were cut.
+    """
     diag = front.diagnostics
+    slots = diag.get("neighbours", {}).get("slots") or {}
     return {
         "mean_spacing": front.mean_spacing,
         "n_boundary_points": int(front.boundary_mask.sum()),
@@ -256,4 +261,5 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
         "negative_weight_fraction": diag["negative_weights"]["negative_fraction"],
         "reconstruction_error": diag["reconstruction_error"],
         "boundary_loops": [loop.tolist() for loop in front.boundary_loops],
+        **({"slots": dict(slots)} if slots.get("n_slot_edges") else {}),
     }

@@ -87,8 +87,10 @@ TIP_BLOCK = 0.3
 #: ... and a cut edge's midpoint must be this share of the width clear of every point.
 TIP_CLEARANCE = 0.4
 
-#: Crossings are cut only where they line up (as in screen 2) over this many spacings.
-MIN_CUT_EXTENT = 6.0
+#: Crossings are cut only where they line up (as in screen 2) over this many spacings: a
+#: random sampling's chance strips line up over at most 7.3 (bump and plane, random 100k),
+#: the slit's slot over 12.6-38 (2k-20k).
+MIN_CUT_EXTENT = 9.0
 
 #: The strip: at least this wide across (local spacings) ...
 MIN_WIDTH = 1.25

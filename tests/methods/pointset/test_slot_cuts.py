@@ -182,3 +182,36 @@ def test_hairpin_overrules_a_longer_bridge_only():
     # A step found in the ball is never overruled.
     in_ball_step = np.array([2, -1, -1, -1])
     assert hairpin_successors(points, cand, outward, in_ball_step, 2.0, bridged=in_ball_step)[0] == 2
+
+
+@pytest.mark.parametrize("name,n", [("cap", 20000), ("holes", 2000), ("slit", 2000)])
+def test_hairpin_steps_only_where_a_slot_was_cut(name, n, monkeypatch):
+    """No slot cut: the walk takes no hairpin step (on random voids it made extra loops: cap,
+    random 100k), so graph, loops and weights are those of slot_cuts=False bit for bit."""
+    import parambench.methods.pointset.boundary as boundary
+    calls = []
+    real = boundary.hairpin_successors
+    monkeypatch.setattr(boundary, "hairpin_successors", lambda *a, **k: calls.append(1) or real(*a, **k))
+    s = surface_for(name, n, "random", 0.0, 0)
+    fe = build_frontend(s.points)
+    if name == "slit":
+        assert calls and fe.diagnostics["neighbours"]["slots"]["n_slot_edges"] > 0
+        return
+    assert not calls
+    plain = build_frontend(s.points, slot_cuts=False)
+    assert fe.diagnostics["neighbours"]["slots"]["n_slot_edges"] == 0
+    assert np.array_equal(fe.knn_indices, plain.knn_indices)
+    assert len(fe.boundary_loops) == len(plain.boundary_loops) == len(s.boundary_loops)
+    assert all(np.array_equal(a, b) for a, b in zip(fe.boundary_loops, plain.boundary_loops))
+    assert (fe.W != plain.W).nnz == 0
+
+
+def test_ocp_reports_the_slot_it_cut():
+    from parambench.methods.registry import get_method
+    s = surface_for("slit", 2000, "jittered", 0.0, 0)
+    result = get_method("ocp")(s.method_input(False))
+    slots = result.diagnostics["slots"]
+    assert slots["n_slot_edges"] > 0 and not slots.get("reverted", False)
+    assert result.diagnostics["n_detected_loops"] == 2 and result.diagnostics["selfcheck"]["passed"]
+    plain = get_method("ocp")(surface_for("bump", 2000, "jittered", 0.0, 0).method_input(False))
+    assert "slots" not in plain.diagnostics
