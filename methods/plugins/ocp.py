@@ -234,7 +234,7 @@ class Ocp(Method):
         A slot (:func:`~parambench.methods.pointset.hole_filling.is_slot`: the slit's, its
         lips 2 spacings apart) turns inside out with a free
         boundary, and finding that out costs the failed k search first: 6.6 s at 2k points
-        and 330 s at 20k on the random slit, against 0.4 and 2 s filled. Such holes are
+        and 330 s at 20k on the random slit, against 1.0 and 2.6 s when filled first. Such holes are
         filled before the first attempt; the others stay free as ``holes="auto"`` says.
         The front end run here is the first attempt's when nothing is filled; the filled
         loops are appended to ``thin``.

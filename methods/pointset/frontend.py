@@ -332,7 +332,7 @@ def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode:
     DisconnectedError
         The cut graph has several components.
     """
-    graph, facts, lips = slot_cut_graph(nb.points, nb.graph, normals, nb.h_local)
+    graph, facts, lips = slot_cut_graph(nb.points, nb.graph, normals, nb.h_local, nb.h_around)
     diagnostics = dict(nb.neighbour_diagnostics, slots=facts)
     if not facts["n_slot_edges"]:
         return nb._replace(neighbour_diagnostics=diagnostics)

@@ -61,9 +61,10 @@ MIN_ON_LOOP = 0.5
 
 #: Screen 1: an edge at least this many local spacings long ...
 MIN_LENGTH = 1.2
-#: ... whose midpoint is at least this far (local spacings) from its ends' neighbours.
-#: The crossing edges of a slot 1.4-1.7 spacings wide measure 0.71-1.0 (graded and
-#: random samplings; 0.96 jittered).
+#: ... whose midpoint is at least this far (spacings, the width unit) from its ends'
+#: neighbours.
+#: The slit's crossing edges measure 0.71-1.0 of the smooth spacing (graded and random
+#: samplings; 0.96 jittered).
 CLEARANCE = 0.65
 #: Screen 2: screened edges whose midpoints lie within this many (median local) spacings ...
 LINK = 6.0
@@ -334,28 +335,28 @@ def _two_ring_screen(points, normals, indices, a, b, h, hw, min_width, margin, h
                                 np.inf, h[i], hw[i], min_width, margin, half_length, n_orient, False) >= 0
 
 
+@numba.njit(cache=_CACHE)
+def _in_frame(points, i, members, e1x, e1y, e1z, e2x, e2y, e2z):
+    """Tangent coordinates (x, y) of ``points[members] - points[i]`` in the frame (e1, e2)."""
+    xs = np.empty(members.shape[0])
+    ys = np.empty(members.shape[0])
+    for m in range(members.shape[0]):
+        j = members[m]
+        dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+        xs[m] = dx * e1x + dy * e1y + dz * e1z
+        ys[m] = dx * e2x + dy * e2y + dz * e2z
+    return xs, ys
+
+
 @numba.njit(parallel=True, cache=_CACHE)
 def _strip_crossings(points, normals, rows, pool, around, reach, h, hw, min_width, margin, half_length, n_orient,
                      out):
     for r in numba.prange(rows.shape[0]):
         i = rows[r]
         e1x, e1y, e1z, e2x, e2y, e2z = _frame(normals[i, 0], normals[i, 1], normals[i, 2])
-        m_count = around.shape[1]
-        xs = np.empty(m_count)
-        ys = np.empty(m_count)
-        for m in range(m_count):
-            j = around[r, m]
-            dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
-            xs[m] = dx * e1x + dy * e1y + dz * e1z
-            ys[m] = dx * e2x + dy * e2y + dz * e2z
+        xs, ys = _in_frame(points, i, around[r], e1x, e1y, e1z, e2x, e2y, e2z)
+        px, py = _in_frame(points, i, pool[r], e1x, e1y, e1z, e2x, e2y, e2z)
         n_pool = pool.shape[1]
-        px = np.empty(n_pool)
-        py = np.empty(n_pool)
-        for c in range(n_pool):
-            j = pool[r, c]
-            dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
-            px[c] = dx * e1x + dy * e1y + dz * e1z
-            py[c] = dx * e2x + dy * e2y + dz * e2z
         for c in range(n_pool):
             o = _crosses_strip(px[c], py[c], xs, ys, reach[r], h[i], hw[i], min_width, margin, half_length, n_orient)
             out[r, c] = o >= 0
@@ -395,8 +396,8 @@ def strip_crossings(points: np.ndarray, normals: np.ndarray, rows: np.ndarray, p
     return out
 
 
-def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
-                   h: np.ndarray) -> tuple[KnnGraph, dict, np.ndarray | None]:
+def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: np.ndarray,
+                   h_ring: np.ndarray | None = None) -> tuple[KnnGraph, dict, np.ndarray | None]:
     """The K nearest neighbours without the edges that cross a slot.
 
     Parameters
@@ -407,7 +408,9 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     normals : (N, 3) numpy.ndarray of float64
         Unit normals (orientation does not matter).
     h : (N,) numpy.ndarray of float64
-        Local spacing of each point.
+        Local spacing of each point (smooth: the unit of lengths).
+    h_ring : (N,) numpy.ndarray of float64, optional
+        ``local_spacing(graph, passes=1)`` when the caller has it (computed otherwise).
 
     Returns
     -------
@@ -430,7 +433,7 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     # strips (bump, graded 2k: 26 edges cut, the map worse). Widths are measured against
     # the larger of it and the spacing over one ring, which follows the density closely;
     # lengths against the smooth one (128 neighbours reach 4 of them).
-    h_width = np.maximum(h, local_spacing(graph, passes=1))
+    h_width = np.maximum(h, local_spacing(graph, passes=1) if h_ring is None else h_ring)
     void = void_edges(points, graph, h_width)
     r, c = np.nonzero(void)
     j = graph.indices[r, c]
@@ -454,7 +457,8 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     m = min(n - 1, STRIP_NEIGHBOURS)
     if rows.size == 0 or m <= k:
         return graph, diagnostics, None
-    dist, near = cKDTree(points).query(points[rows], k=m + 1, workers=-1)
+    tree = cKDTree(points)
+    dist, near = tree.query(points[rows], k=m + 1, workers=-1)
     around, reach = np.ascontiguousarray(near[:, 1:]), dist[:, -1]
     c_pool = min(m, POOL_FACTOR * k)
     pool, pool_dist = np.ascontiguousarray(around[:, :c_pool]), dist[:, 1:c_pool + 1]
@@ -470,7 +474,7 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     a, b = a[lined_up], b[lined_up]
     if a.size == 0:
         return graph, diagnostics, None
-    ta, tb = _tip_crossings(points, a, b, h, h_width, c_pool)
+    ta, tb = _tip_crossings(points, tree, a, b, h, h_width, c_pool)
     diagnostics["n_tip_edges"] = int(ta.size)
     a, b = np.concatenate([a, ta]), np.concatenate([b, tb])
     ends = np.concatenate([a, b])
@@ -480,7 +484,7 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray,
     touched = np.unique(ends)
     extra = np.setdiff1d(touched, rows)
     if extra.size:
-        x_dist, x_near = cKDTree(points).query(points[extra], k=c_pool + 1, workers=-1)
+        x_dist, x_near = tree.query(points[extra], k=c_pool + 1, workers=-1)
         rows = np.concatenate([rows, extra])
         pool = np.concatenate([pool, x_near[:, 1:]])
         pool_dist = np.concatenate([pool_dist, x_dist[:, 1:]])
@@ -542,8 +546,8 @@ def cut_ends(before: KnnGraph, after: KnnGraph) -> np.ndarray:
     return ends
 
 
-def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray, h_width: np.ndarray,
-                   n_pool: int) -> tuple[np.ndarray, np.ndarray]:
+def _tip_crossings(points: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarray, h: np.ndarray,
+                   h_width: np.ndarray, n_pool: int) -> tuple[np.ndarray, np.ndarray]:
     """Edges across a slot within its last strip half-length, where the strip test cannot see.
 
     The strip test wants the strip empty :data:`STRIP_LENGTH` / 2 each way, so the last
@@ -566,7 +570,6 @@ def _tip_crossings(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarr
     direction /= np.linalg.norm(direction, axis=1)[:, None]
     mid = 0.5 * (points[a] + points[b])
     n_groups, label = _link_groups(mid, direction, 0.5 * (h[a] + h[b]))
-    tree = cKDTree(points)
     found_a, found_b = [], []
     for g in range(n_groups):
         members = np.flatnonzero(label == g)
@@ -634,8 +637,7 @@ def _refilled(graph: KnnGraph, rows: np.ndarray, pool: np.ndarray, pool_dist: np
 
     A row keeps its uncut members and takes pool members beyond its farthest one (so the
     edges a gap-aware graph left out stay out), its K nearest in all. A row left with
-    fewer than K fills up with its nearest cut edges (the graph stays K-regular); with
-    :data:`POOL_FACTOR` K candidates this has not been seen.
+    fewer than K fills up with its nearest cut edges (the graph stays K-regular).
     """
     n, k = graph.indices.shape
     indices, distances = graph.indices.copy(), graph.distances.copy()
