@@ -43,6 +43,7 @@ from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
 from .row_chunks import for_each_chunk
+from .slot_tips import put_back_slot_tips
 
 __all__ = [
     "BoundaryLoops",
@@ -416,7 +417,10 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     nearest candidate that faces it (outward directions opposed, cosine below
     ``-_HAIRPIN_FACING``), lies on its open side (along its outward direction) within
     ``_HAIRPIN_REACH`` times ``reach``, and has no predecessor yet; where two dead ends
-    pick the same point, the nearer gets it. A bridge (:func:`bridge_successors`) from
+    pick the same point, the nearer gets it. Second to a facing candidate, a dead end
+    steps to the start of an open chain (a candidate with a successor and no
+    predecessor) whose outward direction is not within 60 degrees of its own: an end
+    cap's last point faces the slot's axis, at right angles to the other lip. A bridge (:func:`bridge_successors`) from
     such a point that reaches farther than the facing candidate is replaced by the
     hairpin: at a slot's end the bridge otherwise leaves the lip for a sampling gap
     several spacings away (slit, random 2k: 5 spacings, against 2 across the slot).
@@ -454,18 +458,31 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     near = cand_idx[np.minimum(near, cand_idx.size - 1)]
     has_pred = np.zeros(candidates.shape[0], dtype=bool)
     has_pred[succ[succ >= 0]] = True  # the balls' steps; bridges may be overruled
-    facing = np.einsum("nki,ni->nk", outward[near], outward[rows]) < -_HAIRPIN_FACING
+    cos_out = np.einsum("nki,ni->nk", outward[near], outward[rows])
+    # The start of an open chain: an end cap's last point, which faces the slot's axis
+    # rather than the other lip, meets the other lip's chain there (slit, jittered 2k
+    # seed 1: outward directions at 90 degrees, and the slot's loop did not close).
+    has_pred_bridged = np.zeros(candidates.shape[0], dtype=bool)
+    has_pred_bridged[bridged[bridged >= 0]] = True
+    chain_start = (bridged >= 0) & ~has_pred_bridged
+    # Such a step comes second: to a facing candidate farther away, and to a dead end
+    # that faces the same point (slit, random 2k seed 1: a sampling void's candidate 1.85
+    # spacings from a lip's chain start took it from the facing lip 2.14 away).
+    facing = cos_out < -_HAIRPIN_FACING
+    meets_chain = chain_start[near] & (cos_out < _HAIRPIN_FACING) & ~facing
     ahead = np.einsum("nki,ni->nk", points[near] - points[rows, None, :], outward[rows]) > 0
-    ok = found & facing & ahead & ~has_pred[near] & (near != rows[:, None])
-    best = np.argmax(ok, axis=1)  # nearest first
+    ok = found & (facing | meets_chain) & ahead & ~has_pred[near] & (near != rows[:, None])
+    rank = np.where(ok, meets_chain.astype(np.int64), 2)
+    best = np.argmin(rank, axis=1)  # facing first, then nearest first
     pick = np.arange(rows.size)
     has = ok[pick, best]
     rows, target, gap = rows[has], near[pick, best][has], dist[pick, best][has]
+    second = rank[pick, best][has]
     bridge = out[rows]
     bridge_len = np.where(bridge >= 0, np.linalg.norm(points[np.maximum(bridge, 0)] - points[rows], axis=1), np.inf)
     shorter = gap < bridge_len
-    rows, target, gap = rows[shorter], target[shorter], gap[shorter]
-    first = np.lexsort((gap, target))
+    rows, target, gap, second = rows[shorter], target[shorter], gap[shorter], second[shorter]
+    first = np.lexsort((gap, second, target))
     keep = np.ones(first.size, dtype=bool)
     keep[1:] = target[first][1:] != target[first][:-1]
     out[rows[first][keep]] = target[first][keep]
@@ -762,15 +779,18 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     # radius of 0.1 over the dense rest, was lost).
     typical_radius = float(np.median(ball_radius))
     outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
+    hairpins = slot_ends is not None and bool(slot_ends.any())
     all_cycles, n_pruned = _walk_pruned(points, ball_indices, coords, e1, e2, candidates, outward, bisector,
                                         2.0 * np.maximum(ball_radius, typical_radius), min_loop_size,
-                                        hairpins=slot_ends is not None and bool(slot_ends.any()))
+                                        hairpins=hairpins)
     kept = _true_loops(points, all_cycles, ball_radius, typical_radius, min_loop_size, local_spacing)
     n_dropped_loops = n_pruned + len(all_cycles) - len(kept)
     if not kept and require_loop:
         raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size)
     kept.sort(key=lambda c: _perimeter(points, c), reverse=True)
     n_put_back = 0
+    if hairpins:
+        kept, n_put_back = put_back_slot_tips(points, normals, kept, outward, slot_ends)
     for _ in range(_PUTBACK_ROUNDS):
         kept, n = put_back_passed_over(points, kept, ball_indices, gap, outward)
         n_put_back += n

@@ -60,21 +60,21 @@ def test_holes_that_turn_inside_out_are_filled_on_a_real_scan():
 
 
 def test_a_slot_is_filled_before_the_first_solve():
-    """A thin hole (the slit's slot, lips 2 spacings apart) turns inside out when free; auto fills
-    it up front instead of after a failed k search (random 2k: 6.6 s before, about 1 s after),
-    and gives the map the free-then-filled order gave."""
+    """A thin hole (the slit's slot, lips 2 spacings apart) maps badly when free (jittered 2k:
+    k_opt 1.067, QC 1.065 on a developable surface; before its end caps were put on the loop,
+    random 2k raised ConvergenceError after a k search of 6.6 s); auto fills it up front and
+    gives the map the free-then-filled order gave."""
     from parambench.bench.run_cell import surface_for
-    s = surface_for("slit", 2000, "random", 0.0, 0)
+    s = surface_for("slit", 2000, "jittered", 0.0, 0)
     ocp = get_method("ocp")
     auto = ocp(s.method_input(False))
     assert auto.diagnostics["thin_holes_filled"] == 1 and auto.diagnostics["holes_filled"] == 1
     assert auto.diagnostics["selfcheck"]["passed"]
-    with pytest.raises(ConvergenceError):
-        ocp(s.method_input(False), holes="free", retry_k_nn=0)
+    free = ocp(s.method_input(False), holes="free", retry_k_nn=0)
+    assert _quality(s, free.uv)["qc_mean"] > 1.03
     filled = ocp(s.method_input(False), holes="filled")
     assert abs(auto.diagnostics["k_opt"] - filled.diagnostics["k_opt"]) < 1e-9
-    exact = surface_for("slit", 2000, "random", 0.0, 0)
-    q = _quality(exact, auto.uv)
+    q = _quality(s, auto.uv)
     assert q["foldovers"] == 0 and q["qc_mean"] < 1.01  # the slit's surface is developable: exact map isometric
 
 

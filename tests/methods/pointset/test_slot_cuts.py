@@ -51,14 +51,15 @@ def test_strip_test_on_a_lattice_band():
     assert not cut[1, 0]  # two rows apart inside the lattice: a row of points lies between
 
 
-@pytest.mark.parametrize("n,sampling,min_recall", [(2000, "jittered", 0.95), (20000, "jittered", 0.98),
-                                                    (2000, "random", 0.95), (20000, "random", 0.98),
+@pytest.mark.parametrize("n,sampling,min_recall", [(2000, "jittered", 0.97), (20000, "jittered", 0.98),
+                                                    (2000, "random", 0.97), (20000, "random", 0.98),
                                                     (2000, "graded", 0.97), (20000, "graded", 0.98)])
 def test_slit_lips_are_separated_and_become_boundary(n, sampling, min_recall):
     """The slot's lips are a second loop (before: one loop, the lips' edges bridging the slot).
 
-    What is missed at 2k is the slot's two ends (the last lip point and the cap on each
-    side: 8-9 of 209 boundary points), where the boundary turns within a spacing.
+    At the slot's two ends the boundary turns within a spacing; the hairpin step crosses
+    there and the end caps are put back (``slot_tips``): before, 7-9 of the 209 boundary
+    points at 2k were missed there (recall 0.96-0.967).
     """
     s = surface_for("slit", n, sampling, 0.0, 0)
     without = build_frontend(s.points, slot_cuts=False)
@@ -215,3 +216,84 @@ def test_ocp_reports_the_slot_it_cut():
     assert result.diagnostics["n_detected_loops"] == 2 and result.diagnostics["selfcheck"]["passed"]
     plain = get_method("ocp")(surface_for("bump", 2000, "jittered", 0.0, 0).method_input(False))
     assert "slots" not in plain.diagnostics
+
+
+def test_hairpin_meets_an_open_chain_second():
+    """A dead end whose last point faces the slot's axis (an end cap's point) meets the
+    other lip's chain start at 90 degrees; a facing candidate still comes first."""
+    # 0: dead end facing -x; 1: a chain start (has a successor, no predecessor) facing -y, ahead of 0.
+    points = np.array([[0.0, 0.0, 0.0], [-1.0, 1.0, 0.0], [-2.0, 1.0, 0.0]])
+    outward = np.array([[-1, 0, 0], [0, -1, 0], [0, -1, 0]], dtype=float)
+    cand = np.ones(3, dtype=bool)
+    succ = np.array([-1, 2, -1])
+    assert hairpin_successors(points, cand, outward, succ, 2.0)[0] == 1
+    # Not a chain start (someone already steps into it): no step at 90 degrees.
+    into_one = np.array([-1, 2, 1])
+    assert hairpin_successors(points, cand, outward, into_one, 2.0)[0] == -1
+    # A facing candidate farther away (4, facing +x) is preferred to the nearer chain start.
+    points4 = np.vstack([points, [[-1.8, -0.5, 0.0]]])
+    outward4 = np.vstack([outward, [[1.0, 0.0, 0.0]]])
+    succ4 = np.array([-1, 2, -1, -1])
+    assert hairpin_successors(points4, np.ones(4, dtype=bool), outward4, succ4, 2.0)[0] == 3
+
+
+def test_slot_tip_points_are_put_back_in_walking_order():
+    """The end cap of a lattice slot (the points at distance 1 from its axis beyond the
+    hairpin's chord) goes between the hairpin's ends, from the first lip round to the second."""
+    from parambench.methods.pointset.slot_tips import put_back_slot_tips
+    x, y = np.meshgrid(np.arange(-15.0, 16.0), np.arange(-6.0, 7.0))
+    pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    along = np.clip(pts[:, 0], -10.0, 10.0)
+    pts = pts[np.hypot(pts[:, 0] - along, pts[:, 1]) >= 1.0]  # slot: within 1 of |x| <= 10, y = 0
+    at = {(int(p[0]), int(p[1])): i for i, p in enumerate(pts)}
+    lower = [at[(i, -1)] for i in range(-10, 9)]  # walked towards +x, then across at x = 8
+    upper = [at[(i, 1)] for i in range(8, -11, -1)]
+    loop = np.array(lower + upper)
+    normals = np.tile([0.0, 0.0, 1.0], (pts.shape[0], 1))
+    outward = np.zeros_like(pts)
+    outward[lower] = [0, 1, 0]
+    outward[upper] = [0, -1, 0]
+    slot_ends = np.zeros(pts.shape[0], dtype=bool)
+    slot_ends[[at[(8, -1)], at[(8, 1)]]] = True  # only the +x hairpin is a cut slot's
+    (out,), n = put_back_slot_tips(pts, normals, [loop], outward, slot_ends)
+    cap = [at[k] for k in [(9, -1), (10, -1), (11, 0), (10, 1), (9, 1)]]
+    assert n == 5
+    i = int(np.flatnonzero(out == at[(8, -1)])[0])
+    assert out[i + 1:i + 6].tolist() == cap and out[i + 6] == at[(8, 1)]
+    # The -x step faces too, but its ends are not a cut slot's: nothing there.
+    assert out[0] == loop[0] and out[-1] == loop[-1]
+    # Without slot ends, nothing is inserted.
+    (same,), none = put_back_slot_tips(pts, normals, [loop], outward, np.zeros(pts.shape[0], dtype=bool))
+    assert none == 0 and np.array_equal(same, loop)
+
+
+def test_in_plane_share_follows_normal_noise():
+    """The kNN spacing's tangent share: 1 on a clean plane, about 1 / sqrt(1 + 2 s^2) at noise s spacings."""
+    from parambench.methods.pointset.slot_cuts import in_plane_share
+    rng = np.random.default_rng(0)
+    x, y = np.meshgrid(np.arange(60.0), np.arange(60.0))
+    flat = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    normals = np.tile([0.0, 0.0, 1.0], (flat.shape[0], 1))
+    assert np.allclose(in_plane_share(flat, knn_graph(flat, 8), normals), 1.0, atol=1e-12)
+    noisy = flat + np.column_stack([np.zeros((flat.shape[0], 2)), rng.normal(0.0, 0.5, flat.shape[0])])
+    share = in_plane_share(noisy, knn_graph(noisy, 8), normals)
+    assert 0.75 < np.median(share) < 0.9  # 1 / sqrt(1.5) = 0.82 for neighbours one spacing away
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_slit_found_at_normal_noise_half_a_spacing(seed):
+    """Noise 0.5 spacings lengthens every kNN edge, not the slot: measured in the tangent
+    plane, the slot is found (before: 1 of 2 loops, recall 0.69)."""
+    s = surface_for("slit", 2000, "jittered", 0.5, seed)
+    fe = build_frontend(s.points)
+    assert len(fe.boundary_loops) == 2
+    recall, precision = _recall_precision(fe.boundary_mask, s.boundary_mask)
+    assert recall >= 0.97 and precision >= 0.98
+
+
+@pytest.mark.parametrize("name", ["bump", "holes", "saddle", "cap"])
+def test_no_slot_cut_on_noisy_surfaces_without_one(name):
+    """At noise 0.5 spacings the in-plane unit finds no slot where there is none."""
+    s = surface_for(name, 2000, "jittered", 0.5, 0)
+    graph, _, (cut_graph, facts, lips) = _slot_cut(s.points)
+    assert facts["n_slot_edges"] == 0 and lips is None
