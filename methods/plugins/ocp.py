@@ -235,8 +235,9 @@ class Ocp(Method):
         lips 2 spacings apart) maps badly with a free boundary: before its end caps were put
         on the loop it turned inside out, and finding that out cost the failed k search
         first (6.6 s at 2k points and 330 s at 20k on the random slit, against 1.0 and 2.6 s
-        when filled first); with them, the free map is off on the jittered slit (2k: k_opt
-        1.067, QC 1.065; 20k: 1 foldover) where the filled one has QC 1.0001. Such holes are
+        when filled first); with them, the free map is still off on the jittered slit at 20k
+        (k_opt 1.08, QC 1.044, 1 foldover, 52 s, against QC 1.00002 in 4 s filled) and on the
+        random one at 2k seed 1 (QC 1.0069 against 1.0001). Such holes are
         filled before the first attempt; the others stay free as ``holes="auto"`` says.
         The front end run here is the first attempt's when nothing is filled; the filled
         loops are appended to ``thin``.

@@ -81,9 +81,15 @@ MIN_EXTENT = 6.0
 #: three spacings).
 SCREEN_HALF_LENGTH = 1.5
 
-#: Near each end of a slot (this many spacings), edges across its line with a clear
-#: midpoint are cut too (:func:`_tip_crossings`).
+#: Near each end of a slot (this many spacings before it), edges across its line with a
+#: clear midpoint are cut too (:func:`_tip_crossings`); the line is fitted over as many.
 TIP_REACH = 5.0
+#: ... and beyond the last crossing the strip test found, up to this many spacings (or
+#: the slot's end, whichever comes first): where the K nearest neighbours bridge a slot
+#: only here and there, that crossing can lie 10 spacings from the end (slit, jittered
+#: 20k). Growing 5 at a time from each round's new ends instead ran past the end at
+#: noise 0.5 (slit, jittered 2k seed 2), where the end's blocking point is less clear.
+TIP_EXTENT = 12.0
 #: A point within this share of the slot's width (its cut edges' median span across
 #: its line) of the line ends the slot ...
 TIP_BLOCK = 0.3
@@ -94,6 +100,18 @@ TIP_CLEARANCE = 0.4
 #: random sampling's chance strips line up over at most 7.3 (bump and plane, random 100k),
 #: the slit's slot over 12.6-38 (2k-20k).
 MIN_CUT_EXTENT = 9.0
+
+#: A crossing that does not line up with others is still cut when its strip is empty
+#: over this length (local spacings): a slot the K nearest neighbours bridge only here and
+#: there (slit, jittered 20k: 28 edges across, scattered over its 95 spacings, none in a
+#: run of 9) is long and straight; a random sampling's chance strips of this length are
+#: rare, though not rare enough alone (see :data:`MIN_SUPPORT_EXTENT`).
+LONE_STRIP_LENGTH = 16.0
+#: Neighbours the long strip is judged on (they reach about 12 spacings).
+LONE_NEIGHBOURS = 512
+#: ... and such a crossing needs others along its strip, their midpoints spanning this
+#: many spacings (see :func:`_supported`).
+MIN_SUPPORT_EXTENT = 3.0
 
 #: The strip: at least this wide across (local spacings) ...
 MIN_WIDTH = 1.25
@@ -410,7 +428,7 @@ def _strip_crossings(points, normals, rows, pool, around, reach, h, hw, min_widt
 
 def strip_crossings(points: np.ndarray, normals: np.ndarray, rows: np.ndarray, pool: np.ndarray,
                     around: np.ndarray, reach: np.ndarray, h: np.ndarray,
-                    h_width: np.ndarray | None = None) -> np.ndarray:
+                    h_width: np.ndarray | None = None, length: float = STRIP_LENGTH) -> np.ndarray:
     """Which edges ``rows[r] -> pool[r, c]`` cross an empty strip (see the module docstring).
 
     Parameters
@@ -429,6 +447,8 @@ def strip_crossings(points: np.ndarray, normals: np.ndarray, rows: np.ndarray, p
         Local spacing: the unit of the strip's length.
     h_width : (N,) numpy.ndarray of float64, optional
         The unit of the strip's width; ``h`` when omitted.
+    length : float
+        The strip's length, in units of ``h``.
 
     Returns
     -------
@@ -437,8 +457,7 @@ def strip_crossings(points: np.ndarray, normals: np.ndarray, rows: np.ndarray, p
     out = np.zeros(pool.shape, dtype=bool)
     if rows.size:
         _strip_crossings(points, normals, rows, pool, around, reach, h, h if h_width is None else h_width, MIN_WIDTH,
-                         MARGIN, 0.5 * STRIP_LENGTH,
-                         N_ORIENTATIONS, out)
+                         MARGIN, 0.5 * float(length), N_ORIENTATIONS, out)
     return out
 
 
@@ -468,7 +487,9 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: 
         ``n_void_edges`` (screen 1, undirected), ``n_short_strips`` (screen 1b),
         ``n_examined_points`` (after screen 2),
         ``n_lone_crossings`` (crossings of a strip that did not line up with others over
-        :data:`MIN_CUT_EXTENT` spacings: left), ``n_tip_edges`` (edges cut near the slots'
+        :data:`MIN_CUT_EXTENT` spacings nor cross one :data:`LONE_STRIP_LENGTH` long:
+        left), ``n_scattered_crossings`` (edges screen 2 left out that cross a strip
+        :data:`LONE_STRIP_LENGTH` long: cut), ``n_tip_edges`` (edges cut near the slots'
         ends, :func:`_tip_crossings`), ``n_slot_edges`` (distinct edges cut).
     lips : (N,) numpy.ndarray of bool or None
         The ends of the cut edges (the slots' lips); None when none was cut.
@@ -489,7 +510,7 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: 
     first = np.unique(np.minimum(r, j) * n + np.maximum(r, j), return_index=True)[1]
     r, j = r[first], j[first]
     diagnostics = {"n_void_edges": int(r.size), "n_short_strips": 0, "n_examined_points": 0, "n_lone_crossings": 0,
-                   "n_tip_edges": 0, "n_slot_edges": 0}
+                   "n_scattered_crossings": 0, "n_tip_edges": 0, "n_slot_edges": 0}
     # Screen 1b: a shorter strip, empty among the points two graph steps from r: a
     # necessary condition of the strip test that needs no kd-tree search.
     short = np.zeros(r.size, dtype=bool)
@@ -503,23 +524,23 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: 
     rows = np.unique(np.concatenate([r[grouped], j[grouped]]))
     diagnostics["n_examined_points"] = int(rows.size)
     m = min(n - 1, STRIP_NEIGHBOURS)
-    if rows.size == 0 or m <= k:
+    if m <= k:
         return graph, diagnostics, None
     tree = cKDTree(points)
-    dist, near = tree.query(points[rows], k=m + 1, workers=-1)
-    around, reach = np.ascontiguousarray(near[:, 1:]), dist[:, -1]
     c_pool = min(m, POOL_FACTOR * k)
-    pool, pool_dist = np.ascontiguousarray(around[:, :c_pool]), dist[:, 1:c_pool + 1]
-    cut = strip_crossings(points, normals, rows, pool, around, reach, h, h_width)
-    if not cut.any():
-        return graph, diagnostics, None
-    cr, cc = np.nonzero(cut)
-    a, b = rows[cr], pool[cr, cc]
-    # A slot gives crossings all along it; one empty strip of a random sampling (at the
-    # threshold, a chance of about e^-11 per place and direction) gives a short run.
-    lined_up = _edge_groups(points, a, b, h, MIN_CUT_EXTENT)
-    diagnostics["n_lone_crossings"] = int((~lined_up).sum())
-    a, b = a[lined_up], b[lined_up]
+    a, b, n_lone, la, lb, pool, pool_dist = _examined_crossings(points, normals, tree, rows, h, h_width, m, c_pool)
+    # Screen 2 left out the edges with no other beside them: where the K nearest
+    # neighbours bridge a slot only here and there (slit, jittered 20k), a crossing is cut
+    # when its strip is long and another crossing lies along it.
+    scattered = np.flatnonzero(~grouped)
+    long = _long_strips(points, normals, tree, r[scattered], j[scattered], h, h_width)
+    sa, sb = r[scattered][long], j[scattered][long]
+    la, lb = np.concatenate([la, sa]), np.concatenate([lb, sb])
+    supported = _supported(points, a, b, la, lb, h)
+    n_examined_long = la.size - sa.size
+    diagnostics["n_lone_crossings"] = n_lone - int(supported[:n_examined_long].sum())
+    diagnostics["n_scattered_crossings"] = int(supported[n_examined_long:].sum())
+    a, b = np.concatenate([a, la[supported]]), np.concatenate([b, lb[supported]])
     if a.size == 0:
         return graph, diagnostics, None
     ta, tb = _tip_crossings(points, tree, a, b, h, h_width, c_pool)
@@ -601,7 +622,8 @@ def _tip_crossings(points: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarr
     The strip test wants the strip empty :data:`STRIP_LENGTH` / 2 each way, so the last
     4 spacings of a slot at each end keep their edges across: the boundary walk then
     loses the lips there (recall) or wanders off at the end. Near each end of a group of
-    cut edges (:data:`TIP_REACH` spacings), an edge is cut too when its ends lie on the
+    cut edges (from :data:`TIP_REACH` spacings before it to :data:`TIP_EXTENT` beyond),
+    an edge is cut too when its ends lie on the
     two sides of the group's line (fitted to the cut edges' midpoints within
     :data:`TIP_REACH` of the end), its midpoint is on that line (within half a
     spacing), before the first point on the line beyond the last cut (within
@@ -617,7 +639,9 @@ def _tip_crossings(points: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarr
     direction = points[b] - points[a]
     direction /= np.linalg.norm(direction, axis=1)[:, None]
     mid = 0.5 * (points[a] + points[b])
-    n_groups, label = _link_groups(mid, direction, 0.5 * (h[a] + h[b]))
+    # The cut edges are slot crossings already: where the K nearest neighbours bridge a
+    # slot only here and there, they lie up to a long strip apart along it.
+    n_groups, label = _link_groups(mid, direction, 0.5 * (h[a] + h[b]), link=LONE_STRIP_LENGTH)
     found_a, found_b = [], []
     for g in range(n_groups):
         members = np.flatnonzero(label == g)
@@ -640,13 +664,13 @@ def _tip_crossings(points: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarr
             origin = local.mean(0)
             edges = members[near_end]
             width = float(np.median(np.abs((points[b[edges]] - points[a[edges]]) @ across)))
-            rows = np.asarray(tree.query_ball_point(m[end], 2.0 * TIP_REACH * hg), dtype=np.int64)
+            rows = np.asarray(tree.query_ball_point(m[end], (TIP_EXTENT + TIP_REACH) * hg), dtype=np.int64)
             if rows.size < 2:
                 continue
             # The slot ends at the first point on its line beyond the last cut.
             ahead = (points[rows] - m[end]) @ line_axis
             on_line = (np.abs((points[rows] - origin) @ across) < TIP_BLOCK * width) & (ahead > 0)
-            tip = float(ahead[on_line].min()) if on_line.any() else TIP_REACH * hg
+            tip = float(ahead[on_line].min()) if on_line.any() else TIP_EXTENT * hg
             k = min(points.shape[0] - 1, n_pool)
             _, pool = tree.query(points[rows], k=k + 1)
             i = np.repeat(rows, k)
@@ -657,7 +681,7 @@ def _tip_crossings(points: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarr
             off_line = np.abs((c - origin) @ across)
             along = (c - m[end]) @ line_axis
             ok = ((side_i * side_j < 0) & (off_line <= 0.5 * hg) & (along > -TIP_REACH * hg)
-                  & (along < min(tip, TIP_REACH * hg)))
+                  & (along < min(tip, TIP_EXTENT * hg)))
             if not ok.any():
                 continue
             i, j, c = i[ok], j[ok], c[ok]
@@ -670,6 +694,62 @@ def _tip_crossings(points: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarr
     if not found_a:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     return np.concatenate(found_a), np.concatenate(found_b)
+
+
+def _examined_crossings(points: np.ndarray, normals: np.ndarray, tree: cKDTree, rows: np.ndarray, h: np.ndarray,
+                        h_width: np.ndarray, m: int, c_pool: int):
+    """The strip test on the examined points' nearest ``c_pool``.
+
+    Returns the crossings (a, b) that line up over :data:`MIN_CUT_EXTENT`, how many do
+    not, those of them that cross a strip :data:`LONE_STRIP_LENGTH` long (la, lb), and the
+    pools (rows x ``c_pool`` indices and distances).
+    """
+    empty = np.zeros(0, dtype=np.int64)
+    if rows.size == 0:
+        return empty, empty, 0, empty, empty, np.zeros((0, c_pool), dtype=np.int64), np.zeros((0, c_pool))
+    dist, near = tree.query(points[rows], k=m + 1, workers=-1)
+    around, reach = np.ascontiguousarray(near[:, 1:]), dist[:, -1]
+    pool, pool_dist = np.ascontiguousarray(around[:, :c_pool]), dist[:, 1:c_pool + 1]
+    cr, cc = np.nonzero(strip_crossings(points, normals, rows, pool, around, reach, h, h_width))
+    a, b = rows[cr], pool[cr, cc]
+    # A slot gives crossings all along it; one empty strip of a random sampling (at the
+    # threshold, a chance of about e^-11 per place and direction) gives a short run.
+    lined_up = _edge_groups(points, a, b, h, MIN_CUT_EXTENT) if a.size else np.zeros(0, dtype=bool)
+    la, lb = a[~lined_up], b[~lined_up]
+    long = _long_strips(points, normals, tree, la, lb, h, h_width)
+    return a[lined_up], b[lined_up], int(la.size), la[long], lb[long], pool, pool_dist
+
+
+def _supported(points: np.ndarray, a: np.ndarray, b: np.ndarray, la: np.ndarray, lb: np.ndarray,
+               h: np.ndarray) -> np.ndarray:
+    """Which long-strip crossings ``la``-``lb`` have another crossing along their strip.
+
+    A random sampling does leave a strip :data:`LONE_STRIP_LENGTH` long empty now and
+    then (cap and saddle, random 20k seed 1: one edge each, 24-94 spacings from the
+    boundary), but not two on one line: a crossing is kept when, linked with all the
+    others (``a``-``b`` and the long ones) as :func:`elongated_groups` links them but
+    over the long strip's length, its group's midpoints span :data:`MIN_SUPPORT_EXTENT`
+    spacings.
+    """
+    if la.size == 0:
+        return np.zeros(0, dtype=bool)
+    ea, eb = np.concatenate([a, la]), np.concatenate([b, lb])
+    direction = points[eb] - points[ea]
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    spread = elongated_groups(0.5 * (points[ea] + points[eb]), direction, 0.5 * (h[ea] + h[eb]),
+                              link=LONE_STRIP_LENGTH, min_extent=MIN_SUPPORT_EXTENT)
+    return spread[a.size:]
+
+
+def _long_strips(points: np.ndarray, normals: np.ndarray, tree: cKDTree, a: np.ndarray, b: np.ndarray, h: np.ndarray,
+                 h_width: np.ndarray) -> np.ndarray:
+    """Which edges ``a[e]``-``b[e]`` cross a strip :data:`LONE_STRIP_LENGTH` long (judged from ``a``)."""
+    if a.size == 0:
+        return np.zeros(0, dtype=bool)
+    m = min(points.shape[0] - 1, LONE_NEIGHBOURS)
+    dist, near = tree.query(points[a], k=m + 1, workers=-1)
+    return strip_crossings(points, normals, a, np.ascontiguousarray(b[:, None]), np.ascontiguousarray(near[:, 1:]),
+                           dist[:, -1], h, h_width, length=LONE_STRIP_LENGTH)[:, 0]
 
 
 def _edge_groups(points: np.ndarray, a: np.ndarray, b: np.ndarray, h: np.ndarray, min_extent: float) -> np.ndarray:

@@ -60,18 +60,19 @@ def test_holes_that_turn_inside_out_are_filled_on_a_real_scan():
 
 
 def test_a_slot_is_filled_before_the_first_solve():
-    """A thin hole (the slit's slot, lips 2 spacings apart) maps badly when free (jittered 2k:
-    k_opt 1.067, QC 1.065 on a developable surface; before its end caps were put on the loop,
-    random 2k raised ConvergenceError after a k search of 6.6 s); auto fills it up front and
-    gives the map the free-then-filled order gave."""
+    """A thin hole (the slit's slot, lips 2 spacings apart) maps worse when free (random 2k
+    seed 1: QC 1.0069 against 1.0001 filled; jittered 20k: k_opt 1.08, QC 1.044, 1 foldover,
+    52 s; before the slot's end caps were put on its loop, random 2k seed 0 raised
+    ConvergenceError after a k search of 6.6 s); auto fills it up front and gives the map
+    the free-then-filled order gave."""
     from parambench.bench.run_cell import surface_for
-    s = surface_for("slit", 2000, "jittered", 0.0, 0)
+    s = surface_for("slit", 2000, "random", 0.0, 1)
     ocp = get_method("ocp")
     auto = ocp(s.method_input(False))
     assert auto.diagnostics["thin_holes_filled"] == 1 and auto.diagnostics["holes_filled"] == 1
     assert auto.diagnostics["selfcheck"]["passed"]
     free = ocp(s.method_input(False), holes="free", retry_k_nn=0)
-    assert _quality(s, free.uv)["qc_mean"] > 1.03
+    assert _quality(s, free.uv)["qc_mean"] > _quality(s, auto.uv)["qc_mean"] + 0.003
     filled = ocp(s.method_input(False), holes="filled")
     assert abs(auto.diagnostics["k_opt"] - filled.diagnostics["k_opt"]) < 1e-9
     q = _quality(s, auto.uv)
