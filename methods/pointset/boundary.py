@@ -113,6 +113,10 @@ _LIP_ANGLE_DEG = 60.0
 _HAIRPIN_REACH = 1.5
 #: ... to a candidate whose outward direction has a cosine below minus this with its own.
 _HAIRPIN_FACING = 0.5
+#: ... lying on its open side: the step's cosine with its outward direction at least minus
+#: this. An end cap's point's gap bisector leans along the slot (slit, graded 2k seed 1: the
+#: facing lip's chain start lay at 91 degrees, and the slot's loop did not close).
+_HAIRPIN_BEHIND = 0.25
 
 #: Rounds of "drop points on too-small cycles, walk again".
 _MAX_PRUNE_ROUNDS = 20
@@ -470,7 +474,8 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     # spacings from a lip's chain start took it from the facing lip 2.14 away).
     facing = cos_out < -_HAIRPIN_FACING
     meets_chain = chain_start[near] & (cos_out < _HAIRPIN_FACING) & ~facing
-    ahead = np.einsum("nki,ni->nk", points[near] - points[rows, None, :], outward[rows]) > 0
+    toward = np.einsum("nki,ni->nk", points[near] - points[rows, None, :], outward[rows])
+    ahead = toward > -_HAIRPIN_BEHIND * dist
     ok = found & (facing | meets_chain) & ahead & ~has_pred[near] & (near != rows[:, None])
     rank = np.where(ok, meets_chain.astype(np.int64), 2)
     best = np.argmin(rank, axis=1)  # facing first, then nearest first

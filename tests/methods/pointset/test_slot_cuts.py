@@ -333,3 +333,16 @@ def test_random_sampling_chance_long_strip_is_not_cut(name):
     s = surface_for(name, 20000, "random", 0.0, 1)
     graph, _, (cut_graph, facts, lips) = _slot_cut(s.points)
     assert facts["n_slot_edges"] == 0 and cut_graph is graph
+
+
+@pytest.mark.parametrize("n,sampling,seed", [(2000, "graded", 1), (20000, "random", 4), (2000, "jittered", 1)])
+def test_slot_loop_closes_around_both_ends(n, sampling, seed):
+    """Where an end cap's last point faces along the slot (its candidate on the other lip at
+    90 degrees, or at 91 behind it), the hairpin still reaches the other lip's chain: before,
+    these seeds lost the slot's loop (1 of 2 loops, the cuts undone)."""
+    s = surface_for("slit", n, sampling, 0.0, seed)
+    fe = build_frontend(s.points)
+    assert len(fe.boundary_loops) == 2
+    assert not fe.diagnostics["neighbours"]["slots"].get("reverted", False)
+    recall, precision = _recall_precision(fe.boundary_mask, s.boundary_mask)
+    assert recall >= 0.95 and precision >= 0.98
