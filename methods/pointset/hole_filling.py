@@ -108,6 +108,58 @@ def is_slot(points: np.ndarray, normals: np.ndarray, loop: np.ndarray, spacing: 
     return bool(width < SLOT_MAX_WIDTH * spacing and perimeter >= SLOT_MIN_ELONGATION * width)
 
 
+#: A point inside a hole's loop (in its plane, within this many spacings of it along the
+#: normal) ...
+ENCLOSED_SLAB = 3.0
+#: ... and farther than this many spacings from the loop's edges is enclosed (nearer ones
+#: are the loop's own zigzag).
+ENCLOSED_MARGIN = 0.25
+
+
+def enclosed_points(points: np.ndarray, normals: np.ndarray, loop: np.ndarray, spacing: float,
+                    tree: cKDTree | None = None) -> int:
+    """How many points lie inside a hole's loop: none for a hole, some for a ring drawn around points.
+
+    A chain of a random sampling's voids can be walked around into a loop as narrow and
+    long as a slot (plane, random 20k seed 2: 34 points; with its end caps put back 1.76
+    spacings wide and 34 widths around, 3 points inside at 0.06, 0.22 and 0.52 spacings
+    from its edges); a slot's loop
+    encloses none (the slit at gaps of 2.5-4 spacings, random, jittered and graded).
+
+    Parameters
+    ----------
+    points, normals : (N, 3) numpy.ndarray of float64
+    loop : (L,) numpy.ndarray of int64
+    spacing : float
+        The local spacing along the loop.
+    tree : scipy.spatial.cKDTree, optional
+        Of ``points``.
+
+    Returns
+    -------
+    int
+        Points (not on the loop) inside its polygon, in its plane, farther than
+        :data:`ENCLOSED_MARGIN` spacings from its edges and within :data:`ENCLOSED_SLAB`
+        spacings of the plane.
+    """
+    from matplotlib.path import Path as PolygonPath  # see hole_fill_points
+
+    tree = cKDTree(points) if tree is None else tree
+    ring = points[loop]
+    centre, frame = _loop_frame(ring, normals[loop])
+    xy = (ring - centre) @ frame[:2].T
+    near = np.setdiff1d(tree.query_ball_point(centre, float(np.linalg.norm(ring - centre, axis=1).max())), loop)
+    q = (points[near] - centre) @ frame.T
+    inside = q[PolygonPath(xy).contains_points(q[:, :2]) & (np.abs(q[:, 2]) < ENCLOSED_SLAB * spacing), :2]
+    if not len(inside):
+        return 0
+    a, ab = xy, np.roll(xy, -1, axis=0) - xy
+    t = np.clip(np.einsum("mli,li->ml", inside[:, None, :] - a[None], ab) / np.maximum(np.einsum("li,li->l", ab, ab),
+                                                                                         1e-300), 0.0, 1.0)
+    gap = np.linalg.norm(inside[:, None, :] - (a[None] + t[..., None] * ab[None]), axis=2).min(axis=1)
+    return int(np.count_nonzero(gap > ENCLOSED_MARGIN * spacing))
+
+
 def _height_design(xy: np.ndarray, quadratic: bool) -> np.ndarray:
     cols = [np.ones(len(xy)), xy[:, 0], xy[:, 1]]
     if quadratic:
