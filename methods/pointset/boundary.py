@@ -425,8 +425,9 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     pick the same point, the nearer gets it. Second to a facing candidate, a dead end
     steps to the start of an open chain (a candidate with a successor and no
     predecessor) whose outward direction is not within 60 degrees of its own: an end
-    cap's last point faces the slot's axis, at right angles to the other lip. A bridge (:func:`bridge_successors`) from
-    such a point that reaches farther than the facing candidate is replaced by the
+    cap's last point faces the slot's axis, at right angles to the other lip. "On its
+    open side" allows up to ``arccos(-_HAIRPIN_BEHIND)`` (104 degrees) off the outward
+    direction. A bridge (:func:`bridge_successors`) from such a point that reaches farther than the facing candidate is replaced by the
     hairpin: at a slot's end the bridge otherwise leaves the lip for a sampling gap
     several spacings away (slit, random 2k: 5 spacings, against 2 across the slot).
 
@@ -786,19 +787,18 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
     typical_radius = float(np.median(ball_radius))
     outward = bisector[:, :1] * e1 + bisector[:, 1:] * e2
     hairpins = slot_ends is not None and bool(slot_ends.any())
-    all_cycles, n_pruned = _walk_pruned(points, ball_indices, coords, e1, e2, candidates, outward, bisector,
-                                        2.0 * np.maximum(ball_radius, typical_radius), min_loop_size,
-                                        hairpins=hairpins)
+    reach = 2.0 * np.maximum(ball_radius, typical_radius)
+    all_cycles, n_pruned = _walk_pruned(points, ball_indices, coords, e1, e2, candidates, outward, bisector, reach,
+                                        min_loop_size, hairpins=hairpins)
     kept = _true_loops(points, all_cycles, ball_radius, typical_radius, min_loop_size, local_spacing)
     n_dropped_loops = n_pruned + len(all_cycles) - len(kept)
     n_hairpin_slots = 0
     if not hairpins and local_spacing is not None:
         slots = _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidates, outward, bisector,
-                                    2.0 * np.maximum(ball_radius, typical_radius), min_loop_size, kept,
-                                    ball_radius, typical_radius, local_spacing)
+                                    reach, min_loop_size, kept, ball_radius, typical_radius, local_spacing)
         if slots:
+            slots, _ = put_back_slot_tips(points, normals, slots, outward, None)
             kept, n_hairpin_slots = kept + slots, len(slots)
-            kept, _ = put_back_slot_tips(points, normals, kept, outward, _hairpin_ends(kept, outward))
     if not kept and require_loop:
         raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size)
     kept.sort(key=lambda c: _perimeter(points, c), reverse=True)
@@ -851,20 +851,11 @@ def _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidate
                             hairpins=True)
     new = [c for c in _true_loops(points, again, ball_radius, typical_radius, min_loop_size, local_spacing)
            if not on_loop[c].any()]
+    slots = [c for c in new if is_slot(points, normals, c, float(np.median(local_spacing[c])))]
+    if not slots:
+        return []
     tree = cKDTree(points)
-    return [c for c in new if is_slot(points, normals, c, float(np.median(local_spacing[c])))
-            and not enclosed_points(points, normals, c, float(np.median(local_spacing[c])), tree)]
-
-
-def _hairpin_ends(loops: list[np.ndarray], outward: np.ndarray) -> np.ndarray:
-    """Both ends of every loop step whose ends face each other (a slot's hairpins)."""
-    ends = np.zeros(outward.shape[0], dtype=bool)
-    for loop in loops:
-        nxt = np.roll(loop, -1)
-        facing = np.einsum("ni,ni->n", outward[loop], outward[nxt]) < -_HAIRPIN_FACING
-        ends[loop[facing]] = True
-        ends[nxt[facing]] = True
-    return ends
+    return [c for c in slots if not enclosed_points(points, normals, c, float(np.median(local_spacing[c])), tree)]
 
 
 def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarray, e1: np.ndarray, e2: np.ndarray,
@@ -889,11 +880,11 @@ def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarra
     min_loop_size : int
         Cycles with fewer points are pruned.
     hairpins : bool
-        Take hairpin steps (:func:`hairpin_successors`): only where a slot was cut. On a
-        random sampling's voids the step made extra loops (cap, random 100k: 2 loops
-        instead of 1), and restricted to the points near the cuts it missed the steps
-        some slots need (slit, random 20k). Elsewhere the step made extra loops out of a random
-        sampling's voids (cap, random 100k: 2 loops instead of 1).
+        Take hairpin steps (:func:`hairpin_successors`): where a slot was cut, and in the
+        second walk of :func:`_hairpin_slot_loops`, whose loops are kept only when they
+        are slots. On a random sampling's voids the step made extra loops (cap, random
+        100k: 2 loops instead of 1), and restricted to the points near the cuts it missed
+        the steps some slots need (slit, random 20k).
 
     Returns
     -------

@@ -191,9 +191,9 @@ def in_plane_share(points: np.ndarray, graph: KnnGraph, normals: np.ndarray) -> 
 
     Normal noise lengthens every kNN edge (by about sqrt(1 + 2 s^2) at noise s spacings)
     without widening a slot in the tangent plane, so a spacing measured in 3D understates
-    how many spacings wide the slot is: the slit's slot, 2 spacings wide, measured under
-    1.25 at noise 0.35-0.5 and was not found. The strip test measures in the tangent
-    plane, so its unit must too.
+    how many spacings wide the slot is: the slit's slot, 2 spacings wide, was not found
+    at noise 0.35 and 0.5 (jittered 2k); at 0.5 it was with the unit scaled by 0.8 (seeds
+    0 and 1). The strip test measures in the tangent plane, so its unit must too.
 
     Parameters
     ----------

@@ -4,9 +4,10 @@ At the end of a slot 1.5-2 spacings wide the boundary turns by 180 degrees withi
 a spacing. The walk crosses there by a hairpin step
 (:func:`~parambench.methods.pointset.boundary.hairpin_successors`) from one lip's last
 candidate to the other's, and the points of the end cap between them (the lips' last
-points and the cap's own, 3-5 per end) are left off the loop: their angular gaps, 50-120
-degrees, are no larger than those of the interior points one row behind them (45-75),
-so neither the angle criterion nor the put-back of passed-over points
+points and the cap's own, 3-5 per end) are left off the loop: the cap's points have
+angular gaps of 50-76 degrees, like the interior points one row behind them (45-74), and
+the lips' last points 86-119, under the criterion; neither the angle criterion nor the
+put-back of passed-over points
 (:func:`~parambench.methods.pointset.boundary.put_back_passed_over`, which wants outward
 directions that agree, while a hairpin's two ends face each other) can take them. On the
 slit at 2k points that is 7-9 of its 209 boundary points, the difference between recall
@@ -46,7 +47,7 @@ LOOK_BACK = 2
 
 
 def put_back_slot_tips(points: np.ndarray, normals: np.ndarray, loops: list[np.ndarray], outward: np.ndarray,
-                       slot_ends: np.ndarray, tree: cKDTree | None = None) -> tuple[list[np.ndarray], int]:
+                       slot_ends: np.ndarray | None, tree: cKDTree | None = None) -> tuple[list[np.ndarray], int]:
     """Loops with the end caps of their slots filled in at every hairpin step.
 
     Parameters
@@ -58,11 +59,12 @@ def put_back_slot_tips(points: np.ndarray, normals: np.ndarray, loops: list[np.n
         Loops in walking order.
     outward : (N, 3) numpy.ndarray of float64
         Outward gap direction of every point in 3D.
-    slot_ends : (N,) numpy.ndarray of bool
+    slot_ends : (N,) numpy.ndarray of bool or None
         Ends of the edges cut across slots (:func:`~parambench.methods.pointset.slot_cuts.slot_cut_graph`):
         a hairpin step is filled in only between two of them. Elsewhere a step whose ends
         face each other spans a void of the sampling (slit, random 2k: beside a slot's
-        end, and 7 interior points were put on the loop).
+        end, and 7 interior points were put on the loop). None: every such step, for
+        loops already known to be slots.
     tree : scipy.spatial.cKDTree, optional
         Of ``points`` (built when not given).
 
@@ -78,8 +80,8 @@ def put_back_slot_tips(points: np.ndarray, normals: np.ndarray, loops: list[np.n
     out, n_inserted = [], 0
     for loop in loops:
         nxt = np.roll(loop, -1)
-        hairpins = np.flatnonzero((np.einsum("ni,ni->n", outward[loop], outward[nxt]) < -FACING)
-                                  & slot_ends[loop] & slot_ends[nxt])
+        facing = np.einsum("ni,ni->n", outward[loop], outward[nxt]) < -FACING
+        hairpins = np.flatnonzero(facing if slot_ends is None else facing & slot_ends[loop] & slot_ends[nxt])
         if hairpins.size == 0 or loop.size <= 2 * LOOK_BACK:
             out.append(loop)
             continue
