@@ -59,7 +59,7 @@ one line what failed. The check never raises and never changes the map.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -69,6 +69,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import triangle_signed_areas, turning_number
+from .row_chunks import for_each_chunk
 from .uv_triangulation import triangulate_uv
 
 __all__ = ["check_pointset_map", "loop_coverage", "normal_tolerance_deg", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
@@ -99,6 +100,9 @@ THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENER
 #: Neighbours for the local spacing when no kNN graph is given.
 _SPACING_K = 8
 
+#: Rows (points or triangles) per chunk of the per-row arithmetic (a few MB of temporaries).
+_CHUNK = 32768
+
 
 def _knn(points: np.ndarray, k: int = _SPACING_K) -> np.ndarray:
     _, idx = cKDTree(points).query(points, k=k + 1, workers=-1)
@@ -106,7 +110,13 @@ def _knn(points: np.ndarray, k: int = _SPACING_K) -> np.ndarray:
 
 
 def _local_spacing(points: np.ndarray, knn: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(points[knn] - points[:, None, :], axis=-1).mean(axis=1)
+    out = np.empty(points.shape[0])
+
+    def rows_of(rows: slice) -> None:
+        out[rows] = np.linalg.norm(points[knn[rows]] - points[rows, None, :], axis=-1).mean(axis=1)
+
+    for_each_chunk(rows_of, points.shape[0], _CHUNK)
+    return out
 
 
 def _longest_edge(points: np.ndarray, faces: np.ndarray, corners: np.ndarray | None = None) -> np.ndarray:
@@ -238,35 +248,64 @@ def loop_coverage(points: np.ndarray, loops: list, candidates: np.ndarray, knn_i
             "passed": bool(largest < (MIN_MISSED_RING if applicable else MIN_MISSED_CHAIN))}
 
 
+class _PerFace(NamedTuple):
+    """Per-triangle facts of :func:`_per_face`, one entry per face."""
+
+    bridging: np.ndarray  # that edge longer than BRIDGE_FACTOR local spacings
+    area: np.ndarray  # |uv area|
+    agree: np.ndarray  # 3D normal . the corners' summed normals (sign: orientation)
+    sliver: np.ndarray  # a sliver in the tangent plane and in 3D: never judged
+    uncertain: np.ndarray  # a sign the normals' error could change
+
+
+def _per_face(points, uv, normals, faces, spacing_pt, tol_deg: float) -> _PerFace:
+    """Every triangle's own facts, computed in row chunks on worker threads.
+
+    Each face's arithmetic depends on that face alone, so chunks give the same numbers as
+    one pass over all faces (bit for bit) with temporaries of a chunk's size: at a million
+    points (2M triangles) the whole-array pass took 5 s of the check's 10.5 s.
+    """
+    m = faces.shape[0]
+    out = _PerFace(np.empty(m, dtype=bool), np.empty(m), np.empty(m), np.empty(m, dtype=bool),
+                   np.empty(m, dtype=bool))
+
+    def rows_of(rows: slice) -> None:
+        f = faces[rows]
+        p = points[f]
+        e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        longest = _longest_edge(points, f, p)
+        normal3d = np.cross(e1, e2)
+        mean_normal = normals[f].sum(axis=1)
+        tangent_sliver, uncertain = _tangent_sliver(p, normal3d, mean_normal, tol_deg)
+        # Never judged: slivers both in the tangent plane and in 3D (three nearly collinear
+        # points). A tangent-plane sliver that is well shaped in 3D was stood up by noise:
+        # its sign is uncertain, counted with the others.
+        sliver = tangent_sliver & (0.5 * np.linalg.norm(normal3d, axis=1) < SLIVER_QUALITY * longest**2)
+        out.bridging[rows] = _bridging(longest, f, spacing_pt)
+        out.area[rows] = np.abs(triangle_signed_areas(uv, f))  # faces are uv-CCW
+        out.agree[rows] = np.einsum("mi,mi->m", normal3d, mean_normal)
+        out.sliver[rows] = sliver
+        out.uncertain[rows] = uncertain | (tangent_sliver & ~sliver)
+
+    for_each_chunk(rows_of, m, _CHUNK)
+    return out
+
+
 def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
                 tol_deg: float = NORMAL_TOL_DEG) -> tuple[dict, int]:
-    p = points[faces]
-    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    longest = _longest_edge(points, faces, p)
-    bridging = _bridging(longest, faces, spacing_pt)
+    per = _per_face(points, uv, normals, faces, spacing_pt, tol_deg)
     n_dropped = 0
     if drop_bridging:
-        n_dropped = int(bridging.sum())
-        keep = ~bridging
-        faces, p, e1, e2, longest, bridging = (faces[keep], p[keep], e1[keep], e2[keep], longest[keep],
-                                               bridging[keep])
-    area = np.abs(triangle_signed_areas(uv, faces))  # faces are uv-CCW
+        n_dropped = int(per.bridging.sum())
+        per = _PerFace(*(a[~per.bridging] for a in per))
+    bridging, area, agree, sliver, uncertain = per
     zero = area <= ZERO_AREA_REL * (np.median(area) if area.size else 0.0)
-    normal3d = np.cross(e1, e2)
-    mean_normal = normals[faces].sum(axis=1)
-    agree = np.einsum("mi,mi->m", normal3d, mean_normal)
-    tangent_sliver, uncertain = _tangent_sliver(p, normal3d, mean_normal, tol_deg)
-    # Never judged: slivers both in the tangent plane and in 3D (three nearly collinear
-    # points). A tangent-plane sliver that is well shaped in 3D was stood up by noise:
-    # its sign is uncertain, counted with the others.
-    sliver = tangent_sliver & (0.5 * np.linalg.norm(normal3d, axis=1) < SLIVER_QUALITY * longest**2)
-    uncertain = uncertain | (tangent_sliver & ~sliver)
     valid = ~(zero | bridging)
     n_neg = np.count_nonzero(agree[valid] < 0)
     n_pos = np.count_nonzero(agree[valid] > 0)
     mirrored = n_neg > n_pos
     flipped = valid & ((agree > 0) if mirrored else (agree < 0))
-    m = int(faces.shape[0])
+    m = int(area.size)
     n_degenerate = int((zero | bridging).sum())
     facts = {"n_triangles": m, "n_flipped": int((flipped & ~sliver & ~uncertain).sum()),
              "n_flipped_slivers": int((flipped & sliver).sum()),

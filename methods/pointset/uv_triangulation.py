@@ -4,7 +4,7 @@ Constrained Delaunay in the plane (the ``triangle`` package, Shewchuk's Triangle
 every detected boundary loop as a chain of constraint segments; of the triangles, those
 inside the outer loop and outside every hole loop are kept (non-zero total winding number
 of the loops).
-The classification floods the triangle adjacency without crossing a constraint segment,
+The classification floods the triangle adjacency without crossing a constraint segment (compiled),
 so each region between loops is classified by one point-in-polygon test.
 
 When the constraints cannot be honoured as given (a self-intersecting uv boundary, which
@@ -15,17 +15,24 @@ scipy's unconstrained Delaunay with every triangle classified by its centroid.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
+import numba
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, QhullError
 
 from parambench.datasets_gen.errors import InvalidInputError
 
 from ..geometry2d import triangle_signed_areas
+from ..numba_cache import configure_numba_cache
+from .row_chunks import for_each_chunk
 
 __all__ = ["UvTriangulation", "triangulate_uv"]
+
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
+
+#: Triangles per chunk of the orientation test (on worker threads).
+_CHUNK = 65536
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,36 +114,73 @@ def _inside(query: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.nd
 
 
 def _ccw(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    cw = triangle_signed_areas(uv, faces) < 0
+    cw = np.empty(faces.shape[0], dtype=bool)
+
+    def rows_of(rows: slice) -> None:
+        cw[rows] = triangle_signed_areas(uv, faces[rows]) < 0
+
+    for_each_chunk(rows_of, faces.shape[0], _CHUNK)
     faces = faces.copy()
     faces[cw] = faces[cw][:, [0, 2, 1]]
     return faces
 
 
-def _regions(faces: np.ndarray, neighbours: np.ndarray, segments: np.ndarray, n: int) -> np.ndarray:
-    """Label of each face: faces sharing an edge that is not a segment get the same label.
+@numba.njit(cache=_CACHE, nogil=True)
+def _flood(faces, neighbours, on_loop, segment_keys, n, labels, seeds):
+    """Label faces by flooding across shared edges that are not loop segments.
 
-    ``neighbours[t, i]`` is Triangle's face across the edge opposite corner i of face t
-    (-1 on the hull). Only edges between two loop points can be segments, so only those
-    few are looked up (at 200k points this replaced a sort of all 3M edge keys: 0.44 s).
+    Faces are visited in index order and each unlabelled one starts a region, so a
+    region's seed is its lowest face index. Writes ``labels`` (-1 on entry) and
+    ``seeds``; returns the number of regions.
     """
     m = faces.shape[0]
-    owner = np.repeat(np.arange(m), 3)
-    other = neighbours.ravel()
-    a = faces[:, [1, 2, 0]].ravel()  # the edge opposite corner i runs from corner i+1 to i+2
-    b = faces[:, [2, 0, 1]].ravel()
+    stack = np.empty(m, dtype=np.int64)
+    n_regions = 0
+    for first in range(m):
+        if labels[first] >= 0:
+            continue
+        labels[first] = n_regions
+        seeds[n_regions] = first
+        stack[0] = first
+        top = 1
+        while top > 0:
+            top -= 1
+            t = stack[top]
+            for i in range(3):
+                other = neighbours[t, i]
+                if other < 0 or labels[other] >= 0:
+                    continue
+                # The edge opposite corner i runs from corner i+1 to corner i+2.
+                a, b = faces[t, (i + 1) % 3], faces[t, (i + 2) % 3]
+                if on_loop[a] and on_loop[b]:
+                    key = min(a, b) * n + max(a, b)
+                    j = np.searchsorted(segment_keys, key)
+                    if j < segment_keys.size and segment_keys[j] == key:
+                        continue
+                labels[other] = n_regions
+                stack[top] = other
+                top += 1
+        n_regions += 1
+    return n_regions
+
+
+def _regions(faces: np.ndarray, neighbours: np.ndarray, segments: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Label of each face (faces sharing an edge that is not a segment share it) and each
+    region's first face.
+
+    ``neighbours[t, i]`` is Triangle's face across the edge opposite corner i of face t
+    (-1 on the hull); Triangle's adjacency is symmetric. One compiled flood over it (at a
+    million points 0.1 s against 2 s for a sparse graph's connected components).
+    """
     on_loop = np.zeros(n, dtype=bool)
     on_loop[segments.ravel()] = True
-    open_edge = other >= 0
-    maybe = np.flatnonzero(open_edge & on_loop[a] & on_loop[b])
-    if maybe.size:
-        key = np.minimum(a[maybe], b[maybe]).astype(np.int64) * n + np.maximum(a[maybe], b[maybe])
-        seg_key = (np.minimum(segments[:, 0], segments[:, 1]).astype(np.int64) * n
-                   + np.maximum(segments[:, 0], segments[:, 1]))
-        open_edge[maybe[np.isin(key, seg_key)]] = False
-    adj = sp.coo_matrix((np.ones(int(open_edge.sum()), dtype=np.int8), (owner[open_edge], other[open_edge])),
-                        shape=(m, m))
-    return connected_components(adj, directed=False)[1]
+    keys = np.unique(np.minimum(segments[:, 0], segments[:, 1]).astype(np.int64) * n
+                     + np.maximum(segments[:, 0], segments[:, 1]))
+    labels = np.full(faces.shape[0], -1, dtype=np.int64)
+    seeds = np.empty(faces.shape[0], dtype=np.int64)
+    n_regions = _flood(np.ascontiguousarray(faces, dtype=np.int64), np.ascontiguousarray(neighbours, dtype=np.int64),
+                       on_loop, keys, np.int64(n), labels, seeds)
+    return labels, seeds[:n_regions]
 
 
 def _cdt(uv: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None, bool]:
@@ -209,16 +253,14 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
             raise InvalidInputError("the uv points cannot be triangulated (all collinear or coincident): "
                                     "the map collapsed.") from None
     # Labels before the orientation fix: swapping two corners would misalign Triangle's neighbours.
-    labels = _regions(faces, neighbours, segments, n) if kind == "cdt" else None
+    labels, first = _regions(faces, neighbours, segments, n) if kind == "cdt" else (None, None)
     faces = _ccw(uv, faces)
     if not loops:
         return UvTriangulation(faces=faces, kind=kind, n_removed=0)
-    centroids = uv[faces].mean(axis=1)
     if kind == "cdt":
-        first = np.unique(labels, return_index=True)[1]
-        inside = _inside(centroids[first], uv, loops)[labels]
+        inside = _inside(uv[faces[first]].mean(axis=1), uv, loops)[labels]
     else:
-        inside = _inside(centroids, uv, loops)
+        inside = _inside(uv[faces].mean(axis=1), uv, loops)
     if not inside.any():
         raise InvalidInputError("no uv triangle lies inside the detected boundary loops: the map collapsed.")
     return UvTriangulation(faces=faces[inside], kind=kind, n_removed=int((~inside).sum()), boundary_crosses=crosses)

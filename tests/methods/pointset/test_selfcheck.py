@@ -328,6 +328,33 @@ def test_a_fold_in_a_noisy_sampling_still_fails():
     assert not check["passed"] and "flipped" in check["failed"] and check["n_flipped"] >= 2
 
 
+@pytest.mark.parametrize("drop_bridging", [False, True])
+def test_chunked_face_facts_equal_one_pass(monkeypatch, drop_bridging):
+    """The per-triangle facts are computed in row chunks on threads: chunks of 7 rows give
+    the same counts as one chunk of every row (a noisy grid with folds pushed in and the
+    uv of far-apart points swapped, so some triangles bridge)."""
+    import parambench.methods.pointset.selfcheck as selfcheck
+    import parambench.methods.pointset.uv_triangulation as uv_triangulation
+
+    pts, outer, xy = _noisy_grid()
+    normals = _estimated_normals(pts, adaptive=True)
+    uv = xy.copy()
+    rng = np.random.default_rng(3)
+    uv[rng.choice(len(uv), 12, replace=False)] += rng.normal(scale=1.5, size=(12, 2))
+    swap = rng.choice(len(uv), 12, replace=False)  # uv swapped between points far apart in 3D
+    uv[swap] = uv[swap[::-1]]
+    loops = None if drop_bridging else [outer]
+    facts = []
+    for chunk in (7, 10**9):
+        monkeypatch.setattr(selfcheck, "_CHUNK", chunk)
+        monkeypatch.setattr(uv_triangulation, "_CHUNK", chunk)
+        check = check_pointset_map(pts, uv, normals, loops)
+        check.pop("seconds")
+        facts.append(check)
+    assert facts[0] == facts[1]
+    assert facts[0]["n_flipped"] > 0 and facts[0]["n_bridging" if loops else "n_removed_outside"] > 0
+
+
 def test_a_tangent_plane_sliver_of_noisy_points_is_not_judged():
     # Three points nearly collinear in the tangent plane, lifted by noise into a
     # well-shaped 3D triangle (3D quality 0.23): the sign of its projected area, which
