@@ -57,10 +57,15 @@ from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
+from pathlib import Path
+
+import numba
 import numpy as np
 import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import InvalidInputError
+
+from ..numba_cache import configure_numba_cache
 
 __all__ = [
     "DEFAULT_AREA_FACTOR",
@@ -72,6 +77,7 @@ __all__ = [
     "gradient_stencils",
     "boundary_edge_normals",
     "stencil_matrix",
+    "assembled_laplacian",
     "neumann_laplacian",
 ]
 
@@ -97,6 +103,8 @@ DEFAULT_BOUNDARY_WIDTH = 0.15
 BOUNDARY_AREAS = ("fan", "spacing")
 
 _MOMENTS = {"linear": 3, "quadratic": 5}
+
+_CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 
 def _check_balls(coords: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -376,6 +384,12 @@ def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int,
     -------
     (n, n) scipy.sparse.csr_matrix of float64
     """
+    off = _off_diagonal(ball_indices, values, n, rows)
+    return (off - sp.diags(_row_sums(off))).tocsr()
+
+
+def _off_diagonal(ball_indices: np.ndarray, values: np.ndarray, n: int, rows: np.ndarray | None) -> sp.csr_matrix:
+    """The off-diagonal part of :func:`stencil_matrix` (``values`` at the members, zeros kept)."""
     mask = ball_indices >= 0
     counts = np.zeros(n, dtype=np.int64)
     counts[slice(None) if rows is None else rows] = mask.sum(axis=1)
@@ -385,8 +399,130 @@ def stencil_matrix(ball_indices: np.ndarray, values: np.ndarray, n: int,
     # Built as CSR directly: each row's members are already grouped (no COO sort; at
     # 300k points this was half the Laplacian's assembly time).
     indptr = np.concatenate([[0], np.cumsum(counts)])
-    off = sp.csr_matrix((values[mask], ball_indices[mask], indptr), shape=(n, n))
-    return (off - sp.diags(np.asarray(off.sum(axis=1)).ravel())).tocsr()
+    return sp.csr_matrix((values[mask], ball_indices[mask], indptr), shape=(n, n))
+
+
+def _row_sums(off: sp.csr_matrix) -> np.ndarray:
+    # scipy's own row sums: their rounding is the stencils' (a plain loop differs in the last bit).
+    return np.asarray(off.sum(axis=1)).ravel()
+
+
+@numba.njit(cache=_CACHE, nogil=True, inline="always")
+def _row_entries(ball, w, flux, has_flux, lap_sum, flux_sum, i, cols, vals):
+    """Row i of ``-S(w) + S(flux)`` (``flux`` only where ``has_flux``) in scipy's storage order.
+
+    ``S(v) = off(v) - diag(rowsum off(v))`` and the sum of two such matrices as scipy's
+    general (unsorted-index) binary operations build them: each keeps a row's columns
+    in the reverse of their first insertion and drops entries that come out zero;
+    ``lap_sum`` and ``flux_sum`` are the row sums of the two off-diagonal parts. Members
+    are distinct and exclude i (DEM balls). Writes up to ``2 * B + 2`` entries; returns
+    how many.
+    """
+    b = ball.shape[1]
+    if not has_flux:
+        cnt = 0
+        for c in range(b):
+            if ball[i, c] >= 0 and w[i, c] != 0.0:
+                cols[cnt] = ball[i, c]
+                vals[cnt] = -w[i, c]
+                cnt += 1
+        if lap_sum != 0.0:
+            cols[cnt] = i
+            vals[cnt] = lap_sum
+            cnt += 1
+        return cnt
+    # Insertion order of the sum: the first matrix's row as stored ([i, m_k .. m_1]),
+    # then the second's ([i, m_k .. m_1]) where new; the row comes out reversed.
+    seq = np.empty(2 * b + 2, dtype=np.int64)  # -1: the diagonal, c >= 0: member c
+    n_seq = 0
+    if lap_sum != 0.0:
+        seq[n_seq] = -1
+        n_seq += 1
+    for c in range(b - 1, -1, -1):
+        if ball[i, c] >= 0 and w[i, c] != 0.0:
+            seq[n_seq] = c
+            n_seq += 1
+    if flux_sum != 0.0 and lap_sum == 0.0:
+        seq[n_seq] = -1
+        n_seq += 1
+    for c in range(b - 1, -1, -1):
+        if ball[i, c] >= 0 and flux[c] != 0.0 and w[i, c] == 0.0:
+            seq[n_seq] = c
+            n_seq += 1
+    cnt = 0
+    for s in range(n_seq - 1, -1, -1):
+        c = seq[s]
+        if c < 0:
+            value = (lap_sum if lap_sum != 0.0 else 0.0) + (-flux_sum if flux_sum != 0.0 else 0.0)
+            col = i
+        else:
+            value = (-w[i, c] if w[i, c] != 0.0 else 0.0) + (flux[c] if flux[c] != 0.0 else 0.0)
+            col = ball[i, c]
+        if value != 0.0:
+            cols[cnt] = col
+            vals[cnt] = value
+            cnt += 1
+    return cnt
+
+
+@numba.njit(cache=_CACHE, nogil=True, parallel=True)
+def _assemble_kernel(ball, w, flux, flux_row, lap_sums, flux_sums, indptr, indices, data, count_only):
+    n, b = ball.shape
+    for i in numba.prange(n):
+        cols = np.empty(2 * b + 2, dtype=np.int64)
+        vals = np.empty(2 * b + 2)
+        r = flux_row[i]
+        cnt = _row_entries(ball, w, flux[max(r, 0)], r >= 0, lap_sums[i], flux_sums[max(r, 0)], i, cols, vals)
+        if count_only:
+            indptr[i + 1] = cnt
+        else:
+            at = indptr[i]
+            for e in range(cnt):
+                indices[at + e] = cols[e]
+                data[at + e] = vals[e]
+
+
+def assembled_laplacian(ball_indices: np.ndarray, w: np.ndarray, flux_rows: np.ndarray,
+                        flux: np.ndarray) -> sp.csr_matrix:
+    """``-stencil_matrix(ball, w) + stencil_matrix(ball[flux_rows], flux, rows=flux_rows)`` in one pass.
+
+    The same matrix, entry for entry and in the same storage order, as those two stencils
+    and scipy's sparse negation and sum (:func:`_row_entries`), built by a compiled loop
+    over rows on both cores: at a million points the sparse subtractions and sum took 4.5 s
+    of the Laplacian's 8 s.
+
+    Parameters
+    ----------
+    ball_indices : (N, B) numpy.ndarray of int64
+        -1 padding; a row's members distinct and other than the row's own point.
+    w : (N, B) numpy.ndarray of float64
+    flux_rows : (R,) numpy.ndarray of int64
+        Increasing rows that carry ``flux``.
+    flux : (R, B) numpy.ndarray of float64
+
+    Returns
+    -------
+    (N, N) scipy.sparse.csr_matrix of float64
+    """
+    n, b = ball_indices.shape
+    ball = np.ascontiguousarray(ball_indices, dtype=np.int64)
+    w = np.ascontiguousarray(w, dtype=np.float64)
+    flux = np.ascontiguousarray(flux, dtype=np.float64).reshape(-1, b)
+    flux_rows = np.asarray(flux_rows, dtype=np.int64)
+    lap_sums = _row_sums(_off_diagonal(ball, w, n, None))
+    flux_sums = _row_sums(_off_diagonal(ball[flux_rows], flux, n, flux_rows))[flux_rows]
+    if flux.shape[0] == 0:
+        flux, flux_sums = np.zeros((1, b)), np.zeros(1)
+    flux_row = np.full(n, -1, dtype=np.int64)
+    flux_row[flux_rows] = np.arange(len(flux_rows))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    empty_i, empty_d = np.zeros(0, dtype=np.int64), np.zeros(0)
+    _assemble_kernel(ball, w, flux, flux_row, lap_sums, flux_sums, indptr, empty_i, empty_d, True)
+    np.cumsum(indptr, out=indptr)
+    indices, data = np.empty(indptr[-1], dtype=np.int64), np.empty(indptr[-1])
+    _assemble_kernel(ball, w, flux, flux_row, lap_sums, flux_sums, indptr, indices, data, False)
+    index_type = np.int32 if max(n, indptr[-1]) < np.iinfo(np.int32).max else np.int64
+    return sp.csr_matrix((data, indices.astype(index_type), indptr.astype(index_type)), shape=(n, n))
 
 
 def _row_weights(ball_indices: np.ndarray, t: np.ndarray, mask: np.ndarray, on_boundary: np.ndarray,
@@ -505,10 +641,10 @@ def neumann_laplacian(ball_indices: np.ndarray, coords: np.ndarray, loops: Seque
         measured = np.isfinite(cells)
         area[cell_pts[measured]] = cells[measured]
     w *= (4.0 * area / q)[:, None]
-    lap = -stencil_matrix(ball_indices, w, n)
-    del w
-
     pos = np.full(n, -1, dtype=np.int64)
     pos[bpts] = np.arange(bpts.size)
     flux = np.einsum("nc,ncb->nb", bvec[pos[boundary_rows]], grad)
-    return (lap + stencil_matrix(ball_indices[boundary_rows], flux, n, rows=boundary_rows)).tocsr()
+    if (ball_indices == np.arange(n)[:, None]).any():  # a point in its own ball: not a DEM ball
+        lap = -stencil_matrix(ball_indices, w, n)
+        return (lap + stencil_matrix(ball_indices[boundary_rows], flux, n, rows=boundary_rows)).tocsr()
+    return assembled_laplacian(ball_indices, w, boundary_rows, flux)

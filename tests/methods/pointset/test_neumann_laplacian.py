@@ -152,3 +152,49 @@ def test_boundary_options_are_checked(plane_front):
         neumann_laplacian(*args, boundary_width=0.0)
     for kw in ({"boundary_area": "spacing"}, {"boundary_width": 0.5}):
         np.testing.assert_allclose(neumann_laplacian(*args, **kw) @ np.ones(front.n_points), 0.0, atol=1e-9)
+
+
+def _stencil_sum(ball, w, rows, flux):
+    from parambench.methods.pointset.neumann_laplacian import stencil_matrix
+
+    n = ball.shape[0]
+    return (-stencil_matrix(ball, w, n) + stencil_matrix(ball[rows], flux, n, rows=rows)).tocsr()
+
+
+def test_assembled_laplacian_is_the_stencils_sum_entry_for_entry():
+    """One compiled pass gives the matrix scipy's stencil subtraction and sum give, storage
+    order and rounding included: zero weights and fluxes (dropped, or kept where the other
+    part is not zero), rows summing to zero, padding in the middle of a ball."""
+    from parambench.methods.pointset.neumann_laplacian import assembled_laplacian
+
+    rng = np.random.default_rng(5)
+    n, b = 300, 12
+    ball = np.stack([rng.permutation(np.delete(np.arange(n), i))[:b] for i in range(n)])
+    ball[rng.random((n, b)) < 0.15] = -1
+    w = rng.normal(size=(n, b))
+    w[rng.random((n, b)) < 0.2] = 0.0
+    w[7, :] = 0.0  # an empty row
+    w[8, :2], w[8, 2:] = [0.5, -0.5], 0.0  # a row summing to zero
+    ball[8, :2] = [3, 4]
+    rows = np.sort(rng.choice(n, 60, replace=False))
+    rows = np.union1d(rows, [7, 8])
+    flux = rng.normal(size=(rows.size, b))
+    flux[rng.random(flux.shape) < 0.3] = 0.0
+    new = assembled_laplacian(ball, w, rows, flux)
+    old = _stencil_sum(ball, w, rows, flux)
+    assert new.indices.dtype == old.indices.dtype
+    np.testing.assert_array_equal(new.indptr, old.indptr)
+    np.testing.assert_array_equal(new.indices, old.indices)
+    np.testing.assert_array_equal(new.data, old.data)
+    assert abs(new.sum(axis=1)).max() < 1e-12  # rows of a Laplacian
+
+
+def test_neumann_laplacian_of_a_front_end_is_the_stencils_sum(monkeypatch):
+    import parambench.methods.pointset.neumann_laplacian as nl
+
+    front = build_frontend(make_surface("holes", 2000, sampling="random", seed=0).points)
+    new = neumann_laplacian(front.ball_indices, front.tangent_coords, front.boundary_loops, front.local_spacing)
+    monkeypatch.setattr(nl, "assembled_laplacian", _stencil_sum)
+    old = neumann_laplacian(front.ball_indices, front.tangent_coords, front.boundary_loops, front.local_spacing)
+    for attr in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(new, attr), getattr(old, attr))
