@@ -16,6 +16,7 @@ from ..base import StageTimer
 from ..hints import Hint, hinted
 from .frontend import STAGES, FrontEnd, build_frontend
 from .params import frontend_params, method_defaults
+from .row_chunks import for_each_chunk
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
            "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS"]
@@ -226,6 +227,10 @@ def require_neighbours(n_points: int, k: Any, param: str) -> None:
         )
 
 
+#: Points per chunk of :func:`scale_to_spacing`'s edge lengths (on worker threads).
+_SCALE_CHUNK = 65536
+
+
 def scale_to_spacing(uv: np.ndarray, front: FrontEnd) -> np.ndarray:
     """Scale uv so that its mean kNN edge length equals the 3D mean spacing ``l``.
 
@@ -239,7 +244,13 @@ def scale_to_spacing(uv: np.ndarray, front: FrontEnd) -> np.ndarray:
     """
     centred = uv - uv.mean(axis=0)
     nbr = front.knn_indices
-    edge = np.linalg.norm(centred[nbr] - centred[:, None, :], axis=-1).mean()
+    lengths = np.empty(nbr.shape)
+
+    def rows_of(rows: slice) -> None:  # each edge's length as one pass would give it
+        lengths[rows] = np.linalg.norm(centred[nbr[rows]] - centred[rows, None, :], axis=-1)
+
+    for_each_chunk(rows_of, nbr.shape[0], _SCALE_CHUNK)
+    edge = lengths.mean()
     if not edge > 0 or not np.isfinite(edge):
         raise SolverError("the map collapses every neighbourhood to a point; the solve failed.")
     return centred * (front.mean_spacing / edge)
