@@ -102,7 +102,9 @@ def coincident_groups(points: np.ndarray) -> CoincidentGroups:
     CoincidentGroups
     """
     n = points.shape[0]
-    tree = cKDTree(points)
+    # Sliding-midpoint splits: half the build time of a balanced tree at a million points,
+    # and the same exact answers (nearest distances, the set of close pairs).
+    tree = cKDTree(points, balanced_tree=False)
     tol = merge_tolerance(points, tree)
     pairs = find_duplicate_points(points, tol=tol, tree=tree)
     if pairs.size == 0:

@@ -68,7 +68,8 @@ def poisson_disk_subsample(points: np.ndarray, radius: float, keep: np.ndarray |
     k = min(_MAX_NEIGHBOURS, n - 1)
     if k < 1:
         return np.arange(n, dtype=np.int64)
-    dist, nbr = cKDTree(pts).query(pts, k=k + 1, distance_upper_bound=radius, workers=-1)
+    # Sliding-midpoint splits: a faster build, the same neighbours within the radius.
+    dist, nbr = cKDTree(pts, balanced_tree=False).query(pts, k=k + 1, distance_upper_bound=radius, workers=-1)
     nbr = nbr[:, 1:]
     close = np.isfinite(dist[:, 1:])  # misses are returned as index n, distance inf
     nbr = np.where(close, nbr, n)
