@@ -55,8 +55,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-
-import numba
 from pathlib import Path
 
 import numba
