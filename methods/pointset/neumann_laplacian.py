@@ -464,10 +464,10 @@ def _row_entries(ball, w, flux, has_flux, lap_sum, flux_sum, i, cols, vals):
     for s in range(n_seq - 1, -1, -1):
         c = seq[s]
         if c < 0:
-            value = (lap_sum if lap_sum != 0.0 else 0.0) + (-flux_sum if flux_sum != 0.0 else 0.0)
+            value = lap_sum - flux_sum  # an entry missing from either part adds an exact zero
             col = i
         else:
-            value = (-w[i, c] if w[i, c] != 0.0 else 0.0) + (flux[c] if flux[c] != 0.0 else 0.0)
+            value = flux[c] - w[i, c]
             col = ball[i, c]
         if value != 0.0:
             cols[cnt] = col
