@@ -22,7 +22,10 @@ an irregular sampling (spaced along themselves wider than the sampling, or with 
 disk inside narrower than 1.9 of their own steps: :func:`empty_radius_inside`);
 boundary points on no kept cycle are dropped too (all counted in the diagnostics). Where the walk finds no boundary point ahead inside the ball (a notch the
 angle criterion missed) it looks among boundary points up to two ball radii away (its own
-ball's or the typical one's, whichever is larger). Boundary points the walk stepped over
+ball's or the typical one's, whichever is larger). Candidates the walk's loops leave off
+(where the boundary comes close to itself, two points take the same successor and a
+chain runs into a small cycle) are chained again all at once, as a minimum-cost cycle
+cover (:mod:`.boundary_cover`, :func:`_cover_loops`). Boundary points the walk stepped over
 (where two sides nearly touch, and the notches of a rim cut across a mesh's triangles)
 are put back (:func:`put_back_passed_over`). Loops are
 returned longest (3D perimeter) first, so the outer boundary of a surface with holes
@@ -41,6 +44,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 
 from ..numba_cache import configure_numba_cache
+from .boundary_cover import BRIDGE_K, ahead_scores, cover_successors, projected_candidates
 from .normals import tangent_frames
 from .row_chunks import for_each_chunk
 from .hole_filling import enclosed_points, is_slot
@@ -66,12 +70,6 @@ DEFAULT_MIN_LOOP_SIZE = 8
 
 #: Balls per batch of :func:`angular_gaps` (batches run on worker threads).
 _GAP_CHUNK = 32768
-
-#: Successors lie within this angle of the walking direction.
-_COS_CONE = np.cos(np.deg2rad(80.0))
-
-#: Weight of the angular deviation in the successor score.
-_LATERAL_PENALTY = 3.0
 
 #: A loop shorter than this many ball radii of its points (or of the typical ball, when
 #: balls follow the local spacing and are small in a dense patch) cannot enclose a hole
@@ -103,9 +101,6 @@ _MIN_EMPTY_STEPS = 1.9
 
 #: Grid (per side) on which the empty disk inside a small loop is searched.
 _EMPTY_GRID = 32
-
-#: Boundary points examined when bridging beyond the ball.
-_BRIDGE_K = 16
 
 #: Angle criterion of the points on a slot's lips (see :func:`find_boundary`).
 _LIP_ANGLE_DEG = 60.0
@@ -188,7 +183,9 @@ class BoundaryLoops:
         ``n_candidates``, ``n_in_loops``, ``n_dropped_points`` (candidates on no cycle),
         ``n_dropped_loops`` (too small), ``loop_sizes`` (before decimation),
         ``n_put_back`` (points the walk stepped over, put back on their loop; see
-        :func:`put_back_passed_over`; counted in ``n_in_loops`` and ``loop_sizes``).
+        :func:`put_back_passed_over`; counted in ``n_in_loops`` and ``loop_sizes``),
+        ``n_hairpin_slots`` (slot loops of the second walk), ``n_cover_loops`` (loops of
+        the cycle cover of the candidates the walk left off, :func:`_cover_loops`).
     """
 
     loops: list
@@ -356,14 +353,7 @@ def successors(ball_indices: np.ndarray, coords: np.ndarray, candidates: np.ndar
 
 def _best_ahead(rows, idx, c, candidates, outward, bisector):
     """Per row, the index in ``idx`` (-1 padded) of the best successor, or -1."""
-    safe = np.where(idx >= 0, idx, 0)
-    ahead_dir = np.stack([-bisector[rows, 1], bisector[rows, 0]], axis=1)  # +90 degrees
-    dist = np.sqrt(np.einsum("nbi,nbi->nb", c, c))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos_a = np.einsum("nbi,ni->nb", c, ahead_dir) / dist
-    agree = np.einsum("nbi,ni->nb", outward[safe], outward[rows]) > 0
-    ok = (idx >= 0) & (idx != rows[:, None]) & candidates[safe] & agree & (cos_a > _COS_CONE)
-    score = np.where(ok, dist * (1.0 + _LATERAL_PENALTY * (1.0 - cos_a)), np.inf)
+    score = ahead_scores(rows, idx, c, candidates, outward, bisector)
     best = np.argmin(score, axis=1)
     pick = np.arange(rows.size)
     return np.where(np.isfinite(score[pick, best]), idx[pick, best], -1)
@@ -398,16 +388,10 @@ def bridge_successors(points: np.ndarray, e1: np.ndarray, e2: np.ndarray, candid
     """
     rows = np.flatnonzero(candidates & (succ < 0))
     out = succ.copy()
-    cand_idx = np.flatnonzero(candidates)
-    if rows.size == 0 or cand_idx.size < 2:
+    if rows.size == 0 or np.count_nonzero(candidates) < 2:
         return out
-    k = min(_BRIDGE_K, cand_idx.size)
     row_reach = np.broadcast_to(np.asarray(reach, dtype=float), candidates.shape)[rows]
-    dist, near = cKDTree(points[cand_idx]).query(points[rows], k=k, distance_upper_bound=float(row_reach.max()))
-    dist = np.where(dist <= row_reach[:, None], dist, np.inf)
-    near = np.where(np.isfinite(dist), cand_idx[np.minimum(near, cand_idx.size - 1)], -1)
-    d = points[np.where(near >= 0, near, 0)] - points[rows, None, :]
-    c = np.stack([np.einsum("nki,ni->nk", d, e1[rows]), np.einsum("nki,ni->nk", d, e2[rows])], axis=-1)
+    near, c = projected_candidates(points, e1, e2, candidates, rows, row_reach)
     out[rows] = _best_ahead(rows, near, c, candidates, outward, bisector)
     return out
 
@@ -458,7 +442,7 @@ def hairpin_successors(points: np.ndarray, candidates: np.ndarray, outward: np.n
     if rows.size == 0 or cand_idx.size < 2:
         return out
     radius = _HAIRPIN_REACH * np.broadcast_to(np.asarray(reach, dtype=float), candidates.shape)[rows]
-    k = min(_BRIDGE_K, cand_idx.size)
+    k = min(BRIDGE_K, cand_idx.size)
     dist, near = cKDTree(points[cand_idx]).query(points[rows], k=k, distance_upper_bound=float(radius.max()))
     found = np.isfinite(dist) & (dist <= radius[:, None])
     near = cand_idx[np.minimum(near, cand_idx.size - 1)]
@@ -792,6 +776,11 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
                                         min_loop_size, hairpins=hairpins)
     kept = _true_loops(points, all_cycles, ball_radius, typical_radius, min_loop_size, local_spacing)
     n_dropped_loops = n_pruned + len(all_cycles) - len(kept)
+    n_cover_loops = 0
+    if not hairpins:
+        more = _cover_loops(points, ball_indices, coords, e1, e2, candidates, outward, bisector, reach,
+                            min_loop_size, kept, ball_radius, typical_radius, local_spacing)
+        kept, n_cover_loops = kept + more, len(more)
     n_hairpin_slots = 0
     if not hairpins and local_spacing is not None:
         slots = _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidates, outward, bisector,
@@ -823,6 +812,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         "loop_sizes": [int(c.size) for c in kept],
         "n_put_back": n_put_back,
         "n_hairpin_slots": n_hairpin_slots,
+        "n_cover_loops": n_cover_loops,
     }
     return BoundaryLoops(loops=loops, mask=out_mask, candidates=candidates, max_gap=gap,
                          diagnostics=diagnostics)
@@ -910,6 +900,41 @@ def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarra
         n_pruned += len(small)
         active[np.concatenate(small)] = False
     return all_cycles, n_pruned
+
+
+def _cover_loops(points, ball_indices, coords, e1, e2, candidates, outward, bisector, reach, min_loop_size, kept,
+                 ball_radius, typical_radius, local_spacing) -> list[np.ndarray]:
+    """Loops of the candidates the walk's loops left off, from a minimum-cost cycle cover.
+
+    Where the boundary comes close to itself (an inlet's mouth, a hole beside the rim, a
+    range scan's ragged edge), two points of the greedy walk take the same successor
+    and a long chain of the rim runs into a small cycle or a dead end: pymeshlab's range
+    scan ``rangemaps/face000.ply`` (82,499 points) kept 4 loops, none of them its rim,
+    recall 0.054. The candidates on no kept loop are chained again all at once
+    (:func:`~.boundary_cover.cover_successors`, costs in ball radii; points of cycles
+    under ``min_loop_size`` dropped and the rest covered again, as in
+    :func:`_walk_pruned`). Its cycles are kept when they pass :func:`_true_loops` and
+    enclose an empty disk of at least ``_MIN_EMPTY_STEPS`` of their own mean steps
+    whatever their size: the cover closes chains the walk leaves open, among them the
+    line where two sides touch (``real/camelhead``'s lips: a 67-point loop around a
+    disk of 1.32 steps; face000's rim and holes 7-45).
+    """
+    active = candidates.copy()
+    if kept:
+        active[np.concatenate(kept)] = False
+    scale = np.maximum(ball_radius, 1e-3 * typical_radius)
+    reach = np.broadcast_to(np.asarray(reach, dtype=float), active.shape)
+    for _ in range(_MAX_PRUNE_ROUNDS):
+        if np.count_nonzero(active) < min_loop_size:
+            return []
+        succ = cover_successors(points, ball_indices, coords, e1, e2, active, outward, bisector, reach, scale)
+        found = cycles(succ, np.flatnonzero(active))
+        small = [c for c in found if c.size < min_loop_size]
+        if not small:
+            break
+        active[np.concatenate(small)] = False
+    found = _true_loops(points, found, ball_radius, typical_radius, min_loop_size, local_spacing)
+    return [c for c in found if empty_radius_inside(points, c) >= _MIN_EMPTY_STEPS * _perimeter(points, c) / c.size]
 
 
 def _true_loops(points: np.ndarray, all_cycles: list[np.ndarray], ball_radius: np.ndarray, typical_radius: float,
