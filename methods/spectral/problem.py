@@ -44,6 +44,14 @@ __all__ = ["ConformalProblem", "ConformalSolution", "K_SEARCH_MODES", "solve_lin
 K_SEARCH_MODES = ("none", "line", "direct")
 BACKENDS = ("auto", "sparse", "boundary", "subspace")
 
+#: Largest boundary on which a failed search falls back by itself to the exact searches
+#: on the dense boundary reduction (:meth:`ConformalProblem.exact_fallback_affordable`):
+#: ``real/cortex-lh``'s mesh (451 boundary vertices) needs that fallback for SCP with
+#: normalized cotangent weights; on its bare points with four detected loops (792 and
+#: 874 boundary points after and before hole filling) the fallbacks ran 153 dense
+#: eigen-solves of 0.6-1.6 s each, 3.5 minutes before the ConvergenceError.
+EXACT_FALLBACK_MAX_BOUNDARY = 500
+
 
 @dataclass
 class ConformalSolution:
@@ -291,6 +299,19 @@ class ConformalProblem:
         if backend in ("sparse", "subspace"):
             return False
         return self.b_on_boundary and self.boundary.size <= self.max_boundary_dense
+
+    def exact_fallback_affordable(self) -> bool:
+        """May a failed search fall back to the exact ones on the dense boundary reduction?
+
+        Those take one dense eigen-solve per k tried (up to 40 for the line search, one
+        per near-real candidate, up to about 150, for the direct k), each cubic in the
+        boundary's size: 0.6-1.6 s at 800-1000 boundary points on 2 cores
+        (``real/cortex-lh`` as bare points with four detected loops: 338 solves, 9
+        minutes before its ConvergenceError). Above :data:`EXACT_FALLBACK_MAX_BOUNDARY`
+        the failure is reported at once; asking for ``k_search="direct"`` still runs it.
+        """
+        return (self.b_on_boundary and self.boundary.size <= min(self.max_boundary_dense,
+                                                                 EXACT_FALLBACK_MAX_BOUNDARY))
 
     def _use_subspace(self, backend: str) -> bool:
         """SCP k search on the boundary subspace?"""
@@ -792,7 +813,7 @@ class ConformalProblem:
             try:
                 # Not with iterative interior solves (the two-level path's fine level): the
                 # exact search would run on them, minutes at 300k points.
-                exact = backend == "auto" and self._use_boundary("auto") and self._interior_solver is None
+                exact = backend == "auto" and self.exact_fallback_affordable() and self._interior_solver is None
                 return self._scp_subspace_search(line_kwargs, exact_fallback=exact)
             except SolverError as err:
                 # The subspace's k_opt is an estimate; where the exact map there still spins
@@ -802,7 +823,7 @@ class ConformalProblem:
                 # Not with iterative interior solves either: the reduction takes one solve
                 # per boundary point (550 s at 300k points on the two-level path's fine
                 # level, where ocp's solver="auto" falls back to the direct path instead).
-                if backend != "auto" or not self._use_boundary("auto") or self._interior_solver is not None:
+                if backend != "auto" or not self.exact_fallback_affordable() or self._interior_solver is not None:
                     raise
                 subspace_error = str(err)
             backend = "boundary"
@@ -932,6 +953,12 @@ def solve_line_then_direct(problem: ConformalProblem, mode: str, pins=None, hint
         return problem.solve(mode, "line", pins=pins)
     except ConvergenceError as err:
         line_error = err
+    if not problem.exact_fallback_affordable():
+        raise hinted(ConvergenceError,
+                     f"no regular {mode} map found: the line search failed ({_first_clause(line_error)}); "
+                     f"k_search='direct' was not tried on {problem.boundary.size} boundary points (over "
+                     f"{EXACT_FALLBACK_MAX_BOUNDARY}, its dense eigen-solves take minutes)",
+                     *hints, Hint("use k_search='direct' to try it anyway", "k_search", "direct")) from None
     try:
         sol = problem.solve(mode, "direct", pins=pins)
     except (SolverError, ConvergenceError) as direct_error:

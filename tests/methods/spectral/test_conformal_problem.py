@@ -180,3 +180,34 @@ def test_a_failed_subspace_search_goes_to_the_exact_search_only_with_direct_solv
                                  interior_solver=lambda l_ii, interior: SparseFactor(l_ii))
     with pytest.raises(SolverError, match="stand-in"):
         iterative.solve("scp", "line")
+
+
+@pytest.mark.parametrize("cap_above_boundary", [True, False])
+def test_failed_line_search_falls_back_to_the_direct_k_only_on_small_boundaries(plane, monkeypatch,
+                                                                               cap_above_boundary):
+    """The automatic fallback's dense eigen-solves are cubic in the boundary's size: above
+    EXACT_FALLBACK_MAX_BOUNDARY the line search's failure is reported at once, with the
+    direct search offered as a hint; below it the direct search runs and gives the map."""
+    from parambench.methods.spectral import problem as problem_module
+
+    prob = ConformalProblem(plane.lap, plane.loops, points=plane.points)
+    n_boundary = prob.boundary.size
+    monkeypatch.setattr(problem_module, "EXACT_FALLBACK_MAX_BOUNDARY",
+                        n_boundary if cap_above_boundary else n_boundary - 1)
+    real_solve, asked = prob.solve, []
+
+    def line_fails(mode, k_search="none", **kwargs):
+        asked.append(k_search)
+        if k_search == "line":
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_solve(mode, k_search, **kwargs)
+
+    monkeypatch.setattr(prob, "solve", line_fails)
+    if cap_above_boundary:
+        sol = problem_module.solve_line_then_direct(prob, "scp")
+        assert asked == ["line", "direct"] and sol.diagnostics["k_search_fallback"] == "direct"
+        assert abs(sol.k - 1.0) < 1e-9
+    else:
+        with pytest.raises(ConvergenceError, match=f"not tried on {n_boundary} boundary points.*k_search='direct'"):
+            problem_module.solve_line_then_direct(prob, "scp")
+        assert asked == ["line"]
