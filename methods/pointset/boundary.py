@@ -34,6 +34,7 @@ comes first.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -884,16 +885,29 @@ def _walk_pruned(points: np.ndarray, ball_indices: np.ndarray, coords: np.ndarra
     n_pruned : int
         Small cycles whose points were dropped before the last walk.
     """
-    # A wrong step into a sampling gap ends the walk in a small cycle and would cut a
-    # true loop open: drop the points of small cycles and walk again until none is left.
-    active = candidates.copy()
-    n_pruned = 0
-    for _ in range(_MAX_PRUNE_ROUNDS):
+    def walk(active: np.ndarray) -> np.ndarray:
         in_ball = successors(ball_indices, coords, active, outward, bisector)
         succ = bridge_successors(points, e1, e2, active, outward, bisector, in_ball, reach)
         if hairpins:
             succ = hairpin_successors(points, active, outward, in_ball, reach, bridged=succ)
-        all_cycles = cycles(succ, np.flatnonzero(active))
+        return succ
+
+    return _pruned_cycles(walk, candidates, min_loop_size)
+
+
+def _pruned_cycles(step: Callable[[np.ndarray], np.ndarray], candidates: np.ndarray,
+                   min_loop_size: int) -> tuple[list[np.ndarray], int]:
+    """Cycles of ``step(active)``'s successors, walked again without the points of small cycles.
+
+    A wrong step into a sampling gap ends the walk in a small cycle and would cut a true
+    loop open: the points of small cycles are dropped and the successors chosen again
+    until none is left (at most ``_MAX_PRUNE_ROUNDS`` times). Returns the last cycles and
+    the number of small cycles dropped.
+    """
+    active = candidates.copy()
+    n_pruned = 0
+    for _ in range(_MAX_PRUNE_ROUNDS):
+        all_cycles = cycles(step(active), np.flatnonzero(active))
         small = [c for c in all_cycles if c.size < min_loop_size]
         if not small:
             break
@@ -919,20 +933,15 @@ def _cover_loops(points, ball_indices, coords, e1, e2, candidates, outward, bise
     line where two sides touch (``real/camelhead``'s lips: a 67-point loop around a
     disk of 1.32 steps; face000's rim and holes 7-45).
     """
-    active = candidates.copy()
+    rest = candidates.copy()
     if kept:
-        active[np.concatenate(kept)] = False
+        rest[np.concatenate(kept)] = False
+    if np.count_nonzero(rest) < min_loop_size:
+        return []
     scale = np.maximum(ball_radius, 1e-3 * typical_radius)
-    reach = np.broadcast_to(np.asarray(reach, dtype=float), active.shape)
-    for _ in range(_MAX_PRUNE_ROUNDS):
-        if np.count_nonzero(active) < min_loop_size:
-            return []
-        succ = cover_successors(points, ball_indices, coords, e1, e2, active, outward, bisector, reach, scale)
-        found = cycles(succ, np.flatnonzero(active))
-        small = [c for c in found if c.size < min_loop_size]
-        if not small:
-            break
-        active[np.concatenate(small)] = False
+    reach = np.broadcast_to(np.asarray(reach, dtype=float), rest.shape)
+    found, _ = _pruned_cycles(lambda active: cover_successors(points, ball_indices, coords, e1, e2, active, outward,
+                                                              bisector, reach, scale), rest, min_loop_size)
     found = _true_loops(points, found, ball_radius, typical_radius, min_loop_size, local_spacing)
     return [c for c in found if empty_radius_inside(points, c) >= _MIN_EMPTY_STEPS * _perimeter(points, c) / c.size]
 
