@@ -155,16 +155,16 @@ def _heap_pop(keys, vals, size):
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
-    """M_qs T_q p in the centre's frame: (u, v).
+def _chord(points, normals, q, p, midpoint):
+    """The centre-free half of ``M_qs T_q p``: T_q p in 3D and the unit normal a it is tangent to.
 
     ``midpoint`` False: T_q p is the projection of p - q onto q's tangent plane, rescaled
-    to |p - q| (the paper's length-preserving projection), then rotated n_q -> n_s.
-    ``midpoint`` True: p - q is projected onto the plane normal to n_q + n_p and rotated
-    from that normal to n_s. On a smooth surface the chord is perpendicular to the
-    bisecting normal up to third order, so this keeps its length like the paper's
-    projection, but a normal offset from noise is dropped instead of being turned
-    into tangential length.
+    to |p - q| (the paper's length-preserving projection), and a = n_q.
+    ``midpoint`` True: p - q is projected onto the plane normal to a = n_q + n_p
+    (normalised). On a smooth surface the chord is perpendicular to the bisecting normal
+    up to third order, so this keeps its length like the paper's projection, but a
+    normal offset from noise is dropped instead of being turned into tangential length.
+    Returns (tx, ty, tz, ax, ay, az); all zero for a degenerate edge.
     """
     rx = points[p, 0] - points[q, 0]
     ry = points[p, 1] - points[q, 1]
@@ -176,7 +176,7 @@ def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
         nqz += normals[p, 2]
         nn = np.sqrt(nqx * nqx + nqy * nqy + nqz * nqz)
         if nn <= 0.0:
-            return 0.0, 0.0
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         nqx /= nn
         nqy /= nn
         nqz /= nn
@@ -185,20 +185,28 @@ def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
     if not midpoint:
         lt = np.sqrt(tx * tx + ty * ty + tz * tz)
         if lt <= 0.0:
-            return 0.0, 0.0
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         scale = np.sqrt(rx * rx + ry * ry + rz * rz) / lt
         tx *= scale
         ty *= scale
         tz *= scale
-    # Minimal rotation a -> n_s applied to a vector t perpendicular to a:
-    # R t = t - (t . n_s) / (1 + a . n_s) * (a + n_s).
-    c = 1.0 + nqx * ns[0] + nqy * ns[1] + nqz * ns[2]
+    return tx, ty, tz, nqx, nqy, nqz
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _rotate_to(tx, ty, tz, ax, ay, az, ns, e1s, e2s):
+    """A vector t tangent to the unit normal a, carried to the centre's frame: (u, v).
+
+    Minimal rotation a -> n_s applied to t (perpendicular to a):
+    R t = t - (t . n_s) / (1 + a . n_s) * (a + n_s).
+    """
+    c = 1.0 + ax * ns[0] + ay * ns[1] + az * ns[2]
     tn = tx * ns[0] + ty * ns[1] + tz * ns[2]
     if c > 1e-12:
         f = tn / c
-        tx -= f * (nqx + ns[0])
-        ty -= f * (nqy + ns[1])
-        tz -= f * (nqz + ns[2])
+        tx -= f * (ax + ns[0])
+        ty -= f * (ay + ns[1])
+        tz -= f * (az + ns[2])
     else:  # opposite normals: no unique rotation, fall back to projection into s's plane
         tx -= tn * ns[0]
         ty -= tn * ns[1]
@@ -206,11 +214,32 @@ def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
     return tx * e1s[0] + ty * e1s[1] + tz * e1s[2], tx * e2s[0] + ty * e2s[1] + tz * e2s[2]
 
 
+@numba.njit(cache=_CACHE, nogil=True)
+def _transport(points, normals, q, p, ns, e1s, e2s, midpoint):
+    """M_qs T_q p in the centre's frame: (u, v) (:func:`_chord`, then :func:`_rotate_to`)."""
+    tx, ty, tz, ax, ay, az = _chord(points, normals, q, p, midpoint)
+    if ax == 0.0 and ay == 0.0 and az == 0.0:
+        return 0.0, 0.0
+    return _rotate_to(tx, ty, tz, ax, ay, az, ns, e1s, e2s)
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _chord_rows(points, normals, indptr, nbrs, midpoint, chords, lo, hi):
+    """:func:`_chord` of every graph edge of rows lo:hi: row e of ``chords`` gets (t, a) for
+    the edge from ``nbrs[e]`` to its row's point (what the upwind average transports)."""
+    for v in range(lo, hi):
+        for e in range(indptr[v], indptr[v + 1]):
+            chords[e, 0], chords[e, 1], chords[e, 2], chords[e, 3], chords[e, 4], chords[e, 5] = _chord(
+                points, normals, nbrs[e], v, midpoint)
+
+
 class _Cloud(NamedTuple):
     """The point set and its neighbourhood graph, read-only in the kernel.
 
     ``indptr``/``nbrs``/``lens`` are the CSR rows of the symmetric adjacency (edge length
-    = Euclidean distance); ``e1``/``e2`` the tangent frames of ``normals``.
+    = Euclidean distance); ``e1``/``e2`` the tangent frames of ``normals``; ``chords`` row e
+    the :func:`_chord` of edge e towards its row's point (upwind average only, see
+    :func:`_graph_cloud`).
     """
 
     points: np.ndarray
@@ -220,6 +249,7 @@ class _Cloud(NamedTuple):
     indptr: np.ndarray
     nbrs: np.ndarray
     lens: np.ndarray
+    chords: np.ndarray
 
 
 class _BallRule(NamedTuple):
@@ -279,7 +309,7 @@ def _dem_range(centres, start, stop, cloud, rule, store, spill, spill_offset, wo
     # Unpacked once, and the loop body kept in one function: reading the arrays from the
     # tuples inside the loops, or splitting the body into kernels taking the tuples, was
     # measured 1.3-1.6x slower in CPU time (bump, 20k points).
-    points, normals, e1, e2, indptr, nbrs, lens = cloud
+    points, normals, e1, e2, indptr, nbrs, lens, chords = cloud
     ball_k, radii, max_ball, upwind, w_eps, midpoint, front_weight = rule
     s_idx, s_uv, s_dist, sizes = store
     p_idx, p_uv, p_dist, _ = spill
@@ -323,7 +353,8 @@ def _dem_range(centres, start, stop, cloud, rule, store, spill, spill_offset, wo
                     q = nbrs[e]
                     if frozen[q] != k:
                         continue
-                    du, dv = _transport(points, normals, q, v, ns, e1s, e2s, midpoint)
+                    du, dv = _rotate_to(chords[e, 0], chords[e, 1], chords[e, 2], chords[e, 3], chords[e, 4],
+                                        chords[e, 5], ns, e1s, e2s)
                     w = 1.0 / (lens[e] * lens[e] + w_eps)
                     if front_weight:
                         w *= (d - dist[q]) / lens[e]
@@ -435,18 +466,19 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     _check_options(dem, projection, ball_k, max_ball, ball_eps_factor)
     n = points.shape[0]
     centre_ids = _centre_ids(centres, n)
-    cloud = _graph_cloud(points, normals, adjacency)
+    # The compiled kernels release the GIL, so plain threads run them in parallel
+    # (cheaper to compile than numba's parallel=True), as many as NUMBA_NUM_THREADS
+    # (default: the number of cores). Read from the config, not from
+    # numba.get_num_threads(), which would start a threading layer this code never uses
+    # (and print a warning about TBB's version on every run).
+    workers = max(1, int(numba.config.NUMBA_NUM_THREADS))
+    cloud = _graph_cloud(points, normals, adjacency, midpoint=projection == "midpoint", upwind=dem == "upwind",
+                         workers=workers)
     radii = (np.full(n, float(ball_eps_factor * mean_spacing)) if local_spacing is None
              else float(ball_eps_factor) * np.ascontiguousarray(local_spacing, dtype=np.float64))
     rule = _BallRule(ball_k=int(ball_k), radii=radii, max_ball=int(max_ball), upwind=dem == "upwind",
                      w_eps=_UPWIND_EPS * mean_spacing**2, midpoint=projection == "midpoint",
                      front_weight=bool(front_weight))
-    # The compiled kernel releases the GIL, so plain threads run it in parallel
-    # (cheaper to compile than numba's parallel=True).
-    # NUMBA_NUM_THREADS (default: the number of cores). Read from the config, not from
-    # numba.get_num_threads(), which would start a threading layer this code never uses
-    # (and print a warning about TBB's version on every run).
-    workers = max(1, int(numba.config.NUMBA_NUM_THREADS))
     scratch = _scratch(workers, n, _heap_capacity(cloud.indptr, rule.max_ball), rule.max_ball)
     sizes = np.zeros(centre_ids.size, dtype=np.int64)
     store, n_trunc = _run_blocks(centre_ids, cloud, rule, scratch, sizes)
@@ -475,13 +507,28 @@ def _centre_ids(centres: np.ndarray | None, n: int) -> np.ndarray:
     return centre_ids
 
 
-def _graph_cloud(points: np.ndarray, normals: np.ndarray, adjacency: sp.spmatrix) -> _Cloud:
-    """The kernel's read-only inputs: points, float64 normals with their frames, int64 CSR graph."""
+def _graph_cloud(points: np.ndarray, normals: np.ndarray, adjacency: sp.spmatrix, *, midpoint: bool = True,
+                 upwind: bool = True, workers: int = 1) -> _Cloud:
+    """The kernel's read-only inputs: points, float64 normals with their frames, int64 CSR graph,
+    and for the upwind average each edge's :func:`_chord` (``chords``, (nnz, 6); (0, 6) otherwise).
+
+    Every edge is transported once per ball holding both ends (~25 times at the default
+    radius), but only the rotation to the centre's frame depends on the ball: the chord is
+    computed once here, on ``workers`` threads, and the kernel's results are unchanged.
+    """
     adjacency = adjacency.tocsr()
     normals = np.ascontiguousarray(normals, dtype=np.float64)
     e1, e2 = tangent_frames(normals)
-    return _Cloud(points=points, normals=normals, e1=e1, e2=e2, indptr=adjacency.indptr.astype(np.int64),
-                  nbrs=adjacency.indices.astype(np.int64), lens=np.asarray(adjacency.data, dtype=np.float64))
+    indptr = adjacency.indptr.astype(np.int64)
+    nbrs = adjacency.indices.astype(np.int64)
+    chords = np.empty((nbrs.size if upwind else 0, 6))
+    if upwind and nbrs.size:
+        bounds = np.linspace(0, indptr.size - 1, workers + 1).astype(np.int64)
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(lambda t: _chord_rows(points, normals, indptr, nbrs, midpoint, chords, int(bounds[t]),
+                                                int(bounds[t + 1])), range(workers)))
+    return _Cloud(points=points, normals=normals, e1=e1, e2=e2, indptr=indptr, nbrs=nbrs,
+                  lens=np.asarray(adjacency.data, dtype=np.float64), chords=chords)
 
 
 def _heap_capacity(indptr: np.ndarray, max_ball: int) -> int:

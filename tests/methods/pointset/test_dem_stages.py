@@ -55,6 +55,29 @@ def test_graph_cloud_gives_kernel_types():
     assert np.allclose(np.einsum("ij,ij->i", cloud.e1, cloud.e2), 0)
 
 
+@pytest.mark.parametrize("midpoint", [True, False])
+def test_edge_chords_then_rotation_equal_the_transport(midpoint):
+    """The kernel's upwind average reads each edge's chord from the table built once
+    (``_graph_cloud``) and only rotates it to the centre: bit for bit the transport
+    computed from the points and normals, on either projection, at any worker count."""
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(40, 3))
+    normals = rng.normal(size=(40, 3)) + [0.0, 0.0, 3.0]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    adj = symmetric_adjacency(knn_graph(points, 6))
+    one = _graph_cloud(points, normals, adj, midpoint=midpoint, workers=1)
+    two = _graph_cloud(points, normals, adj, midpoint=midpoint, workers=2)
+    np.testing.assert_array_equal(one.chords, two.chords)
+    assert one.chords.shape == (one.nbrs.size, 6)
+    for s in (0, 17):
+        for v in range(points.shape[0]):
+            for e in range(one.indptr[v], one.indptr[v + 1]):
+                want = dem._transport(one.points, one.normals, one.nbrs[e], v, one.normals[s], one.e1[s], one.e2[s],
+                                      midpoint)
+                assert dem._rotate_to(*one.chords[e], one.normals[s], one.e1[s], one.e2[s]) == want
+    assert _graph_cloud(points, normals, adj, upwind=False).chords.shape == (0, 6)  # the plain DEM needs none
+
+
 def test_heap_capacity_follows_the_largest_degree():
     _, _, adj = _path()  # degrees 1 and 2
     star = sp.csr_matrix(np.r_[[np.r_[0, np.ones(5)]], np.c_[np.ones(5), np.zeros((5, 5))]])  # degree 5
