@@ -22,6 +22,7 @@ from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInpu
 
 from ..numba_cache import configure_numba_cache
 from .neighbourhoods import _find
+from .local_fits import linear_smooth_rows, pca_rows
 from .row_chunks import for_each_chunk, worker_count
 
 __all__ = [
@@ -40,11 +41,14 @@ __all__ = [
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
-#: Rows per batch of covariance matrices (~15 MB of temporaries per batch; batches run on
-#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`, two at a time: half
-#: the single-threaded code's 200k-row batches' memory in all). Each row's arithmetic
-#: does not depend on the batch size (tested).
+#: Rows per batch of the per-point fits (batches run on worker threads, see
+#: :mod:`parambench.methods.pointset.row_chunks`; the compiled fits of
+#: :mod:`parambench.methods.pointset.local_fits` need no temporaries per batch). Each row's
+#: arithmetic does not depend on the batch size (tested).
 _PCA_CHUNK = 25_000
+
+#: Ridge on the slopes of the local-linear normal smoothing, relative to its matrix's trace.
+_SMOOTH_RIDGE = 1e-9
 
 #: Weight of the off-tangent-plane term of the orientation tree's edge weights.
 _OFF_PLANE_WEIGHT = 3.0
@@ -67,18 +71,7 @@ def pca_normals(points: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
         Unit eigenvectors of the smallest eigenvalue of each neighbourhood covariance;
         signs arbitrary.
     """
-    n = points.shape[0]
-    out = np.empty((n, 3))
-
-    def fit(sl: slice) -> None:
-        nbh = np.concatenate([points[sl, None, :], points[knn_indices[sl]]], axis=1)
-        nbh = nbh - nbh.mean(axis=1, keepdims=True)
-        cov = np.einsum("nki,nkj->nij", nbh, nbh)
-        _, vecs = np.linalg.eigh(cov)  # eigenvalues ascending
-        out[sl] = vecs[:, :, 0]
-
-    for_each_chunk(fit, n, _PCA_CHUNK)
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+    return pca_fit(points, knn_indices)[0]
 
 
 def pca_fit(points: np.ndarray, nbh_indices: np.ndarray, valid: np.ndarray | None = None
@@ -111,27 +104,18 @@ def pca_fit(points: np.ndarray, nbh_indices: np.ndarray, valid: np.ndarray | Non
         Predicted rms tilt of the normal, radians.
     """
     m = nbh_indices.shape[0]
-    if valid is None:
-        valid = np.ones(nbh_indices.shape, dtype=bool)
+    nbh = np.ascontiguousarray(nbh_indices, dtype=np.int64)
+    valid = (np.ones(nbh.shape, dtype=np.bool_) if valid is None
+             else np.ascontiguousarray(valid, dtype=np.bool_))
+    pts = np.ascontiguousarray(points, dtype=np.float64)
     normals = np.empty((m, 3))
     lam = np.empty((m, 3))
-
-    def fit(sl: slice) -> None:
-        w = np.concatenate([np.ones((sl.stop - sl.start, 1)), valid[sl].astype(np.float64)], axis=1)
-        nbh = np.concatenate([points[sl, None, :], points[nbh_indices[sl]]], axis=1)
-        count = w.sum(axis=1)
-        centre = np.einsum("nk,nki->ni", w, nbh) / count[:, None]
-        d = (nbh - centre[:, None, :]) * np.sqrt(w)[:, :, None]
-        vals, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", d, d))
-        normals[sl] = vecs[:, :, 0]
-        lam[sl] = np.maximum(vals, 0.0)
-
-    for_each_chunk(fit, m, max(1, _PCA_CHUNK * 9 // (nbh_indices.shape[1] + 1)))  # pca_normals' memory at K = 8
+    for_each_chunk(lambda rows: pca_rows(pts, nbh, valid, rows.start, rows.stop, normals, lam), m, _PCA_CHUNK)
     count = 1.0 + valid.sum(axis=1)
     s2 = lam[:, 0] / np.maximum(count - 3.0, 1.0)
     tiny = np.finfo(np.float64).tiny
     error = np.sqrt(s2 * (1.0 / np.maximum(lam[:, 1], tiny) + 1.0 / np.maximum(lam[:, 2], tiny)))
-    return normals / np.linalg.norm(normals, axis=1, keepdims=True), lam, error
+    return normals, lam, error
 
 
 #: Predicted rms normal error (degrees) above which :func:`noise_adaptive_normals` refits
@@ -637,24 +621,20 @@ def smooth_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
         raise InvalidInputError(f"normal smoothing must be one of {', '.join(SMOOTHING_KINDS)}, got {method!r}.")
     n = normals.shape[0]
     avg = np.empty_like(normals)
+    knn = np.ascontiguousarray(knn_indices, dtype=np.int64)
+    weights = 1.0 / (np.asarray(knn_distances, dtype=np.float64) + 1e-4 * mean_spacing)
+    if method == "average":
+        def smooth(sl: slice) -> None:
+            avg[sl] = np.einsum("nk,nkj->nj", weights[sl], normals[knn[sl]])
+    else:
+        e1, e2 = tangent_frames(normals)
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        nrm = np.ascontiguousarray(normals, dtype=np.float64)
 
-    def smooth(sl: slice) -> None:
-        idx = knn_indices[sl]
-        w = 1.0 / (knn_distances[sl] + 1e-4 * mean_spacing)
-        nbr = normals[idx]
-        if method == "average":
-            avg[sl] = np.einsum("nk,nkj->nj", w, nbr)
-            return
-        e1, e2 = tangent_frames(normals[sl])
-        d = points[idx] - points[sl, None, :]
-        design = np.stack([np.ones(idx.shape), np.einsum("nki,ni->nk", d, e1), np.einsum("nki,ni->nk", d, e2)],
-                          axis=-1)
-        lhs = np.einsum("nk,nki,nkj->nij", w, design, design)
-        # A tiny ridge on the slopes keeps collinear neighbourhoods solvable; their
-        # intercept then tends to the plain weighted average.
-        ridge = 1e-9 * np.einsum("nii->n", lhs)[:, None, None] * np.diag([0.0, 1.0, 1.0])
-        rhs = np.einsum("nk,nki,nkj->nij", w, design, nbr)
-        avg[sl] = np.linalg.solve(lhs + ridge, rhs)[:, 0, :]
+        def smooth(sl: slice) -> None:
+            # A tiny ridge on the slopes keeps collinear neighbourhoods solvable; their
+            # intercept then tends to the plain weighted average.
+            linear_smooth_rows(pts, nrm, e1, e2, knn, weights, _SMOOTH_RIDGE, sl.start, sl.stop, avg)
 
     for_each_chunk(smooth, n, _PCA_CHUNK)
     norm = np.linalg.norm(avg, axis=1, keepdims=True)
