@@ -1,10 +1,10 @@
-"""Compiled per-point 3x3 fits of the normals stage: PCA plane fits and local-linear normal smoothing.
+"""Compiled per-point small fits: PCA plane fits, local-linear normal smoothing, moment weights.
 
-At a million points numpy's batched ``eigh`` and ``solve`` on 3x3 matrices cost about
-2 microseconds per matrix in LAPACK call overhead (the PCA fit 1.6-1.7 s, the smoothing
-1.4 s on two cores); these kernels do the same arithmetic per row in a few hundred
-nanoseconds: the PCA fit 0.21-0.42 s at a million points (bump, plane, noisy random
-cap). The scatter matrix's eigen-decomposition is cyclic Jacobi, as accurate as LAPACK's
+At a million points numpy's batched ``eigh`` and ``solve`` on 3x3 to 5x5 matrices cost
+about 2 microseconds per matrix in LAPACK call overhead (the normals stage's PCA fit
+1.6-1.7 s and smoothing 1.4-1.9 s, the Laplacian's moment weights 3.1 s, on two cores);
+these kernels do the same arithmetic per row in a few hundred nanoseconds: the PCA fit
+0.21-0.42 s at a million points (bump, plane, noisy random cap). The scatter matrix's eigen-decomposition is cyclic Jacobi, as accurate as LAPACK's
 on symmetric 3x3 matrices (normals within 4.4e-16 of ``|n . n_lapack| = 1``, eigenvalues
 within 2.7e-15 of the largest; tested against numpy).
 
@@ -21,7 +21,7 @@ import numpy as np
 
 from ..numba_cache import configure_numba_cache
 
-__all__ = ["sym3_eigen", "pca_rows", "linear_smooth_rows"]
+__all__ = ["sym3_eigen", "pca_rows", "linear_smooth_rows", "solve_first_unit", "moment_rows"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -147,30 +147,94 @@ def pca_rows(points, nbh, valid, lo, hi, normals, lam):
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _solve3_first_row(m, out):
-    """``out`` = row 0 of ``m^-1`` for a symmetric 3x3 ``m`` (destroyed): ``m y = e0`` by
-    Gaussian elimination with partial pivoting (symmetric, so row 0 of the inverse is y)."""
-    b = np.zeros(3)
+def solve_first_unit(m, size, out):
+    """``out[:size]`` = the solution y of ``m y = e_0`` for the leading ``size`` x ``size``
+    block of ``m`` (destroyed), by Gaussian elimination with partial pivoting. For a
+    symmetric ``m`` this is also row 0 of its inverse."""
+    b = np.zeros(size)
     b[0] = 1.0
-    for col in range(3):
+    for col in range(size):
         piv = col
-        for r in range(col + 1, 3):
+        for r in range(col + 1, size):
             if abs(m[r, col]) > abs(m[piv, col]):
                 piv = r
         if piv != col:
-            for c in range(3):
+            for c in range(size):
                 m[col, c], m[piv, c] = m[piv, c], m[col, c]
             b[col], b[piv] = b[piv], b[col]
-        for r in range(col + 1, 3):
+        for r in range(col + 1, size):
             f = m[r, col] / m[col, col]
-            for c in range(col, 3):
+            for c in range(col, size):
                 m[r, c] -= f * m[col, c]
             b[r] -= f * b[col]
-    for r in range(2, -1, -1):
+    for r in range(size - 1, -1, -1):
         acc = b[r]
-        for c in range(r + 1, 3):
+        for c in range(r + 1, size):
             acc -= m[r, c] * out[c]
         out[r] = acc / m[r, r]
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def moment_rows(t, mask, n_con, width, reg, lo, hi, out):
+    """Minimum-norm moment weights of rows lo:hi (see
+    :func:`parambench.methods.pointset.neumann_laplacian.moment_weights`) into ``out``.
+
+    Per row, with Gaussian ``omega_b = exp(-r_b^2 / (width h^2))`` (``h^2`` the row's
+    largest squared radius) at members and moment rows ``a_b = (1, t_x, t_y)`` and, for
+    ``n_con = 5``, ``(t_x^2 - t_y^2, 2 t_x t_y)``: ``w = Omega A^T (A Omega A^T + reg
+    trace I)^{-1} e_1``, scaled to sum to 1. Padding (``mask`` False) gets 0.
+    """
+    b_max = t.shape[1]
+    aoa = np.empty((5, 5))
+    lam = np.empty(5)
+    a = np.empty((b_max, 5))
+    om = np.empty(b_max)
+    tiny = np.finfo(np.float64).tiny
+    for i in range(lo, hi):
+        h2 = 0.0
+        for b in range(b_max):
+            r2 = t[i, b, 0] * t[i, b, 0] + t[i, b, 1] * t[i, b, 1]
+            if r2 > h2:
+                h2 = r2
+        h2 = max(h2, tiny)
+        for r in range(n_con):
+            for c in range(n_con):
+                aoa[r, c] = 0.0
+        for b in range(b_max):
+            if not mask[i, b]:
+                om[b] = 0.0
+                continue
+            tx = t[i, b, 0]
+            ty = t[i, b, 1]
+            om[b] = np.exp(-(tx * tx + ty * ty) / (width * h2))
+            a[b, 0] = 1.0
+            a[b, 1] = tx
+            a[b, 2] = ty
+            if n_con == 5:
+                a[b, 3] = tx * tx - ty * ty
+                a[b, 4] = 2.0 * tx * ty
+            for r in range(n_con):
+                f = a[b, r] * om[b]
+                for c in range(n_con):
+                    aoa[r, c] += f * a[b, c]
+        trace = 0.0
+        for r in range(n_con):
+            trace += aoa[r, r]
+        for r in range(n_con):
+            aoa[r, r] += reg * trace
+        solve_first_unit(aoa, n_con, lam)
+        total = 0.0
+        for b in range(b_max):
+            if not mask[i, b]:
+                out[i, b] = 0.0
+                continue
+            acc = 0.0
+            for r in range(n_con):
+                acc += a[b, r] * lam[r]
+            out[i, b] = om[b] * acc
+            total += out[i, b]
+        for b in range(b_max):
+            out[i, b] /= total
 
 
 @numba.njit(cache=_CACHE, nogil=True)
@@ -206,7 +270,7 @@ def linear_smooth_rows(points, normals, e1, e2, knn, weights, ridge, lo, hi, out
         extra = ridge * (m[0, 0] + m[1, 1] + m[2, 2])
         m[1, 1] += extra
         m[2, 2] += extra
-        _solve3_first_row(m, y)
+        solve_first_unit(m, 3, y)
         ax = ay = az = 0.0
         for j in range(k_max):
             q = knn[i, j]

@@ -54,7 +54,6 @@ corrects the estimate of the area per point.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numba
@@ -64,6 +63,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
+from .local_fits import moment_rows
 from .row_chunks import for_each_chunk
 
 __all__ = [
@@ -179,48 +179,24 @@ def moment_weights(coords: np.ndarray, mask: np.ndarray, order: str = "quadratic
     return _moment_rows(t, m, n_con, width, reg)
 
 
-#: Centres per block of :func:`moment_weights`.
-_ROW_BLOCK = 65536
+#: Centres per task of :func:`_moment_rows` (tasks are handed out to the worker threads).
+_ROW_BLOCK = 16384
 
 
 def _moment_rows(t: np.ndarray, m: np.ndarray, n_con: int, width: float, reg: float) -> np.ndarray:
-    """:func:`moment_weights` on checked, padding-zeroed coordinates, by row blocks on a thread pool.
+    """:func:`moment_weights` on checked, padding-zeroed coordinates: the compiled kernel
+    (:func:`parambench.methods.pointset.local_fits.moment_rows`) by row blocks on threads.
 
-    Row blocks bound the (rows, constraints, B) temporaries (~0.5 GB per block at B ~ 40
-    instead of several GB at a million points); numpy's einsum, exp and batched solve
-    release the GIL, so two blocks run at once on two cores.
+    numpy's batched 5x5 solves cost ~2 microseconds a matrix in LAPACK call overhead
+    (3.1 s at a million points on two cores); the kernel needs no (rows, constraints, B)
+    temporaries either.
     """
     out = np.empty(m.shape)
-
-    def run(start: int) -> None:
-        rows = slice(start, start + _ROW_BLOCK)
-        out[rows] = _moment_block(t[rows], m[rows], n_con, width, reg)
-
-    starts = range(0, m.shape[0], _ROW_BLOCK)
-    workers = min(len(starts), max(1, int(numba.config.NUMBA_NUM_THREADS)))
-    if workers <= 1:
-        for start in starts:
-            run(start)
-        return out
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        list(pool.map(run, starts))
+    coords = np.ascontiguousarray(t, dtype=np.float64)
+    members = np.ascontiguousarray(m, dtype=np.bool_)
+    for_each_chunk(lambda rows: moment_rows(coords, members, int(n_con), float(width), float(reg), rows.start,
+                                            rows.stop, out), m.shape[0], _ROW_BLOCK)
     return out
-
-
-def _moment_block(t: np.ndarray, m: np.ndarray, n_con: int, width: float, reg: float) -> np.ndarray:
-    tx, ty = t[..., 0], t[..., 1]
-    rows = [m.astype(np.float64), tx, ty]
-    if n_con == _MOMENTS["quadratic"]:
-        rows += [tx * tx - ty * ty, 2.0 * tx * ty]
-    a = np.stack(rows, axis=1)  # (N, c, B)
-    om = _gaussian(t, m, width)
-    aoa = np.einsum("ncb,nb,ndb->ncd", a, om, a)
-    aoa += reg * np.trace(aoa, axis1=1, axis2=2)[:, None, None] * np.eye(n_con)
-    rhs = np.zeros((a.shape[0], n_con, 1))
-    rhs[:, 0, 0] = 1.0
-    lam = np.linalg.solve(aoa, rhs)[..., 0]
-    w = om * np.einsum("ncb,nc->nb", a, lam)
-    return w / w.sum(axis=1, keepdims=True)
 
 
 def gradient_stencils(coords: np.ndarray, mask: np.ndarray, *, width: float | None = None,

@@ -102,3 +102,43 @@ def test_linear_smoothing_matches_the_least_squares_fit():
     e1, e2 = tangent_frames(flat)
     linear_smooth_rows(line, flat, e1, e2, nb, np.ones((9, 4)), 1e-9, 0, 9, out)
     np.testing.assert_allclose(out / np.linalg.norm(out, axis=1, keepdims=True), flat, atol=1e-9)
+
+
+def _moment_reference(t, m, n_con, width, reg):
+    """The batched numpy/LAPACK formulation the kernel replaced."""
+    tx, ty = t[..., 0], t[..., 1]
+    rows = [m.astype(float), tx, ty] + ([tx * tx - ty * ty, 2.0 * tx * ty] if n_con == 5 else [])
+    a = np.stack(rows, axis=1)
+    r2 = (t ** 2).sum(-1)
+    om = np.exp(-r2 / (width * np.maximum(r2.max(axis=1, keepdims=True), np.finfo(float).tiny))) * m
+    aoa = np.einsum("ncb,nb,ndb->ncd", a, om, a)
+    aoa += reg * np.trace(aoa, axis1=1, axis2=2)[:, None, None] * np.eye(n_con)
+    rhs = np.zeros((a.shape[0], n_con, 1))
+    rhs[:, 0, 0] = 1.0
+    lam = np.linalg.solve(aoa, rhs)[..., 0]
+    w = om * np.einsum("ncb,nc->nb", a, lam)
+    return w / w.sum(axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("n_con", [3, 5])
+def test_moment_weights_match_the_batched_solve_and_keep_their_moments(n_con):
+    from parambench.methods.pointset.neumann_laplacian import moment_weights
+
+    rng = np.random.default_rng(2)
+    n, b = 200, 24
+    t = rng.uniform(-1, 1, size=(n, b, 2)) * rng.uniform(0.1, 3.0, size=(n, 1, 1))
+    m = np.ones((n, b), dtype=bool)
+    m[:, 12:] = rng.random((n, b - 12)) < 0.5  # ragged balls, padding zeroed
+    t[~m] = 0.0
+    t[0, :, 1] = 0.0  # a collinear ball: the regularisation keeps it solvable
+    order = "quadratic" if n_con == 5 else "linear"
+    w = moment_weights(t, m, order)
+    np.testing.assert_allclose(w, _moment_reference(t, m, n_con, 0.5, 1e-10), rtol=0, atol=1e-11)
+    assert (w[~m] == 0).all()
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-12)
+    ok = slice(1, None)  # the prescribed moments vanish, up to the 1e-10 regularisation (the collinear ball not at all)
+    np.testing.assert_allclose(np.einsum("nb,nbi->ni", w[ok], t[ok]), 0.0, atol=1e-7)
+    if n_con == 5:
+        tx, ty = t[ok, :, 0], t[ok, :, 1]
+        np.testing.assert_allclose((w[ok] * (tx * tx - ty * ty)).sum(1), 0.0, atol=1e-7)
+        np.testing.assert_allclose((w[ok] * tx * ty).sum(1), 0.0, atol=1e-7)
