@@ -1,4 +1,4 @@
-"""Compiled per-point small fits: PCA plane fits, local-linear normal smoothing, moment weights.
+"""Compiled per-point small fits: PCA plane fits, normal smoothing, moment and LLE weights.
 
 At a million points numpy's batched ``eigh`` and ``solve`` on 3x3 to 5x5 matrices cost
 about 2 microseconds per matrix in LAPACK call overhead (the normals stage's PCA fit
@@ -21,7 +21,7 @@ import numpy as np
 
 from ..numba_cache import configure_numba_cache
 
-__all__ = ["sym3_eigen", "pca_rows", "linear_smooth_rows", "solve_first_unit", "moment_rows"]
+__all__ = ["sym3_eigen", "pca_rows", "linear_smooth_rows", "solve_small", "solve_first_unit", "moment_rows", "lle_rows"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -147,12 +147,9 @@ def pca_rows(points, nbh, valid, lo, hi, normals, lam):
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def solve_first_unit(m, size, out):
-    """``out[:size]`` = the solution y of ``m y = e_0`` for the leading ``size`` x ``size``
-    block of ``m`` (destroyed), by Gaussian elimination with partial pivoting. For a
-    symmetric ``m`` this is also row 0 of its inverse."""
-    b = np.zeros(size)
-    b[0] = 1.0
+def solve_small(m, b, size, out):
+    """``out[:size]`` = the solution y of ``m y = b`` on the leading ``size`` x ``size`` block
+    of ``m`` (``m`` and ``b`` destroyed), by Gaussian elimination with partial pivoting."""
     for col in range(size):
         piv = col
         for r in range(col + 1, size):
@@ -172,6 +169,66 @@ def solve_first_unit(m, size, out):
         for c in range(r + 1, size):
             acc -= m[r, c] * out[c]
         out[r] = acc / m[r, r]
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def solve_first_unit(m, size, out):
+    """``out[:size]`` = the solution y of ``m y = e_0`` (:func:`solve_small`); for a
+    symmetric ``m`` this is also row 0 of its inverse."""
+    b = np.zeros(size)
+    b[0] = 1.0
+    solve_small(m, b, size, out)
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def lle_rows(offsets, mask, reg_eps, lo, hi, out):
+    """Regularised LLE weights of rows lo:hi in Woodbury form (see
+    :func:`parambench.methods.pointset.tangent_weights.lle_weights`) into ``out``.
+
+    Per row, with member offsets ``x_b`` (d = 2 or 3 columns) and Gram matrix
+    ``G = sum_b x_b x_b^T``: ``y = (G + reg_eps trace(G) I)^{-1} sum_b x_b`` and
+    ``w_b = 1 - x_b . y``, scaled to sum to 1; padding gets 0. Returns the first row whose
+    members all sit on the centre (trace 0: no weights exist), or -1.
+    """
+    n_b = offsets.shape[1]
+    d = offsets.shape[2]
+    g = np.empty((3, 3))
+    rhs = np.empty(3)
+    y = np.empty(3)
+    for i in range(lo, hi):
+        for p in range(d):
+            rhs[p] = 0.0
+            for q in range(d):
+                g[p, q] = 0.0
+        for b in range(n_b):
+            if mask[i, b]:
+                for p in range(d):
+                    xp = offsets[i, b, p]
+                    rhs[p] += xp
+                    for q in range(d):
+                        g[p, q] += xp * offsets[i, b, q]
+        trace = 0.0
+        for p in range(d):
+            trace += g[p, p]
+        lam = reg_eps * trace
+        if not lam > 0.0:
+            return i
+        for p in range(d):
+            g[p, p] += lam
+        solve_small(g, rhs, d, y)
+        total = 0.0
+        for b in range(n_b):
+            if mask[i, b]:
+                w = 1.0
+                for p in range(d):
+                    w -= offsets[i, b, p] * y[p]
+                out[i, b] = w
+                total += w
+            else:
+                out[i, b] = 0.0
+        for b in range(n_b):
+            out[i, b] /= total
+    return -1
 
 
 @numba.njit(cache=_CACHE, nogil=True)

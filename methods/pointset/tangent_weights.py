@@ -11,10 +11,10 @@ Woodbury identity gives the solution from a d x d system,
     w  proportional to  1 - X (lambda I_d + X^T X)^{-1} X^T 1,   lambda = eps tr(C),
 
 exactly the same weights as the B x B solve for a fraction of the cost (O(B) per point
-instead of O(B^3)), vectorised over all points at once. Padding rows of X are zero and
-their right-hand side is 0, so padding gets weight 0. :func:`dense_weights` is the
-literal B x B batched solve (identity rows at the padding), kept as the reference the
-tests compare against.
+instead of O(B^3)), each point's d x d system solved by a compiled kernel
+(:func:`parambench.methods.pointset.local_fits.lle_rows`). Padding gets weight 0.
+:func:`dense_weights` is the literal B x B batched solve (identity rows at the padding),
+kept as the reference the tests compare against.
 
 With eps > 0 the weights reproduce a planar neighbourhood only approximately:
 ``sum_j w_j x_j = lambda (lambda I + X^T X)^{-1} X^T 1 / sum(w)``, which vanishes for
@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
+from .local_fits import lle_rows
 from .reorder import insert_sorted
 from .row_chunks import for_each_chunk
 
@@ -54,8 +55,8 @@ _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 DEFAULT_REG_EPS = 1e-2
 
-#: Centres per vectorised batch (bounds temporaries to a few hundred MB; batches run on
-#: worker threads, see :mod:`parambench.methods.pointset.row_chunks`).
+#: Centres per batch (batches run on worker threads, see
+#: :mod:`parambench.methods.pointset.row_chunks`; 3D LLE gathers its offsets per batch).
 _CHUNK = 65536
 
 
@@ -85,27 +86,16 @@ def lle_weights(offsets: np.ndarray, mask: np.ndarray, reg_eps: float = DEFAULT_
     if not reg_eps > 0:
         raise InvalidInputError(f"reg_eps must be > 0, got {reg_eps}; the paper's value is 1e-2.")
     n, b, d = offsets.shape
+    if d > 3:
+        raise InvalidInputError(f"LLE offsets must have at most 3 coordinates, got {d}.")
     out = np.empty((n, b))
+    x = np.ascontiguousarray(offsets, dtype=np.float64)
+    members = np.ascontiguousarray(mask, dtype=np.bool_)
 
     def solve(sl: slice) -> None:
-        start, stop = sl.start, sl.stop
-        m = mask[start:stop]
-        x = np.where(m[:, :, None], offsets[start:stop], 0.0)
-        # X^T X and X^T 1 by explicit column sums: several times faster than einsum for d <= 3.
-        cols = [x[:, :, i] for i in range(d)]
-        gram = np.empty((stop - start, d, d))
-        for i in range(d):
-            for j in range(i, d):
-                gram[:, i, j] = gram[:, j, i] = np.einsum("nb,nb->n", cols[i], cols[j])
-        lam = reg_eps * np.trace(gram, axis1=1, axis2=2)
-        if np.any(lam <= 0):
-            bad = start + int(np.flatnonzero(lam <= 0)[0])
+        bad = lle_rows(x, members, float(reg_eps), sl.start, sl.stop, out)
+        if bad >= 0:
             raise InvalidInputError(f"neighbourhood of point {bad} is degenerate (all offsets zero); remove duplicates.")
-        gram[:, range(d), range(d)] += lam[:, None]
-        rhs = x.sum(axis=1)
-        y = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
-        w = m - sum(cols[i] * y[:, i:i + 1] for i in range(d))
-        out[start:stop] = w / w.sum(axis=1, keepdims=True)
 
     # Batches on worker threads (the first degenerate point in row order is reported).
     for_each_chunk(solve, n, _CHUNK)
