@@ -21,8 +21,8 @@ from scipy.sparse.csgraph import minimum_spanning_tree
 from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInputError
 
 from ..numba_cache import configure_numba_cache
-from .neighbourhoods import _find
 from .local_fits import linear_smooth_rows, pca_rows
+from .neighbourhoods import _find
 from .row_chunks import for_each_chunk, worker_count
 
 __all__ = [
