@@ -16,7 +16,7 @@ loops) to label what it measures. Two measurements:
   every other cluster is a gap of the sampling. A hole can be found by emptiness alone at
   that threshold only when its cluster is larger than every gap cluster.
 
-Found with it on ``real/bunny10k`` (see the README's Measured table): its mesh faces are
+Found with it on ``real/bunny10k`` (see ``bench/MEASUREMENTS.md``): its mesh faces are
 as irregular as a uniform random sampling (circumradius / local spacing q90 0.98, q99
 1.82; random 1.08, 1.45; jittered 0.64, 0.73), and at every threshold from 0.7 to 1.0 the
 largest gap cluster of its interior is larger (triangles and area) than the clusters

@@ -24,8 +24,8 @@ sees positions only can keep those on their side of a gap.
 Each run reports QC mean and foldovers on the true mesh and where the flipped faces lie:
 within 2 / 5 mesh rings of a *bridge* (an Euclidean kNN edge spanning more than
 ``bridge_rings`` mesh rings), within 2 rings of the true boundary, or elsewhere.
-Found with it on ``real/camelhead`` (the lips) and ``fold`` under noise: see the README's
-Measured table. Run ``python -m parambench.bench.frontend_isolation real/camelhead`` for the
+Found with it on ``real/camelhead`` (the lips) and ``fold`` under noise: see
+``bench/MEASUREMENTS.md``. Run ``python -m parambench.bench.frontend_isolation real/camelhead`` for the
 standard cases, ``python -m parambench.bench.frontend_isolation fold 2000 jittered 0 0.5``
 for a generated surface (size, sampling, seed, noise in spacings).
 """

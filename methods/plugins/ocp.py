@@ -136,7 +136,7 @@ class Ocp(Method):
     sat at the solves' floor (a jittered cylinder at 1M points: 4.2e-3 -> 3.4e-5 of the
     diameter from the direct map). End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
-    the time of ``scp-igl`` on the true mesh (see README's Measured table).
+    the time of ``scp-igl`` on the true mesh (see bench/MEASUREMENTS.md).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
     ``k_nn`` is smaller, ocp runs once more with this ``k_nn`` and keeps that map if it
     passes (:meth:`retry_params`); 0 turns the retry off. ``holes``: ``"auto"`` (default)

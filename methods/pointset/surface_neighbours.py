@@ -386,7 +386,7 @@ def gap_aware_knn_graph(points: np.ndarray, k: int = 8, *, hops: int = GAP_HOPS,
     (the borrowed normals also drop edges on the fold's tight bend, which have
     detours). Measured with ocp on "fold" (random and graded, 2k and 20k): no edge
     across the gap left, 0 foldovers, QC 1.002-1.018x scp-igl's, the same for
-    ``borrow`` 5, 10 and 20 (camelhead's figures swing with it: see the README).
+    ``borrow`` 5, 10 and 20 (camelhead's figures swing with it: see bench/MEASUREMENTS.md).
 
     Parameters
     ----------
