@@ -37,6 +37,14 @@ random or noisy samplings (within +3% of it on clean regular grids), and 2-4x mo
 accurate than the paper's form under normal noise (where the paper's own upwind
 average is up to 1.8x worse than its plain DEM).
 
+A third kind, ``dem="projected"``, keeps the balls and gives each member the plain
+projection of ``p - s`` onto the centre's tangent plane, with no propagation: it differs
+from the log map by O(curvature^2 radius^3), negligible on balls of 2.5 spacings (``ocp``'s
+QC the same to 3e-4 on clean generated surfaces), but under normal noise it carries only
+the centre normal's error instead of the error every step of a front adds (short noisy
+edges, which the upwind weights favour). The front end chooses it under noise
+(:data:`parambench.methods.pointset.frontend.AUTO_PROJECTED_ERROR_DEG`).
+
 The geodesic K-eps ball of s (paper Sec. 6: K = 6, eps = 2.5 l) is defined here as: the
 points in Dijkstra order, s excluded, whose graph distance is <= eps, extended to the K
 nearest when fewer than K are that close, and truncated at ``max_ball`` points (default
@@ -60,13 +68,17 @@ from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
+from .row_chunks import for_each_chunk
 
 __all__ = ["GeodesicBalls", "dem_balls", "DEM_KINDS", "PROJECTIONS", "DEFAULT_MAX_BALL"]
 
 # On-disk kernel cache where one is writable, none otherwise (see parambench.methods.numba_cache).
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
-DEM_KINDS = ("upwind", "plain")
+DEM_KINDS = ("upwind", "plain", "projected")
+
+#: Centres per chunk of :func:`_projected_coords` (bounded (chunk, B, 3) temporaries).
+_PROJECTED_CHUNK = 16384
 
 PROJECTIONS = ("midpoint", "length")
 
@@ -437,8 +449,11 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
         Minimum members per ball (K).
     ball_eps_factor : float
         Geodesic radius in units of ``l``.
-    dem : {"upwind", "plain"}
-        Upwind-average DEM (Eq. 9) or the plain DEM (Eq. 8).
+    dem : {"upwind", "plain", "projected"}
+        Upwind-average DEM (Eq. 9), the plain DEM (Eq. 8), or each member's offset
+        ``p - s`` projected onto the centre's tangent plane (no propagation; the same
+        balls): see :data:`parambench.methods.pointset.frontend.AUTO_PROJECTED_ERROR_DEG`
+        for where it is the better choice.
     max_ball : int
         Cap on members per ball.
     projection : {"midpoint", "length"}
@@ -483,7 +498,26 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     sizes = np.zeros(centre_ids.size, dtype=np.int64)
     store, n_trunc = _run_blocks(centre_ids, cloud, rule, scratch, sizes)
     idx, coords, gdist = _assemble(store, sizes)
+    if dem == "projected":  # the plain DEM's balls, its coordinates replaced
+        _projected_coords(cloud, centre_ids, idx, coords)
     return GeodesicBalls(indices=idx, coords=coords, sizes=sizes, graph_dist=gdist, n_truncated=n_trunc)
+
+
+def _projected_coords(cloud: _Cloud, centre_ids: np.ndarray, indices: np.ndarray, out: np.ndarray) -> None:
+    """``out[r, b] = ((p - s) . e1_s, (p - s) . e2_s)`` for centre ``s = centre_ids[r]`` and member ``p = indices[r, b]``.
+
+    The frame is the one the DEM kernel expresses its coordinates in, so the two kinds
+    differ only in how each member's offset is found; padding stays 0.
+    """
+    def rows_of(rows: slice) -> None:
+        s = centre_ids[rows]
+        members = indices[rows]
+        real = members >= 0
+        d = cloud.points[np.where(real, members, 0)] - cloud.points[s][:, None, :]
+        out[rows, :, 0] = np.where(real, np.einsum("nbi,ni->nb", d, cloud.e1[s]), 0.0)
+        out[rows, :, 1] = np.where(real, np.einsum("nbi,ni->nb", d, cloud.e2[s]), 0.0)
+
+    for_each_chunk(rows_of, centre_ids.size, _PROJECTED_CHUNK)
 
 
 def _check_options(dem: str, projection: str, ball_k: int, max_ball: int, ball_eps_factor: float) -> None:

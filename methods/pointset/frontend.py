@@ -43,10 +43,33 @@ from .tangent_weights import (
 )
 
 __all__ = ["FrontEnd", "FrontEndParams", "build_frontend", "WEIGHT_KINDS", "DEM_VARIANTS", "STAGES",
-           "Neighbourhoods", "validate_inputs", "knn_stage", "slot_stage", "normals_stage", "dem_stage", "weights_stage",
+           "Neighbourhoods", "validate_inputs", "knn_stage", "slot_stage", "normals_stage", "resolved_dem", "dem_stage",
+           "weights_stage", "DEM_CHOICES", "AUTO_PROJECTED_ERROR_DEG",
            "boundary_stage", "stage_diagnostics"]
 
 WEIGHT_KINDS = ("tangent", "lle3d")
+
+#: ``dem`` settings: the kinds of :func:`~parambench.methods.pointset.dem.dem_balls`, and
+#: "auto" (default), which chooses among them by :func:`resolved_dem`.
+DEM_CHOICES = DEM_KINDS + ("auto",)
+
+#: With ``dem="auto"``, the median predicted error of the normals stage's kNN plane fits
+#: (degrees) from which the points count as noisy and the balls get ``"projected"``
+#: coordinates instead of the upwind DEM. Measured median errors: clean generated
+#: surfaces 0-2.4 (random, graded and jittered samplings, 2k and 20k points), the real
+#: meshes as points 0-4.7 except ``real/cortex-lh`` (16); normal noise of 0.1 / 0.25 / 0.5
+#: spacings: 3.5-3.7 / 8.4-8.6 / 14.5-14.8 on jittered samplings, 4.4-4.5 / 10.3-10.5 /
+#: 16.3-16.6 on random ones. ``ocp``, seed 0, foldovers on the true mesh upwind ->
+#: projected: noise 0.5, random 20k: 696 / 276 / 279 -> 54 / 56 / 67 (plane, bump, saddle),
+#: ConvergenceError / SolverError -> 44 / 68 (cap, holes); random 2k: 15-32 -> 4-11;
+#: noise 0.25, random 20k: 18-32 -> 5-13, random 2k: 0 / 4 / 113 -> 0 / 1 / 1 (plane,
+#: bump, cap). The map's distance to the exact one (plane, holes; similarity-aligned RMS
+#: over the diameter) mostly falls with it (noise 0.5 jittered 20k: 5.4e-2 / 4.3e-2 ->
+#: 2.3e-2 / 2.4e-2; noise 0.25 random 20k: 6.6e-2 / 2.1e-1 -> 1.1e-2 / 8.1e-3), but on
+#: jittered samplings at noise 0.25, where neither folds, the DEM's map was the nearer on
+#: 3 of 4 (2.5e-3-3.3e-2 against 8.8e-3-2.8e-2): the threshold lies between the jittered
+#: and the random samplings' medians at that noise.
+AUTO_PROJECTED_ERROR_DEG = 9.5
 
 #: ``dem_variant`` settings: "paper" is Secs. 3-3.1 to the letter; "robust" (default) adds
 #: the midpoint projection, front-aligned upwind weights and local-linear normal
@@ -190,8 +213,8 @@ def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[
         raise InvalidInputError(f"dem_variant must be one of {', '.join(DEM_VARIANTS)}, got {params.dem_variant!r}.")
     if params.weights not in WEIGHT_KINDS:
         raise InvalidInputError(f"weights must be one of {', '.join(WEIGHT_KINDS)}, got {params.weights!r}.")
-    if params.dem not in DEM_KINDS:
-        raise InvalidInputError(f"dem must be one of {', '.join(DEM_KINDS)}, got {params.dem!r}.")
+    if params.dem not in DEM_CHOICES:
+        raise InvalidInputError(f"dem must be one of {', '.join(DEM_CHOICES)}, got {params.dem!r}.")
     if int(k_nn) != k_nn or k_nn < 2:
         raise InvalidInputError(f"k_nn must be an integer >= 2, got {k_nn}.")
     pts = validate_points(points, min_points=max(MIN_POINTS, int(k_nn) + 1))
@@ -392,6 +415,33 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
     return oriented, frame_normals, normal_fit
 
 
+def resolved_dem(params: FrontEndParams, normal_fit: dict | None) -> str:
+    """The DEM kind ``params.dem`` stands for: itself, or for "auto" the choice by noise.
+
+    "auto" gives "projected" when the normals were fitted here and the median predicted
+    error of their kNN plane fits is at least :data:`AUTO_PROJECTED_ERROR_DEG` (noisy
+    points), "upwind" otherwise: with given normals, and always for ``dem_variant="paper"``
+    (the paper's DEM to the letter).
+
+    Parameters
+    ----------
+    params : FrontEndParams
+    normal_fit : dict or None
+        The normals stage's facts
+        (:func:`~parambench.methods.pointset.normals.noise_adaptive_normals`).
+
+    Returns
+    -------
+    str
+        One of :data:`~parambench.methods.pointset.dem.DEM_KINDS`.
+    """
+    if params.dem != "auto":
+        return params.dem
+    median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
+    noisy = median is not None and float(median) >= AUTO_PROJECTED_ERROR_DEG
+    return "projected" if noisy and params.dem_variant != "paper" else "upwind"
+
+
 def dem_stage(points: np.ndarray, frame_normals: np.ndarray, adjacency: sp.csr_matrix, spacing: float,
               h_local: np.ndarray, *, ball_k: int, ball_eps_factor: float, dem: str, max_ball: int,
               dem_variant: str = "robust"):
@@ -502,7 +552,8 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
         # Many boundary candidates but no closed loop: a ragged, sparsely sampled
         # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
         wide = dem_stage(p, frame_normals, nb.adjacency, spacing, nb.h_local, ball_k=params.ball_k,
-                         ball_eps_factor=_RETRY_BALL_SCALE * float(params.ball_eps_factor), dem=params.dem,
+                         ball_eps_factor=_RETRY_BALL_SCALE * float(params.ball_eps_factor),
+                         dem=resolved_dem(params, None),  # build_frontend passes its choice
                          max_ball=int(_RETRY_BALL_SCALE**2 * params.max_ball) + 1, dem_variant=params.dem_variant)
         wide_bnd = find_boundary(p, frame_normals, wide.indices, wide.coords, **bnd_args)
         del wide
@@ -642,16 +693,17 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         if nb.neighbour_diagnostics["pruned"]:
             oriented, frame_normals, normal_fit = fit_normals(nb)
 
-    def dem_to_boundary(nb: Neighbourhoods, frame_normals: np.ndarray):
+    def dem_to_boundary(nb: Neighbourhoods, frame_normals: np.ndarray, normal_fit: dict | None):
+        chosen = replace(params, dem=resolved_dem(params, normal_fit))
         with timer("dem"):
-            balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=params.ball_k,
-                              ball_eps_factor=float(params.ball_eps_factor), dem=params.dem,
-                              max_ball=int(params.max_ball), dem_variant=params.dem_variant)
+            balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=chosen.ball_k,
+                              ball_eps_factor=float(chosen.ball_eps_factor), dem=chosen.dem,
+                              max_ball=int(chosen.max_ball), dem_variant=chosen.dem_variant)
         with timer("weights"):
-            w, r_x = weights_stage(nb.points, balls, params.weights, params.reg_eps)
+            w, r_x = weights_stage(nb.points, balls, chosen.weights, chosen.reg_eps)
         with timer("boundary"):
-            bnd, retried = boundary_stage(nb, frame_normals, balls, params)
-        return balls, w, r_x, bnd, retried
+            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen)
+        return balls, w, r_x, bnd, retried, chosen.dem
 
     uncut = None
     if params.neighbours == "auto" and params.slot_cuts:
@@ -662,7 +714,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
             oriented, frame_normals, normal_fit = fit_normals(cut_nb)
         nb = cut_nb
     try:
-        balls, w, r_x, bnd, retried = dem_to_boundary(nb, frame_normals)
+        balls, w, r_x, bnd, retried, dem_used = dem_to_boundary(nb, frame_normals, normal_fit)
         confirmed = uncut is None or slots_on_loops(nb.slot_ends, nb.graph, bnd.mask)
     except NoBoundaryError:
         if uncut is None:
@@ -674,7 +726,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         slots = dict(nb.neighbour_diagnostics["slots"], reverted=True)
         nb, oriented, frame_normals, normal_fit = uncut
         nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, slots=slots))
-        balls, w, r_x, bnd, retried = dem_to_boundary(nb, frame_normals)
+        balls, w, r_x, bnd, retried, dem_used = dem_to_boundary(nb, frame_normals, normal_fit)
     del uncut
 
     with timer("boundary"):
@@ -684,6 +736,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
 
     diagnostics = stage_diagnostics(nb, balls, w, r_x, bnd, retried, k_nn=k_nn, normals_given=given is not None,
                                     neighbours=params.neighbours, normal_fit=normal_fit)
+    diagnostics["dem"] = dem_used
 
     # Kept inline (not a stage function) so each big array is released as soon as its
     # input-order copy exists: at 1M points the balls and weights are ~1 GB.

@@ -39,8 +39,12 @@ class FrontEndParams:
         Minimum members of a geodesic ball (paper: 6).
     ball_eps_factor : float
         Geodesic ball radius in units of ``l`` (paper: 2.5).
-    dem : {"upwind", "plain"}
-        Upwind-average DEM (Eq. 9) or plain DEM (Eq. 8).
+    dem : {"auto", "upwind", "plain", "projected"}
+        Upwind-average DEM (Eq. 9), plain DEM (Eq. 8), or the members' offsets projected
+        onto the centre's tangent plane; "auto" (default): "projected" on noisy points
+        (median predicted normal error at least
+        :data:`~parambench.methods.pointset.frontend.AUTO_PROJECTED_ERROR_DEG`), the upwind
+        DEM otherwise (:func:`~parambench.methods.pointset.frontend.resolved_dem`).
     smooth_normals : bool
         Use distance-weighted neighbourhood-averaged normals in the DEM (Sec. 3.1).
     reg_eps : float
@@ -114,7 +118,7 @@ class FrontEndParams:
     k_nn: int = field(default=8, metadata=_METHOD)
     ball_k: int = field(default=6, metadata=_METHOD)
     ball_eps_factor: float = field(default=2.5, metadata=_METHOD)
-    dem: str = field(default="upwind", metadata=_METHOD)
+    dem: str = field(default="auto", metadata=_METHOD)
     smooth_normals: bool = True
     reg_eps: float = field(default=DEFAULT_REG_EPS, metadata=_METHOD)
     boundary_angle_deg: float = field(default=120.0, metadata=_METHOD)

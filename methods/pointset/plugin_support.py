@@ -260,7 +260,8 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
     """The facts of the front end worth keeping with a result (JSON-serialisable).
 
     ``slots`` (:mod:`parambench.methods.pointset.slot_cuts`' facts) is there only where
-    edges across a slot were cut.
+    edges across a slot were cut; ``dem`` is the DEM kind the balls were built with
+    (what ``dem="auto"`` chose).
     """
     diag = front.diagnostics
     slots = diag.get("neighbours", {}).get("slots") or {}
@@ -269,6 +270,7 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
         "n_boundary_points": int(front.boundary_mask.sum()),
         "n_detected_loops": len(front.boundary_loops),
         "boundary_method": front.params.get("boundary_method", "angle"),
+        "dem": diag.get("dem", front.params.get("dem")),
         "negative_weight_fraction": diag["negative_weights"]["negative_fraction"],
         "reconstruction_error": diag["reconstruction_error"],
         "boundary_loops": [loop.tolist() for loop in front.boundary_loops],

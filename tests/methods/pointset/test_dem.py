@@ -50,7 +50,7 @@ def log_map_error(patch, balls, n_centres=150, seed=0):
 
 
 @pytest.mark.parametrize("sampling", ["grid", "jittered", "random"])
-@pytest.mark.parametrize("dem", ["upwind", "plain"])
+@pytest.mark.parametrize("dem", ["upwind", "plain", "projected"])
 def test_plane_is_exact_in_the_centre_frame(make_height_patch, sampling, dem):
     patch = make_height_patch("plane", 40, sampling)
     graph, adj, normals = _setup(patch.points)
@@ -182,3 +182,39 @@ def test_subset_of_centres_matches_full_run(make_cap):
     np.testing.assert_array_equal(sub.coords, full.coords[centres, :width])
     with pytest.raises(InvalidInputError, match="centres"):
         dem_balls(patch.points, normals, adj, graph.mean_spacing, centres=[len(patch.points)])
+
+
+def test_projected_keeps_the_balls_and_drops_normal_noise(make_height_patch):
+    """Noise along the exact normal of a plane: the projected offsets are the exact in-plane
+    ones, while the DEM's fronts turn the noise into tangential length."""
+    patch = make_height_patch("plane", 40, "random")
+    n = len(patch.points)
+    spacing = knn_graph(patch.points, 8).mean_spacing
+    noisy = patch.points.copy()
+    noisy[:, 2] += np.random.default_rng(1).normal(scale=0.5 * spacing, size=n)
+    graph = knn_graph(noisy, 8)
+    adj = symmetric_adjacency(graph)
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    balls = {kind: dem_balls(noisy, normals, adj, graph.mean_spacing, dem=kind)
+             for kind in ("plain", "upwind", "projected")}
+    proj = balls["projected"]
+    np.testing.assert_array_equal(proj.indices, balls["plain"].indices)
+    np.testing.assert_array_equal(proj.graph_dist, balls["plain"].graph_dist)
+    safe = np.where(proj.mask, proj.indices, 0)
+    in_plane = np.linalg.norm((noisy[safe] - noisy[:, None, :])[..., :2], axis=2)
+    assert np.abs(np.linalg.norm(proj.coords, axis=2) - in_plane)[proj.mask].max() < 1e-12
+    assert np.all(proj.coords[~proj.mask] == 0.0)
+    dem_err = np.abs(np.linalg.norm(balls["upwind"].coords, axis=2) - in_plane)[proj.mask]
+    assert dem_err.max() > 0.1 * spacing
+
+
+def test_projected_is_close_to_the_log_map_on_a_cap(make_cap):
+    """Clean and curved (unit sphere): the projection differs from the log map at third
+    order in the radius, a few tenths of a percent of the ball radius here, while the DEM
+    is several times closer (0.05 % against 0.3 % measured): why ``dem="auto"`` keeps the
+    DEM on clean points."""
+    patch = make_cap(1.0, 1.0, 30, "jittered")
+    upwind = log_map_error(patch, _balls(patch, dem="upwind"))
+    projected = log_map_error(patch, _balls(patch, dem="projected"))
+    assert projected < 0.005
+    assert upwind < projected
