@@ -42,8 +42,8 @@ projection of ``p - s`` onto the centre's tangent plane, with no propagation: it
 from the log map by O(curvature^2 radius^3), negligible on balls of 2.5 spacings (``ocp``'s
 QC the same to 3e-4 on clean generated surfaces), but under normal noise it carries only
 the centre normal's error instead of the error every step of a front adds (short noisy
-edges, which the upwind weights favour). The front end chooses it under noise
-(:data:`parambench.methods.pointset.frontend.AUTO_PROJECTED_ERROR_DEG`).
+edges, which the upwind weights favour). The front end chooses it for noisy samplings with
+close pairs (:func:`parambench.methods.pointset.frontend.resolved_dem`).
 
 The geodesic K-eps ball of s (paper Sec. 6: K = 6, eps = 2.5 l) is defined here as: the
 points in Dijkstra order, s excluded, whose graph distance is <= eps, extended to the K

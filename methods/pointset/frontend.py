@@ -33,6 +33,7 @@ from .normals import check_user_normals, noise_adaptive_normals, orient_normals
 from .normals import smooth_normals as neighbourhood_smoothed
 from .params import FrontEndParams
 from .reorder import renumbered_rows, spatial_order, take_rows
+from .row_chunks import for_each_chunk
 from .tangent_weights import (
     DEFAULT_REG_EPS,
     lle3d_weights,
@@ -44,7 +45,8 @@ from .tangent_weights import (
 
 __all__ = ["FrontEnd", "FrontEndParams", "build_frontend", "WEIGHT_KINDS", "DEM_VARIANTS", "STAGES",
            "Neighbourhoods", "validate_inputs", "knn_stage", "slot_stage", "normals_stage", "resolved_dem", "dem_stage",
-           "weights_stage", "DEM_CHOICES", "AUTO_PROJECTED_ERROR_DEG",
+           "weights_stage", "DEM_CHOICES", "AUTO_PROJECTED_ERROR_DEG", "AUTO_CLOSE_PAIR_SHARE",
+           "CLOSE_PAIR_SPACINGS", "close_pair_share", "noisy_fits",
            "boundary_stage", "stage_diagnostics"]
 
 WEIGHT_KINDS = ("tangent", "lle3d")
@@ -67,9 +69,24 @@ DEM_CHOICES = DEM_KINDS + ("auto",)
 #: over the diameter) mostly falls with it (noise 0.5 jittered 20k: 5.4e-2 / 4.3e-2 ->
 #: 2.3e-2 / 2.4e-2; noise 0.25 random 20k: 6.6e-2 / 2.1e-1 -> 1.1e-2 / 8.1e-3), but on
 #: jittered samplings at noise 0.25, where neither folds, the DEM's map was the nearer on
-#: 3 of 4 (2.5e-3-3.3e-2 against 8.8e-3-2.8e-2): the threshold lies between the jittered
-#: and the random samplings' medians at that noise.
+#: 3 of 4 (2.5e-3-3.3e-2 against 8.8e-3-2.8e-2); jittered and graded samplings keep the DEM
+#: at any noise (:data:`AUTO_CLOSE_PAIR_SHARE`).
 AUTO_PROJECTED_ERROR_DEG = 9.5
+
+#: With ``dem="auto"``, noisy points get ``"projected"`` coordinates only where the sampling
+#: also has close pairs: at least this share of points whose nearest neighbour lies within
+#: :data:`CLOSE_PAIR_SPACINGS` local spacings in the tangent plane (:func:`close_pair_share`).
+#: That is where the DEM's fronts fail: they run through short edges whose offsets are
+#: mostly noise. Measured shares: random samplings 0.11-0.16 (bump, saddle, 20k, noise 0 to
+#: 0.5), jittered and graded 0.000, the real meshes as points 0-0.007 (``real/cortex-lh``
+#: 0.084). On jittered samplings at noise 0.5 both kinds gave 0 foldovers; on graded 20k
+#: samplings at noise 0.5 the projection lost 2 of 5 (bump: a self-check failure, saddle:
+#: ConvergenceError, where the DEM's maps passed), so those keep the DEM.
+AUTO_CLOSE_PAIR_SHARE = 0.02
+
+#: Tangent-plane nearest-neighbour distance, in local spacings, below which a point counts
+#: as one of a close pair (:func:`close_pair_share`).
+CLOSE_PAIR_SPACINGS = 0.2
 
 #: ``dem_variant`` settings: "paper" is Secs. 3-3.1 to the letter; "robust" (default) adds
 #: the midpoint projection, front-aligned upwind weights and local-linear normal
@@ -415,13 +432,15 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
     return oriented, frame_normals, normal_fit
 
 
-def resolved_dem(params: FrontEndParams, normal_fit: dict | None) -> str:
-    """The DEM kind ``params.dem`` stands for: itself, or for "auto" the choice by noise.
+def resolved_dem(params: FrontEndParams, normal_fit: dict | None, close_pairs: float | None = None) -> str:
+    """The DEM kind ``params.dem`` stands for: itself, or for "auto" the choice by noise and sampling.
 
-    "auto" gives "projected" when the normals were fitted here and the median predicted
+    "auto" gives "projected" when the normals were fitted here, the median predicted
     error of their kNN plane fits is at least :data:`AUTO_PROJECTED_ERROR_DEG` (noisy
-    points), "upwind" otherwise: with given normals, and always for ``dem_variant="paper"``
-    (the paper's DEM to the letter).
+    points) and at least :data:`AUTO_CLOSE_PAIR_SHARE` of the points are close pairs
+    (``close_pairs``, :func:`close_pair_share`); "upwind" otherwise: on clean points,
+    regular samplings, with given normals, and always for ``dem_variant="paper"`` (the
+    paper's DEM to the letter).
 
     Parameters
     ----------
@@ -429,6 +448,8 @@ def resolved_dem(params: FrontEndParams, normal_fit: dict | None) -> str:
     normal_fit : dict or None
         The normals stage's facts
         (:func:`~parambench.methods.pointset.normals.noise_adaptive_normals`).
+    close_pairs : float, optional
+        Share of close pairs; not known (None): the upwind DEM.
 
     Returns
     -------
@@ -437,9 +458,43 @@ def resolved_dem(params: FrontEndParams, normal_fit: dict | None) -> str:
     """
     if params.dem != "auto":
         return params.dem
+    projected = (noisy_fits(normal_fit) and close_pairs is not None and close_pairs >= AUTO_CLOSE_PAIR_SHARE
+                 and params.dem_variant != "paper")
+    return "projected" if projected else "upwind"
+
+
+def noisy_fits(normal_fit: dict | None) -> bool:
+    """Whether the normals stage's fits say noise (median predicted error >= :data:`AUTO_PROJECTED_ERROR_DEG`)."""
     median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
-    noisy = median is not None and float(median) >= AUTO_PROJECTED_ERROR_DEG
-    return "projected" if noisy and params.dem_variant != "paper" else "upwind"
+    return median is not None and float(median) >= AUTO_PROJECTED_ERROR_DEG
+
+
+def close_pair_share(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray, spacing: np.ndarray) -> float:
+    """Share of points whose nearest neighbour, measured in their tangent plane, is closer than :data:`CLOSE_PAIR_SPACINGS`.
+
+    Parameters
+    ----------
+    points, normals : (N, 3) numpy.ndarray of float64
+        Unit normals.
+    knn_indices : (N, K) numpy.ndarray of int64
+    spacing : (N,) numpy.ndarray of float64
+        Local spacing per point (same length unit as ``points``).
+
+    Returns
+    -------
+    float
+        In [0, 1]. In the tangent plane, so that normal noise does not hide a pair.
+    """
+    close = np.empty(points.shape[0], dtype=bool)
+
+    def rows_of(rows: slice) -> None:
+        d = points[knn_indices[rows]] - points[rows, None, :]
+        along = np.einsum("nki,ni->nk", d, normals[rows])
+        in_plane = np.sqrt(np.maximum(np.einsum("nki,nki->nk", d, d) - along**2, 0.0))
+        close[rows] = in_plane.min(axis=1) < CLOSE_PAIR_SPACINGS * spacing[rows]
+
+    for_each_chunk(rows_of, points.shape[0], 65536)
+    return float(close.mean()) if close.size else 0.0
 
 
 def dem_stage(points: np.ndarray, frame_normals: np.ndarray, adjacency: sp.csr_matrix, spacing: float,
@@ -694,7 +749,9 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
             oriented, frame_normals, normal_fit = fit_normals(nb)
 
     def dem_to_boundary(nb: Neighbourhoods, frame_normals: np.ndarray, normal_fit: dict | None):
-        chosen = replace(params, dem=resolved_dem(params, normal_fit))
+        close_pairs = (close_pair_share(nb.points, frame_normals, nb.graph.indices, nb.h_local)
+                       if params.dem == "auto" and noisy_fits(normal_fit) else None)
+        chosen = replace(params, dem=resolved_dem(params, normal_fit, close_pairs))
         with timer("dem"):
             balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=chosen.ball_k,
                               ball_eps_factor=float(chosen.ball_eps_factor), dem=chosen.dem,

@@ -41,10 +41,9 @@ class FrontEndParams:
         Geodesic ball radius in units of ``l`` (paper: 2.5).
     dem : {"auto", "upwind", "plain", "projected"}
         Upwind-average DEM (Eq. 9), plain DEM (Eq. 8), or the members' offsets projected
-        onto the centre's tangent plane; "auto" (default): "projected" on noisy points
-        (median predicted normal error at least
-        :data:`~parambench.methods.pointset.frontend.AUTO_PROJECTED_ERROR_DEG`), the upwind
-        DEM otherwise (:func:`~parambench.methods.pointset.frontend.resolved_dem`).
+        onto the centre's tangent plane; "auto" (default): "projected" on noisy points of
+        a sampling with close pairs, the upwind DEM otherwise
+        (:func:`~parambench.methods.pointset.frontend.resolved_dem`).
     smooth_normals : bool
         Use distance-weighted neighbourhood-averaged normals in the DEM (Sec. 3.1).
     reg_eps : float

@@ -1,4 +1,4 @@
-"""``dem="auto"``: the upwind DEM on clean points, projected offsets on noisy ones."""
+"""``dem="auto"``: the upwind DEM, except projected offsets on noisy points with close pairs."""
 
 from __future__ import annotations
 
@@ -7,7 +7,15 @@ import pytest
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.datasets_gen.registry import make_surface
-from parambench.methods.pointset.frontend import AUTO_PROJECTED_ERROR_DEG, FrontEndParams, build_frontend, resolved_dem
+from parambench.methods.pointset.frontend import (
+    AUTO_CLOSE_PAIR_SHARE,
+    AUTO_PROJECTED_ERROR_DEG,
+    FrontEndParams,
+    build_frontend,
+    close_pair_share,
+    resolved_dem,
+)
+from parambench.methods.pointset.neighbourhoods import knn_graph
 from parambench.methods.registry import get_method
 
 
@@ -18,19 +26,36 @@ def _fit(median_deg: float) -> dict:
 @pytest.mark.parametrize("median, expected", [(0.0, "upwind"), (AUTO_PROJECTED_ERROR_DEG - 0.1, "upwind"),
                                               (AUTO_PROJECTED_ERROR_DEG, "projected"), (25.0, "projected")])
 def test_auto_follows_the_normal_fits_error(median, expected):
-    assert resolved_dem(FrontEndParams(), _fit(median)) == expected
+    assert resolved_dem(FrontEndParams(), _fit(median), close_pairs=0.1) == expected
+
+
+@pytest.mark.parametrize("share, expected", [(None, "upwind"), (0.0, "upwind"), (AUTO_CLOSE_PAIR_SHARE - 1e-3, "upwind"),
+                                             (AUTO_CLOSE_PAIR_SHARE, "projected")])
+def test_auto_projects_only_samplings_with_close_pairs(share, expected):
+    assert resolved_dem(FrontEndParams(), _fit(25.0), close_pairs=share) == expected
+
+
+@pytest.mark.parametrize("sampling, low, high", [("jittered", 0.0, 0.001), ("random", 0.08, 0.2)])
+def test_close_pairs_tell_random_from_jittered_sampling_under_noise(sampling, low, high):
+    """In the tangent plane: normal noise of 0.5 spacings does not hide a random sampling's pairs.
+    (A Poisson sampling has a neighbour within r of a point with probability 1 - exp(-rho pi r^2).)"""
+    surface = make_surface("plane", 5000, sampling=sampling, seed=0, noise=0.5)
+    graph = knn_graph(surface.points, 8)
+    normals = surface.normals  # the exact plane normal: only the sampling is tested here
+    share = close_pair_share(surface.points, normals, graph.indices, graph.distances.mean(axis=1))
+    assert low <= share <= high
 
 
 def test_auto_without_fits_and_the_paper_variant_keep_the_upwind_dem():
-    assert resolved_dem(FrontEndParams(), None) == "upwind"  # given normals: no fit to judge by
-    assert resolved_dem(FrontEndParams(), {}) == "upwind"
-    assert resolved_dem(FrontEndParams(dem_variant="paper"), _fit(25.0)) == "upwind"
+    assert resolved_dem(FrontEndParams(), None, 0.1) == "upwind"  # given normals: no fit to judge by
+    assert resolved_dem(FrontEndParams(), {}, 0.1) == "upwind"
+    assert resolved_dem(FrontEndParams(dem_variant="paper"), _fit(25.0), 0.1) == "upwind"
 
 
 @pytest.mark.parametrize("kind", ["upwind", "plain", "projected"])
 def test_an_explicit_kind_is_kept(kind):
-    assert resolved_dem(FrontEndParams(dem=kind), _fit(25.0)) == kind
-    assert resolved_dem(FrontEndParams(dem=kind), _fit(0.0)) == kind
+    assert resolved_dem(FrontEndParams(dem=kind), _fit(25.0), 0.1) == kind
+    assert resolved_dem(FrontEndParams(dem=kind), _fit(0.0), 0.0) == kind
 
 
 def test_unknown_kind_is_refused():
@@ -39,9 +64,10 @@ def test_unknown_kind_is_refused():
         build_frontend(points, dem="exponential")
 
 
-@pytest.mark.parametrize("noise, expected", [(0.0, "upwind"), (0.5, "projected")])
-def test_front_end_records_its_choice(noise, expected):
-    points = make_surface("bump", 2000, sampling="jittered", seed=0, noise=noise).points
+@pytest.mark.parametrize("sampling, noise, expected", [("random", 0.0, "upwind"), ("jittered", 0.5, "upwind"),
+                                                      ("random", 0.5, "projected")])
+def test_front_end_records_its_choice(sampling, noise, expected):
+    points = make_surface("bump", 2000, sampling=sampling, seed=0, noise=noise).points
     front = build_frontend(points)
     assert front.diagnostics["dem"] == expected
     assert front.params["dem"] == "auto"
