@@ -13,7 +13,7 @@ Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 rims that zigzag across triangles, 8.4k-15.5k points); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
-noise 0.5 spacings (jittered, 2000 points). Every method gets positions only.
+noise 0.5 spacings (jittered and random, 2000 points). Every method gets positions only.
 
 Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
 
@@ -70,7 +70,7 @@ NOISE_SIZE = 2000
 # (dataset, size, sampling, noise); size 0 and sampling "" for the real meshes.
 CASES = ([(name, 0, "", 0.0) for name in REAL]
          + [(name, n, sampling, 0.0) for n in SIZES for sampling in ("random", "graded") for name in GENERATED]
-         + [(name, NOISE_SIZE, "jittered", NOISE) for name in NOISY])
+         + [(name, NOISE_SIZE, sampling, NOISE) for sampling in ("jittered", "random") for name in NOISY])
 
 
 #: Plane cuts of pymeshlab's Stanford bunny (28,088 vertices, closed): (axis, quantile,
