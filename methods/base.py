@@ -363,34 +363,37 @@ class Method:
                 raise
             raise doubt from exc
         check = selfcheck_result(surface, result)
-        retry = None if check["passed"] else self.retry_params(params, check)
-        if retry is None:
-            return result
-        changed = {key: value for key, value in retry.items() if params.get(key) != value}
-        try:
-            second = self.run(surface, **retry)
-        except ParambenchError as exc:  # the retry is a second chance, never a new way to fail
-            fit_hints(exc, self.defaults, retry)  # what it suggests must exist for this method
-            check["retry"] = {"params": changed, "passed": False, "first_reason": check["reason"],
-                              "error": f"{type(exc).__name__}: {exc}"}
-            return result
-        second_check = selfcheck_result(surface, second)
-        note = {"params": changed, "passed": bool(second_check["passed"]), "first_reason": check["reason"]}
-        if second_check["passed"]:
-            # The first check's time is the self-check's too, not the method's.
-            second_check["seconds"] = second_check.get("seconds", 0.0) + check.get("seconds", 0.0)
-            second_check["retry"] = note
-            return second
-        check["seconds"] = check.get("seconds", 0.0) + second_check.get("seconds", 0.0)
-        check["retry"] = note
+        retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
+        notes: list[dict] = []
+        for retry in retries:
+            changed = {key: value for key, value in retry.items() if params.get(key) != value}
+            try:
+                second = self.run(surface, **retry)
+            except ParambenchError as exc:  # a retry is another chance, never a new way to fail
+                fit_hints(exc, self.defaults, retry)  # what it suggests must exist for this method
+                notes.append({"params": changed, "passed": False, "first_reason": check["reason"],
+                              "error": f"{type(exc).__name__}: {exc}"})
+                continue
+            second_check = selfcheck_result(surface, second)
+            notes.append({"params": changed, "passed": bool(second_check["passed"]), "first_reason": check["reason"]})
+            if second_check["passed"]:
+                # The earlier checks' time is the self-check's too, not the method's.
+                second_check["seconds"] = second_check.get("seconds", 0.0) + check.get("seconds", 0.0)
+                second_check["retry"] = _retry_note(notes)
+                return second
+            check["seconds"] = check.get("seconds", 0.0) + second_check.get("seconds", 0.0)
+        if notes:
+            check["retry"] = _retry_note(notes)
         return result
 
-    def retry_params(self, params: dict[str, Any], check: dict) -> dict[str, Any] | None:
-        """Parameters for a second run when the first map failed its self-check, or None (no retry).
+    def retry_params(self, params: dict[str, Any], check: dict) -> dict[str, Any] | list | None:
+        """Parameters for another run when the first map failed its self-check, or None (no retry).
 
-        Point-set methods only. The second map replaces the first only if it passes; either
-        way ``diagnostics["selfcheck"]["retry"]`` says what was tried (``params``: the
-        changed ones), whether it passed and why the first failed.
+        Point-set methods only. A list gives several, tried in order until a map passes.
+        A later map replaces the first only if it passes; either way
+        ``diagnostics["selfcheck"]["retry"]`` says what was tried last (``params``: the
+        changed ones), whether it passed and why the first failed, and ``earlier`` lists
+        the attempts before it, when there were several.
         """
         return None
 
@@ -438,3 +441,15 @@ class Method:
         MethodOutput
         """
         raise NotImplementedError(f"{type(self).__qualname__} implements neither solve nor run")
+
+
+def _as_list(retry: dict | list | None) -> list[dict]:
+    """:meth:`Method.retry_params`' answer as a list of parameter dicts."""
+    if retry is None:
+        return []
+    return [retry] if isinstance(retry, dict) else list(retry)
+
+
+def _retry_note(notes: list[dict]) -> dict:
+    """The ``retry`` fact: the last attempt's note, with the ones before it under ``earlier``."""
+    return notes[-1] if len(notes) == 1 else {**notes[-1], "earlier": notes[:-1]}

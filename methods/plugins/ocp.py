@@ -30,6 +30,7 @@ from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, hinted
 from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..pointset.hole_filling import fill_point_holes, is_slot
+from ..pointset.laplacian import graph_laplacian
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
                                       scale_to_spacing)
@@ -139,11 +140,16 @@ class Ocp(Method):
     the time of ``scp-igl`` on the true mesh (see bench/MEASUREMENTS.md).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
     ``k_nn`` is smaller, ocp runs once more with this ``k_nn`` and keeps that map if it
-    passes (:meth:`retry_params`); 0 turns the retry off. ``holes``: ``"auto"`` (default)
+    passes (:meth:`retry_params`); 0 turns the retry off. A map of the default Neumann
+    energy that crosses its boundary or spins is tried once more with the paper's energy
+    (after the ``k_nn`` retry, if that ran). ``holes``: ``"auto"`` (default)
     solves with the holes free and, where that raises ConvergenceError / SolverError or
     turns a hole inside out, fills each hole with points and solves again
     (:mod:`parambench.methods.pointset.hole_filling`; ``holes_filled`` and
-    ``n_fill_points`` in the diagnostics); ``"free"`` / ``"filled"`` force one.
+    ``n_fill_points`` in the diagnostics); ``"free"`` / ``"filled"`` force one. With the
+    default ``energy="neumann"``, a k search that finds no regular map is followed by one
+    with the paper's energy (:func:`_paper_energy_fallback`; ``energy_used`` in the
+    diagnostics), before any hole is filled.
     """
 
     name = "ocp"
@@ -175,7 +181,13 @@ class Ocp(Method):
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
 
     def retry_params(self, params: dict, check: dict) -> dict | None:
-        """``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours.
+        """``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours;
+        then the paper's energy after a Neumann-energy map that folds at its boundary or spins.
+
+        The second: on a ragged boundary (random points over a real mesh, see
+        :func:`_paper_energy_fallback`) the Neumann energy's map crossed its own boundary
+        (``real/lilium``, 2k points: 21 flipped, boundary crossing, and the same with
+        ``k_nn=12``) where the paper's energy's passes.
 
         Folds at under-resolved curvature come from normals and tangent coordinates
         fitted on too few neighbours: on "protrusions" with random sampling (fingertips
@@ -183,9 +195,13 @@ class Ocp(Method):
         foldovers and 100k from 16 to 0 (QC within 0.05 % of scp-igl), where 8 suits
         the other surfaces (spot-top's QC 1.008x at 8, 1.011x at 12).
         """
-        if "flipped" not in check.get("failed", ()) or params["retry_k_nn"] <= params["k_nn"]:
-            return None
-        return {**params, "k_nn": int(params["retry_k_nn"])}
+        failed = set(check.get("failed", ()))
+        retries = []
+        if "flipped" in failed and params["retry_k_nn"] > params["k_nn"]:
+            retries.append({**params, "k_nn": int(params["retry_k_nn"])})
+        if params["energy"] == ENERGY_FALLBACK_FROM and failed & {"boundary-crossing", "turning"}:
+            retries.append({**params, "energy": "paper"})
+        return retries or None
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         solver = resolve_solver(params["solver"], surface.n_points, params["k_search"])
@@ -196,12 +212,20 @@ class Ocp(Method):
             front = ready.pop(id(work), None) or run_frontend(work, params, timer)
             with timer("laplacian"):
                 lap = ocp_laplacian(front, params["energy"], params["area_factor"])
+            # W^tan for the paper-energy fallback; not held at sizes where its memory counts.
+            small = front.points.shape[0] < MULTILEVEL_FROM
+            w_tan = front.W if params["energy"] == ENERGY_FALLBACK_FROM and small else None
             front = front.without_balls()
             fronts.append(front)
             # Handed over in a list: the two-level path reorders it and drops this copy.
             box = [lap]
             del lap
-            return (front, *_solve_front(front, box, solver, params, timer))
+            try:
+                return (front, *_solve_front(front, box, solver, params, timer))
+            except (ConvergenceError, SolverError) as exc:
+                if w_tan is None:
+                    raise
+                return (front, *_paper_energy_fallback(front, w_tan, solver, params, timer, exc))
 
         thin = []  # holes filled before the first attempt
 
@@ -221,7 +245,8 @@ class Ocp(Method):
         with timer("solve"):
             uv = scale_to_spacing(sol.uv[:surface.n_points], front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, "solver": solver, **extra,
-                "energy": params["energy"], "solver_option": params["solver"], "k_opt": float(sol.k),
+                "energy": params["energy"], "energy_used": extra.get("energy_used", params["energy"]),
+                "solver_option": params["solver"], "k_opt": float(sol.k),
                 "turning": np.asarray(sol.turning).tolist(), "holes_filled": int(n_filled + n_thin),
                 "thin_holes_filled": int(n_thin), "n_fill_points": int(work.n_points - surface.n_points)}
         return MethodOutput(uv, diag)
@@ -252,6 +277,34 @@ class Ocp(Method):
         fronts.append(front.without_balls())
         with timer("fill_holes"):
             return fill_point_holes(surface, front.normals, [loops[0], *thin], front.local_spacing)
+
+
+#: The ``energy`` whose failed k search is followed by one with the paper's energy.
+ENERGY_FALLBACK_FROM = "neumann"
+
+
+def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: StageTimer, exc: Exception):
+    """(solution, counts, diagnostics) with the paper's energy after the Neumann energy's search failed.
+
+    The Neumann energy's boundary rows assume boundary points that lie on the boundary.
+    Where the sampling leaves the boundary ragged (points scattered at random over a
+    mesh, as a scan or photogrammetry gives, not placed along the boundary curve as the
+    generated surfaces do), its k search can find no regular map while the paper's
+    ``I - W^tan`` does: points drawn at random on ``real/lilium`` (2k / 5k) and
+    ``real/bump-domain`` (5k) gave ConvergenceError or 51 foldovers with the Neumann
+    energy and passing maps with the paper's (QC 1.10-1.28x that of the scp-igl map
+    carried to the points). ``energy_used`` and ``energy_error`` in the diagnostics
+    say so; if this search fails too, the first error is raised. Below
+    :data:`MULTILEVEL_FROM` points only (``w_tan``, the front end's W^tan, is not kept
+    through larger solves).
+    """
+    try:
+        with timer("laplacian"):
+            box = [graph_laplacian(w_tan)]
+        sol, counts, extra = _solve_front(front, box, solver, params, timer)
+    except (ConvergenceError, SolverError):
+        raise exc from None
+    return sol, counts, {**extra, "energy_used": "paper", "energy_error": f"{type(exc).__name__}: {exc}"}
 
 
 #: Largest boundary on which a failed line search is followed by ``k_search="direct"``: its

@@ -488,7 +488,10 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
 def failure_line(check: dict, params: dict, method: str) -> str:
     """One line, no final period: what failed and what to try."""
     # After a failed retry (Method.retry_params) propose beyond what it already tried.
-    tried = {**params, **check.get("retry", {}).get("params", {})}
+    retry = check.get("retry", {})
+    tried = dict(params)
+    for note in [*retry.get("earlier", []), retry]:
+        tried.update(note.get("params", {}))
     return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], tried, method)}"
 
 

@@ -66,21 +66,26 @@ def test_a_failed_k_search_on_a_coarse_cut_scan_points_upstream_not_in_a_circle(
     """Before, the line search failed with "use k_search='direct'" and that failed with
     "use k_search='line'"; now ocp tries both and names front-end remedies (parameters of
     ocp). The front end's loop that made both searches fail is the one it found before
-    notches were put back on single steps, so that rule is turned off here."""
+    notches were put back on single steps, so that rule is turned off here. The Neumann
+    energy's failure is then followed by the paper energy's search, whose map on that
+    wrong loop must fail its self-check; the first error is kept in the diagnostics."""
     from functools import partial
 
     import parambench.methods.pointset.boundary as boundary
-    from parambench.datasets_gen.errors import ConvergenceError
     from parambench.methods.plugins.ocp import Ocp
 
     monkeypatch.setattr(boundary, "put_back_passed_over", partial(boundary.put_back_passed_over, notch_detour=0.0))
-    with pytest.warns(UserWarning, match="coincide"), pytest.raises(ConvergenceError) as info:
-        get_method("ocp")(cow_top.method_input(False))
-    message = str(info.value)
+    with pytest.warns(UserWarning, match="coincide"):
+        result = get_method("ocp")(cow_top.method_input(False))
+    message = result.diagnostics["energy_error"]
+    assert message.startswith("ConvergenceError")
     assert "the line search failed" in message and "k_search='direct' too" in message
     assert "use k_search" not in message
     for name in ("boundary_angle_deg", "ball_eps_factor", "k_nn"):
         assert name in message and name in Ocp.defaults
+    assert result.diagnostics["energy_used"] == "paper"
+    assert not result.diagnostics["selfcheck"]["passed"]
+    assert evaluate(cow_top.points, cow_top.faces, result.uv)["foldovers"] > 0
 
 
 def test_a_broken_map_of_a_coarse_cut_scan_fails_its_self_check(cow_top):
