@@ -151,9 +151,12 @@ def _retry_summary(retry: dict | None) -> str:
     if not retry:
         return ""
     changed = ", ".join(f"{key}={value}" for key, value in retry["params"].items())
+    earlier = [", ".join(f"{key}={value}" for key, value in note["params"].items()) for note in retry.get("earlier", [])]
+    run = "a second run" if not earlier else f"a run after one with {' and one with '.join(earlier)} failed"
     if retry["passed"]:
-        return f" (the map of a second run with {changed}: the first failed, {retry['first_reason']})"
-    return f" (a second run with {changed} failed too{': ' + retry['error'] if retry.get('error') else ''})"
+        return f" (the map of {run} with {changed}: the first failed, {retry['first_reason']})"
+    return f" ({run}, with {changed}, failed too{': ' + retry['error'] if retry.get('error') else ''})" if earlier else (
+        f" (a second run with {changed} failed too{': ' + retry['error'] if retry.get('error') else ''})")
 
 
 def _holes_summary(diag: dict) -> str:
@@ -163,6 +166,13 @@ def _holes_summary(diag: dict) -> str:
         return ""
     points = diag.get("n_fill_points")
     return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: with free holes the map failed)"
+
+
+def _energy_summary(diag: dict) -> str:
+    """Whether ``ocp``'s solve fell back to the paper's energy (a retry says so in the self-check's summary)."""
+    if not diag.get("energy_error"):
+        return ""
+    return " (with the paper's energy: the Neumann energy's k search found no regular map)"
 
 
 def _repaired(surface, repair: bool, k_nn: Any):
@@ -206,7 +216,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
     summary = (f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
-               + _holes_summary(result.diagnostics))
+               + _holes_summary(result.diagnostics) + _energy_summary(result.diagnostics))
     if failed and not args.force:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
         print(f"parambench: error: {failure_line(check, result.params, method.name)} "

@@ -125,6 +125,20 @@ def test_the_summary_says_when_the_map_is_a_retry():
     assert "second run" not in _selfcheck_summary({"passed": True, "n_triangles": 10})
 
 
+def test_the_summary_names_every_retry_and_the_energy_fallback():
+    from parambench.bench.cli import _energy_summary, _retry_summary
+
+    earlier = [{"params": {"k_nn": 12}, "passed": False, "first_reason": "x"}]
+    passed = {"params": {"energy": "paper"}, "passed": True, "first_reason": "2 flipped", "earlier": earlier}
+    assert _retry_summary(passed) == (" (the map of a run after one with k_nn=12 failed with energy=paper: "
+                                      "the first failed, 2 flipped)")
+    failed = dict(passed, passed=False)
+    assert _retry_summary(failed) == " (a run after one with k_nn=12 failed, with energy=paper, failed too)"
+    assert _energy_summary({"energy_error": "ConvergenceError: no regular map"}) == (
+        " (with the paper's energy: the Neumann energy's k search found no regular map)")
+    assert _energy_summary({"energy_used": "neumann"}) == ""
+
+
 def test_the_summary_says_when_holes_were_filled():
     from parambench.bench.cli import _holes_summary
 
