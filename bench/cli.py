@@ -150,13 +150,15 @@ def _retry_summary(retry: dict | None) -> str:
     """Whether the map is a retry's (Method.retry_params) and with what."""
     if not retry:
         return ""
-    changed = ", ".join(f"{key}={value}" for key, value in retry["params"].items())
-    earlier = [", ".join(f"{key}={value}" for key, value in note["params"].items()) for note in retry.get("earlier", [])]
-    run = "a second run" if not earlier else f"a run after one with {' and one with '.join(earlier)} failed"
+    def listed(note: dict) -> str:
+        return ", ".join(f"{key}={value}" for key, value in note["params"].items())
+
+    earlier = [listed(note) for note in retry.get("earlier", [])]
+    run = f"a run after one with {' and one with '.join(earlier)} failed" if earlier else "a second run"
     if retry["passed"]:
-        return f" (the map of {run} with {changed}: the first failed, {retry['first_reason']})"
-    return f" ({run}, with {changed}, failed too{': ' + retry['error'] if retry.get('error') else ''})" if earlier else (
-        f" (a second run with {changed} failed too{': ' + retry['error'] if retry.get('error') else ''})")
+        return f" (the map of {run} with {listed(retry)}: the first failed, {retry['first_reason']})"
+    error = f": {retry['error']}" if retry.get("error") else ""
+    return f" ({run}, with {listed(retry)}, failed too{error})" if earlier else f" ({run} with {listed(retry)} failed too{error})"
 
 
 def _holes_summary(diag: dict) -> str:

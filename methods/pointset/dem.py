@@ -452,8 +452,8 @@ def dem_balls(points: np.ndarray, normals: np.ndarray, adjacency: sp.csr_matrix,
     dem : {"upwind", "plain", "projected"}
         Upwind-average DEM (Eq. 9), the plain DEM (Eq. 8), or each member's offset
         ``p - s`` projected onto the centre's tangent plane (no propagation; the same
-        balls): see :data:`parambench.methods.pointset.frontend.AUTO_PROJECTED_ERROR_DEG`
-        for where it is the better choice.
+        balls): see :func:`parambench.methods.pointset.frontend.resolved_dem` for where it
+        is the better choice.
     max_ball : int
         Cap on members per ball.
     projection : {"midpoint", "length"}

@@ -88,6 +88,9 @@ AUTO_CLOSE_PAIR_SHARE = 0.02
 #: as one of a close pair (:func:`close_pair_share`).
 CLOSE_PAIR_SPACINGS = 0.2
 
+#: Rows per chunk of :func:`close_pair_share` (bounded (chunk, K, 3) temporaries).
+_CLOSE_PAIR_CHUNK = 65536
+
 #: ``dem_variant`` settings: "paper" is Secs. 3-3.1 to the letter; "robust" (default) adds
 #: the midpoint projection, front-aligned upwind weights and local-linear normal
 #: smoothing (see :mod:`parambench.methods.pointset.dem` and :func:`parambench.methods.pointset.normals.smooth_normals`).
@@ -493,7 +496,7 @@ def close_pair_share(points: np.ndarray, normals: np.ndarray, knn_indices: np.nd
         in_plane = np.sqrt(np.maximum(np.einsum("nki,nki->nk", d, d) - along**2, 0.0))
         close[rows] = in_plane.min(axis=1) < CLOSE_PAIR_SPACINGS * spacing[rows]
 
-    for_each_chunk(rows_of, points.shape[0], 65536)
+    for_each_chunk(rows_of, points.shape[0], _CLOSE_PAIR_CHUNK)
     return float(close.mean()) if close.size else 0.0
 
 
