@@ -27,7 +27,9 @@ ball's or the typical one's, whichever is larger). Candidates the walk's loops l
 chain runs into a small cycle) are chained again all at once, as a minimum-cost cycle
 cover (:mod:`.boundary_cover`, :func:`_cover_loops`). Boundary points the walk stepped over
 (where two sides nearly touch, and the notches of a rim cut across a mesh's triangles)
-are put back (:func:`put_back_passed_over`). Loops are
+are put back (:func:`put_back_passed_over`). Last, loops that cross themselves within a few
+steps in the tangent plane (a curl through points closer together than the sampling,
+common on random samplings of real surfaces) are untangled (:mod:`.loop_untangle`). Loops are
 returned longest (3D perimeter) first, so the outer boundary of a surface with holes
 comes first.
 """
@@ -49,6 +51,7 @@ from .boundary_cover import BRIDGE_K, ahead_scores, cover_successors, projected_
 from .normals import tangent_frames
 from .row_chunks import for_each_chunk
 from .hole_filling import enclosed_points, is_slot
+from .loop_untangle import untangle_loops
 from .slot_tips import put_back_slot_tips
 
 __all__ = [
@@ -186,7 +189,9 @@ class BoundaryLoops:
         ``n_put_back`` (points the walk stepped over, put back on their loop; see
         :func:`put_back_passed_over`; counted in ``n_in_loops`` and ``loop_sizes``),
         ``n_hairpin_slots`` (slot loops of the second walk), ``n_cover_loops`` (loops of
-        the cycle cover of the candidates the walk left off, :func:`_cover_loops`).
+        the cycle cover of the candidates the walk left off, :func:`_cover_loops`),
+        ``n_untangled`` (2-opt moves that undid a loop's local self-crossings,
+        :func:`parambench.methods.pointset.loop_untangle.untangle_loops`).
     """
 
     loops: list
@@ -800,6 +805,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         n_put_back += n
         if not n:
             break
+    kept, n_untangled = untangle_loops(points, normals, kept)
     in_loops = int(sum(c.size for c in kept))
     loops = [c[::int(decimate)] for c in kept]
     out_mask = np.zeros(points.shape[0], dtype=bool)
@@ -814,6 +820,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         "n_put_back": n_put_back,
         "n_hairpin_slots": n_hairpin_slots,
         "n_cover_loops": n_cover_loops,
+        "n_untangled": n_untangled,
     }
     return BoundaryLoops(loops=loops, mask=out_mask, candidates=candidates, max_gap=gap,
                          diagnostics=diagnostics)
