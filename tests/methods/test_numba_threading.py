@@ -10,10 +10,11 @@ import pytest
 
 _KERNEL = """
 import warnings
-warnings.simplefilter("error")
 import pymeshlab  # noqa: F401 - loads its bundled libtbb first, as a mesh read does
 {setup}
 import numba, numpy as np
+from numba.core.errors import NumbaWarning
+warnings.simplefilter("error", NumbaWarning)  # only numba's: other libraries' warnings are not this test's
 
 @numba.njit(parallel=True)
 def total(x):
