@@ -171,7 +171,16 @@ def _holes_summary(diag: dict) -> str:
 
 
 def _energy_summary(diag: dict) -> str:
-    """Whether ``ocp``'s solve fell back to the paper's energy (a retry says so in the self-check's summary)."""
+    """Whether ``ocp``'s solve fell back to the paper's energy or to a mesh of the points, or refined its map
+    (a retry says so in the self-check's summary)."""
+    refined = diag.get("refined") or {}
+    if diag.get("energy_used") == "mesh":
+        return (" (cotangent SCP on the mesh an sdp map triangulates: no point-set energy's k search found a"
+                " regular map)")
+    if refined.get("error"):
+        return f" (not refined: its uv mesh failed, {refined['error'].split(':')[0]})"
+    if refined:
+        return f" (refined by cotangent SCP on its own uv mesh, {refined.get('n_faces')} triangles)"
     if not diag.get("energy_error"):
         return ""
     return " (with the paper's energy: the Neumann energy's k search found no regular map)"

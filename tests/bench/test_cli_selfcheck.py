@@ -137,6 +137,13 @@ def test_the_summary_names_every_retry_and_the_energy_fallback():
     assert _energy_summary({"energy_error": "ConvergenceError: no regular map"}) == (
         " (with the paper's energy: the Neumann energy's k search found no regular map)")
     assert _energy_summary({"energy_used": "neumann"}) == ""
+    assert "sdp map triangulates" in _energy_summary({"energy_used": "mesh", "energy_error": "ConvergenceError: x",
+                                                      "refined": {"first_map": "sdp", "n_faces": 9}})
+    assert _energy_summary({"energy_used": "paper", "energy_error": "ConvergenceError: x",
+                            "refined": {"first_map": "ocp (paper energy)", "n_faces": 9}}) == (
+        " (refined by cotangent SCP on its own uv mesh, 9 triangles)")
+    assert _energy_summary({"refined": {"first_map": "ocp", "error": "NotADiskError: fans"}}) == (
+        " (not refined: its uv mesh failed, NotADiskError)")
 
 
 def test_the_summary_says_when_holes_were_filled():

@@ -1,0 +1,71 @@
+"""Refining a point-set map by cotangent SCP on its own uv mesh (``mesh_refine``, ``ocp refine=``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parambench.bench.metrics.alignment import exact_map_error
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.mesh_refine import refine_on_uv_mesh, similarity_placed
+from parambench.methods.registry import get_method
+
+
+@pytest.fixture(scope="module")
+def plane():
+    surface = make_surface("plane", 2000, sampling="random", seed=0)
+    return surface, build_frontend(surface.points)
+
+
+def _bent(uv: np.ndarray) -> np.ndarray:
+    """A smooth, one-to-one, far from conformal distortion of the plane's map."""
+    u, v = uv[:, 0], uv[:, 1]
+    return np.column_stack([u + 0.3 * u ** 2 + 0.2 * v, 0.6 * v + 0.1 * u * v])
+
+
+def test_a_planar_patch_refines_to_its_own_coordinates(plane):
+    # Any triangulation of planar points has the identity as an exact conformal map, so the
+    # cotangent map of the bent first map's mesh is the plane itself, whatever the bend.
+    surface, front = plane
+    first = _bent(surface.exact_uv)
+    assert exact_map_error(first, surface.exact_uv, surface.diameter) > 1e-2
+    sol, info = refine_on_uv_mesh(surface.points, first, front.boundary_loops)
+    assert info["n_faces"] > surface.n_points and sol.turning.tolist() == [1]
+    assert exact_map_error(sol.uv, surface.exact_uv, surface.diameter) < 1e-9
+
+
+def test_points_left_out_of_the_triangulation_follow_the_local_similarity():
+    rng = np.random.default_rng(1)
+    points = np.c_[rng.random((200, 2)), np.zeros(200)]
+    first = points[:, :2] * 2.0
+    a, b = 0.7 * np.exp(0.4j), 3 - 1j
+    z = a * (first[:, 0] + 1j * first[:, 1]) + b
+    refined = np.column_stack([z.real, z.imag])
+    targets = np.arange(0, 200, 7)
+    placed = np.setdiff1d(np.arange(200), targets)
+    got = similarity_placed(points, first, np.where(np.isin(np.arange(200), targets)[:, None], np.nan, refined),
+                            placed, targets)
+    assert np.allclose(got, refined[targets], atol=1e-12)
+
+
+def test_ocp_refine_mesh_on_a_plane_gives_the_exact_map(plane):
+    surface, _ = plane
+    result = get_method("ocp")(surface.method_input(False), refine="mesh")
+    assert result.diagnostics["refined"]["first_map"].startswith("ocp")
+    assert result.diagnostics["selfcheck"]["passed"]
+    assert exact_map_error(result.uv, surface.exact_uv, surface.diameter) < 1e-8
+
+
+def test_by_default_a_map_the_neumann_energy_gives_is_not_refined(plane):
+    surface, _ = plane
+    result = get_method("ocp")(surface.method_input(False))
+    assert result.diagnostics["refined"] is None and result.diagnostics["energy_used"] == "neumann"
+
+
+def test_refine_is_checked():
+    from parambench.datasets_gen.errors import UnknownNameError
+
+    surface = make_surface("plane", 300, sampling="jittered", seed=0)
+    with pytest.raises(UnknownNameError, match="refine"):
+        get_method("ocp")(surface.method_input(False), refine="triangles")
