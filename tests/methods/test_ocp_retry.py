@@ -23,7 +23,7 @@ def _quality(surf, result):
 
 def test_a_map_with_folds_is_replaced_by_the_retry_that_passes(fingertips):
     ocp = get_method("ocp")
-    first = ocp(fingertips.method_input(False), retry_k_nn=0)
+    first = ocp(fingertips.method_input(False), retry_k_nn=0, refine="none")
     assert not first.diagnostics["selfcheck"]["passed"] and "flipped" in first.diagnostics["selfcheck"]["failed"]
     assert _quality(fingertips, first)["foldovers"] > 0
 
@@ -39,8 +39,8 @@ def test_a_map_with_folds_is_replaced_by_the_retry_that_passes(fingertips):
 def test_a_failed_retry_keeps_the_first_map_and_the_hint_goes_further():
     surf = make_surface("protrusions", 2000, sampling="random", seed=0)
     ocp = get_method("ocp")
-    plain = ocp(surf.method_input(False), retry_k_nn=0)
-    result = ocp(surf.method_input(False))
+    plain = ocp(surf.method_input(False), retry_k_nn=0, refine="none")
+    result = ocp(surf.method_input(False), refine="none")
     check = result.diagnostics["selfcheck"]
     assert not check["passed"] and check["retry"] == {"params": {"k_nn": 12}, "passed": False,
                                                       "first_reason": plain.diagnostics["selfcheck"]["reason"]}
@@ -60,3 +60,26 @@ def test_retry_k_nn_must_be_a_whole_number(bad):
     surf = make_surface("bump", 500, sampling="jittered", seed=0)
     with pytest.raises(InvalidInputError, match="retry_k_nn"):
         get_method("ocp")(surf.method_input(False), retry_k_nn=bad)
+
+
+def test_the_last_retry_refines_the_map_on_its_own_uv_mesh(fingertips):
+    # Without the k_nn retry, the map with folds at the fingertips is refined by cotangent
+    # SCP on its uv triangulation, and that map passes (measured 1 folded true-mesh
+    # triangle of 39.6k, QC 1.0011x scp-igl's).
+    result = get_method("ocp")(fingertips.method_input(False), retry_k_nn=0)
+    check = result.diagnostics["selfcheck"]
+    assert check["passed"] and check["retry"]["params"] == {"refine": "mesh"}
+    assert result.diagnostics["refined"]["first_map"] == "ocp (neumann energy)"
+    base = _quality(fingertips, get_method("scp-igl")(fingertips.method_input(True)))
+    q = _quality(fingertips, result)
+    assert q["foldovers"] <= 2 and q["qc_mean"] <= 1.03 * base["qc_mean"]
+
+
+def test_the_refine_retry_comes_after_the_k_nn_one_and_a_failure_keeps_the_first_map():
+    surf = make_surface("protrusions", 2000, sampling="random", seed=0)
+    plain = get_method("ocp")(surf.method_input(False), refine="none", retry_k_nn=0)
+    result = get_method("ocp")(surf.method_input(False))
+    check = result.diagnostics["selfcheck"]
+    assert not check["passed"] and check["retry"]["params"] == {"refine": "mesh"}
+    assert [e["params"] for e in check["retry"]["earlier"]] == [{"k_nn": 12}]
+    assert (result.uv == plain.uv).all() and result.diagnostics["refined"] is None

@@ -94,7 +94,7 @@ def test_ocp_on_a_small_fold_with_pruned_neighbours():
     assert pruned.diagnostics["selfcheck"]["passed"]
     assert len(pruned.diagnostics["boundary_loops"]) == 1
     # the Euclidean neighbourhoods bridge the sheets: most of the boundary is missed
-    plain = ocp(given, neighbours="euclidean")
+    plain = ocp(given, neighbours="euclidean", refine="none")
     loops = plain.diagnostics["boundary_loops"]
     found = np.zeros(s.n_points, dtype=bool)
     found[np.concatenate([np.asarray(loop) for loop in loops])] = True
