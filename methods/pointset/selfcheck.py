@@ -292,12 +292,17 @@ def _per_face(points, uv, normals, faces, spacing_pt, tol_deg: float) -> _PerFac
 
 
 def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
-                tol_deg: float = NORMAL_TOL_DEG) -> tuple[dict, int]:
+                tol_deg: float = NORMAL_TOL_DEG, on_loop: np.ndarray | None = None) -> tuple[dict, int]:
     per = _per_face(points, uv, normals, faces, spacing_pt, tol_deg)
     n_dropped = 0
     if drop_bridging:
         n_dropped = int(per.bridging.sum())
+        faces = faces[~per.bridging]
         per = _PerFace(*(a[~per.bridging] for a in per))
+    # Slivers with every corner on a loop: where a rim is straight in 3D and its image
+    # straight in uv (a refined map of a plane's edge), the triangulation fills the loop's
+    # own bends of 1e-13 with triangles of no area, fanning along the rim. Not the map's.
+    rim = per.sliver & (on_loop[faces].all(axis=1) if on_loop is not None else False)
     bridging, area, agree, sliver, uncertain = per
     zero = area <= ZERO_AREA_REL * (np.median(area) if area.size else 0.0)
     valid = ~(zero | bridging)
@@ -306,11 +311,12 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
     mirrored = n_neg > n_pos
     flipped = valid & ((agree > 0) if mirrored else (agree < 0))
     m = int(area.size)
-    n_degenerate = int((zero | bridging).sum())
+    n_degenerate = int(((zero | bridging) & ~rim).sum())
     facts = {"n_triangles": m, "n_flipped": int((flipped & ~sliver & ~uncertain).sum()),
              "n_flipped_slivers": int((flipped & sliver).sum()),
              "n_flipped_uncertain": int((flipped & uncertain).sum()), "mirrored": bool(mirrored),
-             "n_zero_area": int(zero.sum()), "n_bridging": int(bridging.sum()), "n_degenerate": n_degenerate,
+             "n_zero_area": int(zero.sum()), "n_bridging": int(bridging.sum()), "n_rim_slivers": int(rim.sum()),
+             "n_degenerate": n_degenerate,
              "degenerate_fraction": n_degenerate / m if m else 1.0}
     return facts, n_dropped
 
@@ -404,8 +410,11 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
             facts.update(triangulation="none", n_triangles=0, reason_override=str(exc).rstrip("."))
         else:
             tol = normal_tolerance_deg(points, knn, normal_error_deg if knn_indices is not None else None)
+            on_loop = np.zeros(points.shape[0], dtype=bool)
+            for loop in loops or ():
+                on_loop[np.asarray(loop, dtype=np.int64)] = True
             face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops,
-                                                tol_deg=tol)
+                                                tol_deg=tol, on_loop=on_loop)
             facts.update(normal_tol_deg=round(tol, 3), triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
                          boundary_crosses=tri.boundary_crosses, **face_facts)
     if loops and np.all(np.isfinite(uv)):
