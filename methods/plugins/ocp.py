@@ -268,8 +268,11 @@ class Ocp(Method):
         try:
             (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
         except (ConvergenceError, SolverError) as exc:
-            if params["refine"] == "none" or not first_pair:
+            if not first_pair:
                 raise
+            if params["refine"] == "none":
+                stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
+                raise hinted(type(exc), stem, Hint("use refine='auto'", "refine", "auto"), *hints) from exc
             sol, counts, extra = _mesh_fallback(*first_pair[0], timer, exc)
             work, n_filled = first_pair[0][0], 0
         del first_pair

@@ -74,7 +74,7 @@ def test_without_refinement_lilium_20k_has_no_map():
     from parambench.datasets_gen.errors import ConvergenceError
 
     given, _, _, _ = _scattered("real/lilium", 20000)
-    with pytest.raises(ConvergenceError):
+    with pytest.raises(ConvergenceError, match=r"use refine='auto'"):  # the remedy comes first
         get_method("ocp")(given, refine="none")
 
 
