@@ -30,8 +30,8 @@ from .errors import (
     TooFewPointsError,
 )
 
-__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "validate_normals", "find_duplicate_points",
-           "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "MIN_POINTS"]
+__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "flat_faces", "validate_normals",
+           "find_duplicate_points", "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "MIN_POINTS"]
 
 #: Fewer points than this cannot define a surface patch with an interior.
 MIN_POINTS = 4
@@ -173,6 +173,18 @@ def require_no_collapsed_edges(points: np.ndarray, faces: np.ndarray, name: str 
         )
 
 
+def flat_faces(points: np.ndarray, faces: np.ndarray, rel_tol: float = DEGENERATE_AREA_TOL) -> np.ndarray:
+    """(M,) bool: faces whose doubled area is at most ``rel_tol`` times the squared mean edge length.
+
+    The rule :func:`validate_faces` refuses a mesh by (zero-area faces).
+    """
+    e1 = points[faces[:, 1]] - points[faces[:, 0]]
+    e2 = points[faces[:, 2]] - points[faces[:, 0]]
+    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    scale = np.mean(np.linalg.norm(e1, axis=1)) ** 2 if len(faces) else 0.0
+    return area2 <= rel_tol * max(scale, np.finfo(float).tiny)
+
+
 def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) -> np.ndarray:
     """Check and convert a triangle array.
 
@@ -219,11 +231,7 @@ def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) 
             "remove degenerate faces (e.g. pymeshlab meshing_remove_null_faces) and retry."
         )
     if points is not None:
-        e1 = points[arr[:, 1]] - points[arr[:, 0]]
-        e2 = points[arr[:, 2]] - points[arr[:, 0]]
-        area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
-        scale = np.mean(np.linalg.norm(e1, axis=1)) ** 2
-        flat = area2 <= DEGENERATE_AREA_TOL * max(scale, np.finfo(float).tiny)
+        flat = flat_faces(points, arr)
         if flat.any():
             raise DegenerateFacesError(
                 f"{int(flat.sum())} face(s) have zero area (first: face {int(np.flatnonzero(flat)[0])}); "

@@ -22,7 +22,6 @@ on the ground-truth mesh relative to cotangent SCP (scp-igl): "paper" +0.8 to +6
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import (ConvergenceError, InvalidInputError, ParambenchError, SolverError,
                                             UnknownNameError)
@@ -40,8 +39,7 @@ from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, fronte
                                       scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
-from ..spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
-from ..spectral.ordering import nested_dissection
+from ..spectral.dirichlet import direct_sdp_pair
 from ..spectral.problem import solve_line_then_direct
 from ..spectral.multilevel import FINE_SOLVERS
 
@@ -166,7 +164,8 @@ class Ocp(Method):
     where no energy gave a map (below :data:`MULTILEVEL_FROM` points, from an SDP map,
     :func:`_mesh_fallback`; ``energy_used`` is then ``"mesh"``) and as the last retry of a
     map that fails its self-check; ``"none"`` never. ``refined`` in the diagnostics says
-    from which map (``first_map``) and with how many triangles.
+    from which map (``first_map``, and its k as ``first_k_opt``) and with how many
+    triangles; ``k_opt`` is then the mesh's (1 for cotangent weights).
     """
 
     name = "ocp"
@@ -349,14 +348,12 @@ def _refined(sol, extra: dict, front, n_points: int, params: dict, timer: StageT
     """(solution, diagnostics) of ``sol``'s map refined on its uv mesh, or ``sol`` itself
     with the reason in ``refined["error"]`` when its triangulation is not a disk-like mesh
     or the mesh has no regular map (the unrefined map then faces the self-check)."""
-    refined = {"first_map": f"ocp ({extra.get('energy_used', params['energy'])} energy)"}
-    with timer("solve"):
-        first = scale_to_spacing(sol.uv[:n_points], front)
-    try:
-        sol, info = refine_on_uv_mesh(front.points, first, front.boundary_loops, timer)
+    refined = {"first_map": f"ocp ({extra.get('energy_used', params['energy'])} energy)", "first_k_opt": float(sol.k)}
+    try:  # the triangulation and the similarity placement do not depend on the first map's scale
+        mesh_sol, info = refine_on_uv_mesh(front.points, sol.uv[:n_points], front.boundary_loops, timer)
     except ParambenchError as exc:
         return sol, {**extra, "refined": {**refined, "error": f"{type(exc).__name__}: {exc}"}}
-    return sol, {**extra, "refined": {**refined, **info}}
+    return mesh_sol, {**extra, "refined": {**refined, **info}}
 
 
 def _refines(refine: str, extra: dict) -> bool:
@@ -387,10 +384,7 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception):
     """
     try:
         with timer("solve"):
-            lap = graph_laplacian(w_tan).tocsc()
-            b_diag = front.boundary_mask.astype(np.float64)
-            _, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc(), perm=nested_dissection(front.points, lap))
-            pair = b_orthonormalize(pair, b_diag)
+            _, pair = direct_sdp_pair(graph_laplacian(w_tan), front.boundary_mask, front.points)
             # An eigenvector pair has no handedness: mirrored, its triangulation would face
             # away from the normals and so would the refined map (loops turning -1).
             if signed_area_2d(pair[front.boundary_loops[0]]) < 0:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import ConvergenceError, SolverError
 from parambench.datasets_gen.surface import MethodInput
@@ -12,9 +11,8 @@ from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, hinted
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
-from ..spectral.dirichlet import b_orthonormalize, smallest_nontrivial_pair
+from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
 from ..spectral.multilevel import FINE_SOLVERS
-from ..spectral.ordering import nested_dissection
 from .ocp import OCP_SOLVERS, resolve_solver
 
 
@@ -63,11 +61,10 @@ class Sdp(Method):
                 solver = "direct"
         with timer("solve"):
             if pair is None:
-                lap = lap.tocsc()
-                perm = nested_dissection(front.points, lap)
-                vals, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc(), perm=perm)
+                vals, pair = direct_sdp_pair(lap, front.boundary_mask, front.points,
+                                             b_orthonormal=bool(params["b_orthonormal"]))
                 extra["eigenvalues"] = vals.tolist()
-            if params["b_orthonormal"]:
+            elif params["b_orthonormal"]:
                 pair = b_orthonormalize(pair, b_diag)
             uv = scale_to_spacing(pair, front)
         diag = dict(frontend_diagnostics(front), solver=solver, solver_option=params["solver"], **extra)

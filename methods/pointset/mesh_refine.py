@@ -29,7 +29,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError
-from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, MethodInput
+from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, MethodInput, flat_faces
 
 from ..base import StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, solve_with_k_rule
@@ -79,7 +79,10 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     uv = np.asarray(uv, dtype=np.float64)
     with timer("refine_mesh"):
         faces = pointset_faces(points, uv, loops)
-        flat = _flat(points, faces)
+        # Ten times looser than the mesh's own validation: three points on a straight rim,
+        # consecutive along a loop, make such a face (the generated plane's edges); dropped,
+        # the middle point is left to similarity_placed.
+        flat = flat_faces(points, faces, 10.0 * DEGENERATE_AREA_TOL)
         faces = faces[~flat]
         used = np.unique(faces)
         if used.size < 3:
@@ -100,19 +103,6 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     full = ConformalSolution(z=z, k=sol.k, energy=sol.energy, turning=sol.turning, eigenvalue=sol.eigenvalue,
                              diagnostics=dict(sol.diagnostics))
     return full, {"n_faces": int(faces.shape[0]), "n_flat_dropped": int(flat.sum()), "n_unplaced": int(unplaced.size)}
-
-
-def _flat(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Faces with no area in 3D, by the rule the mesh's own validation applies (ten times looser).
-
-    Three points on a straight boundary, consecutive along a loop, make such a face (the
-    generated plane's edges); dropped, their middle point is left to :func:`similarity_placed`.
-    """
-    e1 = points[faces[:, 1]] - points[faces[:, 0]]
-    e2 = points[faces[:, 2]] - points[faces[:, 0]]
-    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
-    scale = np.mean(np.linalg.norm(e1, axis=1)) ** 2
-    return area2 <= 10.0 * DEGENERATE_AREA_TOL * max(scale, np.finfo(float).tiny)
 
 
 def similarity_placed(points: np.ndarray, first: np.ndarray, refined: np.ndarray, placed: np.ndarray,

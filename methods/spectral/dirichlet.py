@@ -20,7 +20,7 @@ from ..hints import Hint, hinted
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
 
-__all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize", "real_pair"]
+__all__ = ["smallest_nontrivial_pair", "fix_signs", "b_orthonormalize", "real_pair", "direct_sdp_pair"]
 
 
 def fix_signs(vectors: np.ndarray) -> np.ndarray:
@@ -158,3 +158,36 @@ def b_orthonormalize(pair: np.ndarray, b_diag: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         raise SolverError("the two eigenvectors are dependent on the boundary; cannot make them B-orthonormal.") from None
     return fix_signs(f @ np.linalg.inv(chol).T)
+
+
+def direct_sdp_pair(laplacian: sp.spmatrix, boundary_mask: np.ndarray, points: np.ndarray, *,
+                    b_orthonormal: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """SDP's two coordinate functions on every point: ``L f = lambda B f``, B the boundary indicator.
+
+    One shift-invert factorisation of ``L`` in the points' nested-dissection order
+    (:func:`smallest_nontrivial_pair`), then, by default, :func:`b_orthonormalize`.
+
+    Parameters
+    ----------
+    laplacian : (N, N) scipy.sparse matrix
+    boundary_mask : (N,) numpy.ndarray of bool
+    points : (N, 3) numpy.ndarray of float64
+        For the ordering.
+    b_orthonormal : bool
+
+    Returns
+    -------
+    eigenvalues : (2,) numpy.ndarray of float64
+    pair : (N, 2) numpy.ndarray of float64
+
+    Raises
+    ------
+    SolverError, ConvergenceError
+        From :func:`smallest_nontrivial_pair` or :func:`b_orthonormalize`.
+    """
+    from .ordering import nested_dissection  # local: ordering compiles numba kernels
+
+    lap = sp.csc_matrix(laplacian)
+    b_diag = np.asarray(boundary_mask, dtype=np.float64)
+    vals, pair = smallest_nontrivial_pair(lap, sp.diags(b_diag).tocsc(), perm=nested_dissection(points, lap))
+    return vals, (b_orthonormalize(pair, b_diag) if b_orthonormal else pair)
