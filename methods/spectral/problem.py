@@ -52,6 +52,14 @@ BACKENDS = ("auto", "sparse", "boundary", "subspace")
 #: eigen-solves of 0.6-1.6 s each, 3.5 minutes before the ConvergenceError.
 EXACT_FALLBACK_MAX_BOUNDARY = 500
 
+#: Near-real candidates the direct fallback of :func:`solve_line_then_direct` examines for
+#: non-symmetric weights (all of them for symmetric ones, where a candidate is free). Each
+#: costs a dense eigen-solve of the boundary reduction: on points scattered over
+#: ``real/lilium`` (5k), 87 candidates took 13 s and none gave a regular map. Over the 61
+#: cases of ``bench_realdata.py`` and 7 scattered real meshes, the 13 fallbacks with
+#: non-symmetric weights found a regular map at no candidate at all.
+FALLBACK_NONSYMMETRIC_CANDIDATES = 8
+
 
 @dataclass
 class ConformalSolution:
@@ -720,7 +728,7 @@ class ConformalProblem:
     def solve(self, mode: str, k_search: str = "none", *, k: float = 1.0, pins: Sequence[int] | None = None,
               pin_values: Sequence[complex] = (0.0, 1.0), backend: str = "auto", r: float = DEFAULT_R,
               growth: float = 1.25, bracket: tuple[float, float] | None = None, xatol: float = 1e-9,
-              k0: float | None = None) -> ConformalSolution:
+              k0: float | None = None, max_candidates: int | None = None) -> ConformalSolution:
         """SCP or DNCP with k fixed, searched along a line (Eq. 16) or computed directly.
 
         Parameters
@@ -735,6 +743,8 @@ class ConformalProblem:
         r, growth, bracket, xatol, k0
             See :func:`parambench.methods.spectral.ksearch.line_search` (``k0``: where the
             line search starts stepping; default ``k_start``).
+        max_candidates : int, optional
+            ``k_search="direct"``: near-real eigenvalues examined (see :meth:`k_direct`).
 
         Returns
         -------
@@ -760,7 +770,7 @@ class ConformalProblem:
             if k_search == "none":
                 sol = self._solve_fixed(mode, k, pins_a, vals, backend)
             elif k_search == "direct":
-                sol = self._solve_direct(mode, pins_a, vals, backend)
+                sol = self._solve_direct(mode, pins_a, vals, backend, max_candidates)
             else:
                 sol, extra = self._solve_line(mode, pins_a, vals, backend,
                                               dict(growth=growth, r=r, bracket=bracket, xatol=xatol,
@@ -789,13 +799,13 @@ class ConformalProblem:
         return self.dncp(k, pins, pin_values, backend=backend)
 
     def _solve_direct(self, mode: str, pins: np.ndarray | None, pin_values: np.ndarray | None,
-                      backend: str) -> ConformalSolution:
+                      backend: str, max_candidates: int | None = None) -> ConformalSolution:
         """``k_search="direct"``: k_opt from the generalised eigenproblem, then the map there.
 
         SCP takes the pencil's own map (eigenvalue 0 at k_opt); DNCP solves its pinned
         system at k_opt, since its map is not the pencil's eigenvector.
         """
-        k_opt, z_star = self.k_direct(pins if mode == "dncp" else ())
+        k_opt, z_star = self.k_direct(pins if mode == "dncp" else (), max_candidates=max_candidates)
         if mode == "dncp":
             return self.dncp(k_opt, pins, pin_values, backend=backend)
         op = self.operator(k_opt)
@@ -960,7 +970,10 @@ def solve_line_then_direct(problem: ConformalProblem, mode: str, pins=None, hint
                      f"{EXACT_FALLBACK_MAX_BOUNDARY}, its dense eigen-solves take minutes)",
                      *hints, Hint("use k_search='direct' to try it anyway", "k_search", "direct")) from None
     try:
-        sol = problem.solve(mode, "direct", pins=pins)
+        # Non-symmetric weights: each candidate costs a dense eigen-solve, and only the largest
+        # are plausible (see FALLBACK_NONSYMMETRIC_CANDIDATES).
+        sol = problem.solve(mode, "direct", pins=pins,
+                            max_candidates=None if problem.hermitian else FALLBACK_NONSYMMETRIC_CANDIDATES)
     except (SolverError, ConvergenceError) as direct_error:
         raise hinted(ConvergenceError,
                      f"no regular {mode} map at any k: the line search failed ({_first_clause(line_error)}) and "

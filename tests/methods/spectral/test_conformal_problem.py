@@ -211,3 +211,36 @@ def test_failed_line_search_falls_back_to_the_direct_k_only_on_small_boundaries(
         with pytest.raises(ConvergenceError, match=f"not tried on {n_boundary} boundary points.*k_search='direct'"):
             problem_module.solve_line_then_direct(prob, "scp")
         assert asked == ["line"]
+
+
+@pytest.mark.parametrize("symmetric", [True, False])
+def test_the_direct_fallback_examines_few_candidates_only_for_nonsymmetric_weights(plane, monkeypatch, symmetric):
+    """With non-symmetric weights each near-real candidate of the direct fallback costs a
+    dense eigen-solve and none beyond the largest few has given a map (13 s on scattered
+    real/lilium for nothing): the fallback looks at FALLBACK_NONSYMMETRIC_CANDIDATES; with
+    symmetric weights a candidate is free and all are looked at."""
+    from parambench.methods.spectral import problem as problem_module
+
+    lap = plane.lap.tolil(copy=True)
+    if not symmetric:  # one off-diagonal pair made unequal, rows still summing to zero
+        i, j = plane.lap[0].indices[plane.lap[0].indices != 0][:1][0], 0
+        lap[j, i] += 1e-3
+        lap[j, j] -= 1e-3
+    prob = ConformalProblem(lap.tocsr(), plane.loops, points=plane.points)
+    assert prob.hermitian is symmetric
+    real_solve, real_direct, seen = prob.solve, prob.k_direct, []
+
+    def line_fails(mode, k_search="none", **kwargs):
+        if k_search == "line":
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_solve(mode, k_search, **kwargs)
+
+    def direct_spy(extra=(), max_candidates=None, imag_tol=None):
+        seen.append(max_candidates)
+        return real_direct(extra, max_candidates, imag_tol)
+
+    monkeypatch.setattr(prob, "solve", line_fails)
+    monkeypatch.setattr(prob, "k_direct", direct_spy)
+    sol = problem_module.solve_line_then_direct(prob, "scp")
+    assert seen == [None if symmetric else problem_module.FALLBACK_NONSYMMETRIC_CANDIDATES]
+    assert abs(sol.k - 1.0) < 1e-2  # a plane: the identity's k, also with the small asymmetry
