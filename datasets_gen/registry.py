@@ -8,6 +8,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from .build import build_surface, check_noise
 from .errors import UnknownNameError
 from .real import REAL_DATASETS, load_real
@@ -15,7 +17,10 @@ from .sampling import SAMPLINGS
 from .shapes import SHAPES
 from .surface import Surface
 
-__all__ = ["make_surface", "dataset_names", "dataset_info", "SAMPLINGS"]
+__all__ = ["make_surface", "dataset_names", "dataset_info", "SAMPLINGS", "REAL_SAMPLINGS"]
+
+#: Samplings of a real mesh's own triangles (the real datasets are otherwise loaded as they are).
+REAL_SAMPLINGS = ("scattered",)
 
 
 def dataset_names() -> list[str]:
@@ -40,10 +45,13 @@ def make_surface(name: str, n_points: int = 5000, *, sampling: str = "jittered",
         One of :func:`dataset_names`.
     n_points : int
         Requested number of points, at least 100 (the result is within a few percent;
-        ``params["n_actual"]`` records it). Ignored by real datasets.
+        ``params["n_actual"]`` records it). Ignored by real datasets unless ``sampling="scattered"``.
     sampling : {"grid", "jittered", "random", "blue-noise", "graded"}
-        How the parameter domain is sampled (see :mod:`parambench.datasets_gen.build`). Ignored by
-        real datasets.
+        How the parameter domain is sampled (see :mod:`parambench.datasets_gen.build`). Real
+        datasets are loaded as they are, except with ``"scattered"`` (:data:`REAL_SAMPLINGS`):
+        ``n_points`` area-uniform random points on a real mesh's triangles, none on its rim,
+        as a scan leaves them, with a reference triangulation as ``faces``
+        (:func:`parambench.datasets_gen.scattered.scatter_on_mesh`).
     seed : int or None
         Seeds every random choice; the same seed gives identical arrays.
     noise : float
@@ -75,9 +83,29 @@ def make_surface(name: str, n_points: int = 5000, *, sampling: str = "jittered",
     if name in REAL_DATASETS:
         if options:
             raise UnknownNameError(f"{name} takes no options (got {', '.join(sorted(options))}).")
+        if sampling in REAL_SAMPLINGS:
+            return _scattered_real(name, n_points, seed, check_noise(noise))
         return load_real(name, seed=seed, noise=check_noise(noise),
                          requested={"n_points": n_points, "sampling": sampling})
     if name not in SHAPES:
         raise UnknownNameError(f"unknown dataset {name!r}; valid datasets: {', '.join(dataset_names())}.")
+    if sampling in REAL_SAMPLINGS:
+        raise UnknownNameError(f"sampling {sampling!r} scatters points over a real mesh's triangles; {name} is "
+                               f"generated: use 'random' (area-uniform) or one of {', '.join(SAMPLINGS)}.")
     shape = SHAPES[name](**options)
     return build_surface(shape, n_points, sampling, seed, noise)
+
+
+def _scattered_real(name: str, n_points: int, seed: int | None, noise: float) -> Surface:
+    """A real mesh's surface scattered with ``n_points`` random points (:func:`scatter_on_mesh`)."""
+    import numpy as np
+
+    from .build import add_normal_noise
+    from .scattered import scatter_on_mesh
+
+    surface = scatter_on_mesh(load_real(name, seed=seed), n_points, seed)
+    if noise > 0:  # along the interpolated normals, in units of the points' mean spacing
+        rng = np.random.default_rng(None if seed is None else [seed, 1])
+        points = add_normal_noise(surface.points, surface.normals, noise * surface.params["spacing"], rng)
+        surface = replace(surface, points=points, params={**surface.params, "noise": noise})
+    return surface

@@ -13,13 +13,20 @@ Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 rims that zigzag across triangles, 8.4k-15.5k points); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
-noise 0.5 spacings (jittered and random, 2000 points). Every method gets positions only.
+noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
+boundary loop scattered with random points, none on the rim, as a scan leaves them
+(``real-*-scattered-*``: ``make_surface(name, n, sampling="scattered")``, sizes from
+``PARAMBENCH_REALDATA_SCATTERED_SIZES``, default ``5000,20000``; the mesh for ``scp-igl``
+and the foldover count is the points' reference triangulation). Every method gets
+positions only.
 
 Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
 
 - the detector of the previous release (``old_*``) and of this one (``new_*``): loops
   found (``*_loops``, against ``true_loops``), recall and precision of the detected
-  boundary points against the mesh's boundary vertices, and the error when the front end
+  boundary points against the mesh's boundary vertices (``boundary_truth`` "vertices";
+  for the scattered cases "rim": against the mesh's rim curve, within 3 mean spacings,
+  :func:`parambench.bench.metrics.rim.rim_recall_precision`), and the error when the front end
   finds no loop. "Old" is the same front end with the rules that need the local spacing
   off (``find_boundary(..., local_spacing=None)``: loop spacing, empty disk inside small
   loops): on the same balls it returned exactly the loops of commit c0f3201's detector
@@ -50,6 +57,7 @@ from scipy.spatial import cKDTree
 import parambench.methods.pointset.frontend as frontend_module
 from parambench.bench.benchmarks.timing import best_of
 from parambench.bench.metrics import evaluate
+from parambench.bench.metrics.rim import rim_recall_precision
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
 from parambench.datasets_gen.plane_cut import cut_by_plane
@@ -67,10 +75,17 @@ NOISY = ["bump", "holes", "saddle", "slit", "fold"]
 NOISE = 0.5
 NOISE_SIZE = 2000
 
-# (dataset, size, sampling, noise); size 0 and sampling "" for the real meshes.
+# Real meshes with one boundary loop whose libigl map is injective: the ones that can be
+# scattered with a reference triangulation (real/bunny10k and real/cortex-lh cannot).
+SCATTERED = ["real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/camelhead"]
+SCATTERED_SIZES = [int(s) for s in os.environ.get("PARAMBENCH_REALDATA_SCATTERED_SIZES", "5000,20000").split(",")
+                   if s.strip()]
+
+# (dataset, size, sampling, noise); size 0 and sampling "" for the real meshes as they are.
 CASES = ([(name, 0, "", 0.0) for name in REAL]
          + [(name, n, sampling, 0.0) for n in SIZES for sampling in ("random", "graded") for name in GENERATED]
-         + [(name, NOISE_SIZE, sampling, NOISE) for sampling in ("jittered", "random") for name in NOISY])
+         + [(name, NOISE_SIZE, sampling, NOISE) for sampling in ("jittered", "random") for name in NOISY]
+         + [(name, n, "scattered", 0.0) for n in SCATTERED_SIZES for name in SCATTERED])
 
 
 #: Plane cuts of pymeshlab's Stanford bunny (28,088 vertices, closed): (axis, quantile,
@@ -86,7 +101,7 @@ def _cut_id(axis: int, quantile: float, keep_above: bool) -> str:
 def _case_id(dataset: str, size: int, sampling: str, noise: float) -> str:
     if not size:
         return dataset.replace("/", "-")
-    label = f"{dataset}-{sampling}-{size // 1000}k"
+    label = f"{dataset.replace('/', '-')}-{sampling}-{size // 1000}k"
     return label + (f"-noise{noise:g}" if noise else "")
 
 
@@ -125,15 +140,31 @@ class _OldDetectorProbe:
         return None, None
 
 
-def _scores(mask: np.ndarray | None, n_loops: int, surface) -> dict:
-    """Loops found, recall and precision of ``mask`` against the true boundary vertices."""
+def _vertex_truth(surface):
+    """Recall and precision of a detected mask against the true boundary vertices."""
+    def score(mask: np.ndarray) -> tuple[float, float]:
+        hits = int(np.count_nonzero(mask & surface.boundary_mask))
+        return hits / int(surface.boundary_mask.sum()), hits / int(mask.sum())
+    return score
+
+
+def _rim_truth(surface, mesh):
+    """Scattered points have no point on the rim: recall and precision against its curve."""
+    def score(mask: np.ndarray) -> tuple[float, float | None]:
+        return rim_recall_precision(surface.points, mask, mesh.points, mesh.boundary_loops,
+                                    surface.params["spacing"])
+    return score
+
+
+def _scores(mask: np.ndarray | None, n_loops: int, truth) -> dict:
+    """Loops found, recall and precision of ``mask`` (``truth(mask)``)."""
     if mask is None or not mask.any():
         return {"loops": n_loops, "recall": 0.0, "precision": None}
-    hits = int(np.count_nonzero(mask & surface.boundary_mask))
-    return {"loops": n_loops, "recall": hits / int(surface.boundary_mask.sum()), "precision": hits / int(mask.sum())}
+    recall, precision = truth(mask)
+    return {"loops": n_loops, "recall": recall, "precision": precision}
 
 
-def _detectors(points: np.ndarray, surface, monkeypatch) -> dict:
+def _detectors(points: np.ndarray, truth, monkeypatch) -> dict:
     """Old and new detector on the bare points, with the front end's own seconds."""
     probe = _OldDetectorProbe()
     new, new_error = None, None
@@ -147,7 +178,7 @@ def _detectors(points: np.ndarray, surface, monkeypatch) -> dict:
         seconds = time.perf_counter() - start - probe.seconds
     out = {"frontend_seconds": seconds, "new_error": new_error}
     new_scores = _scores(None if new is None else new.boundary_mask, 0 if new is None else len(new.boundary_loops),
-                         surface)
+                         truth)
     out.update({f"new_{k}": v for k, v in new_scores.items()})
     sorted_points, old = probe.outcome()
     old_mask = None
@@ -156,7 +187,7 @@ def _detectors(points: np.ndarray, surface, monkeypatch) -> dict:
         _, rows = cKDTree(points).query(sorted_points)
         old_mask = np.zeros(len(points), dtype=bool)
         old_mask[rows[old.mask]] = True
-    old_scores = _scores(old_mask, 0 if old is None else len(old.loops), surface)
+    old_scores = _scores(old_mask, 0 if old is None else len(old.loops), truth)
     out.update({f"old_{k}": v for k, v in old_scores.items()})
     out["old_error"] = None if old is not None else "NoBoundaryError: no loop closes"
     return out
@@ -170,14 +201,19 @@ def _quality(surface, uv) -> dict:
 
 @pytest.mark.parametrize("dataset,size,sampling,noise", CASES, ids=[_case_id(*c) for c in CASES])
 def test_realdata_boundary_and_ocp(benchmark, monkeypatch, dataset, size, sampling, noise):
-    if dataset.startswith("real/"):
+    truth = None
+    if sampling == "scattered":
+        surface = make_surface(dataset, size, sampling=sampling, seed=0)
+        truth = _rim_truth(surface, make_surface(dataset, seed=0))
+        group = "realdata-scattered"
+    elif dataset.startswith("real/"):
         surface = make_surface(dataset, seed=0)
         group = "realdata-real"
     else:
         surface = make_surface(dataset, size, sampling=sampling, seed=0, noise=noise)
         group = f"realdata-noise{noise:g}" if noise else f"realdata-{size // 1000}k"
     _measure(benchmark, monkeypatch, surface, group, _case_id(dataset, size, sampling, noise), dataset,
-             sampling or None, noise)
+             sampling or None, noise, truth)
 
 
 @pytest.mark.parametrize("axis,quantile,keep_above", BUNNY_CUTS, ids=[_cut_id(*c) for c in BUNNY_CUTS])
@@ -190,13 +226,18 @@ def test_realdata_bunny_cut_open(benchmark, monkeypatch, axis, quantile, keep_ab
              None, 0.0)
 
 
-def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float):
-    """One case: both detectors on the bare points, ocp timed, scp-igl on the mesh; all in extra_info."""
+def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float,
+             truth=None):
+    """One case: both detectors on the bare points, ocp timed, scp-igl on the mesh; all in extra_info.
+
+    ``truth`` scores a detected boundary mask (default: against the boundary vertices).
+    """
     benchmark.group = group
     given = surface.method_input(False)  # bare positions: no normals, faces or ground truth
     info = {CASE_KEY: label, "dataset": dataset, "sampling": sampling,
-            "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops)}
-    info.update(_detectors(given.points, surface, monkeypatch))
+            "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops),
+            "boundary_truth": "vertices" if truth is None else "rim"}
+    info.update(_detectors(given.points, _vertex_truth(surface) if truth is None else truth, monkeypatch))
 
     scp_igl = get_method("scp-igl")
     holder = {}
