@@ -80,6 +80,22 @@ def test_the_refine_retry_comes_after_the_k_nn_one_and_a_failure_keeps_the_first
     plain = get_method("ocp")(surf.method_input(False), refine="none", retry_k_nn=0)
     result = get_method("ocp")(surf.method_input(False))
     check = result.diagnostics["selfcheck"]
-    assert not check["passed"] and check["retry"]["params"] == {"refine": "mesh"}
-    assert [e["params"] for e in check["retry"]["earlier"]] == [{"k_nn": 12}]
+    assert not check["passed"] and check["retry"]["params"] == {"refine": "mesh", "k_nn": 12}
+    assert [e["params"] for e in check["retry"]["earlier"]] == [{"k_nn": 12}, {"refine": "mesh"}]
     assert (result.uv == plain.uv).all() and result.diagnostics["refined"] is None
+
+
+def test_fingertips_folded_under_slivers_get_both_retries_at_once():
+    """protrusions, jittered 2k: the k_nn=12 map passed the check with 2 flipped slivers
+    (not counted then) while it folded 4 true-mesh triangles at the fingertips, QC 2.15x
+    scp-igl's. Slivers off the loops now fail it; neither retry alone passes, both at once
+    do, with no fold."""
+    surf = make_surface("protrusions", 2000, sampling="jittered", seed=0)
+    result = get_method("ocp")(surf.method_input(False))
+    check = result.diagnostics["selfcheck"]
+    assert check["passed"] and check["retry"]["params"] == {"refine": "mesh", "k_nn": 12}
+    earlier = check["retry"]["earlier"]
+    assert [e["params"] for e in earlier] == [{"k_nn": 12}, {"refine": "mesh"}] and not earlier[0]["passed"]
+    quality = evaluate(surf.points, surf.faces, result.uv)
+    baseline = evaluate(surf.points, surf.faces, get_method("scp-igl")(surf).uv)["qc_mean"]
+    assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.03 * baseline  # measured 1.022x
