@@ -348,7 +348,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--sizes", nargs="+", type=_whole_number,
                      help="point counts of procedural datasets (whole numbers, at least 100)")
     run.add_argument("--seeds", nargs="+", type=_whole_number, help="seeds (whole numbers >= 0)")
-    run.add_argument("--samplings", nargs="+", help="grid, jittered, random, blue-noise, graded")
+    run.add_argument("--samplings", nargs="+",
+                     help="grid, jittered, random, blue-noise, graded; scattered (real meshes: random points "
+                          "on their triangles, none on the rim, at --sizes)")
     run.add_argument("--noise", nargs="+", type=_number,
                      help="normal noise, fraction of the mean spacing (finite, >= 0)")
     run.add_argument("--out", default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")

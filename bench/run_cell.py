@@ -13,7 +13,7 @@ from functools import lru_cache
 import numpy as np
 
 from parambench.datasets_gen.errors import ParambenchError
-from parambench.datasets_gen.registry import make_surface
+from parambench.datasets_gen.registry import REAL_SAMPLINGS, make_surface
 from parambench.datasets_gen.surface import MethodInput, Surface
 from parambench.methods import get_method
 
@@ -32,7 +32,7 @@ ARTIFACT_MAX_POINTS = 200_000
 @lru_cache(maxsize=4)
 def surface_for(dataset: str, size: int, sampling: str, noise: float, seed: int) -> Surface:
     """The surface of a cell, regenerated from its seed (cached per process)."""
-    if dataset.startswith("real/"):
+    if dataset.startswith("real/") and sampling not in REAL_SAMPLINGS:
         return make_surface(dataset, seed=seed)
     return make_surface(dataset, size, sampling=sampling, seed=seed, noise=noise)
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 
 from parambench.datasets_gen.build import MIN_GENERATED_POINTS, check_noise
 from parambench.datasets_gen.errors import InvalidInputError, TooFewPointsError, UnknownNameError
+from parambench.datasets_gen.registry import REAL_SAMPLINGS
 from parambench.datasets_gen.sampling import SAMPLINGS
 from parambench.methods.registry import all_methods
 
@@ -162,7 +163,7 @@ def validate_suite(suite: Suite) -> Suite:
         if size < MIN_GENERATED_POINTS:
             raise TooFewPointsError(f"--sizes: {size!r} is too small; sizes are point counts, "
                                     f"at least {MIN_GENERATED_POINTS}.")
-    _check_names("samplings", suite.samplings, SAMPLINGS, "sampling")
+    _check_names("samplings", suite.samplings, SAMPLINGS + REAL_SAMPLINGS, "sampling")
     for seed in suite.seeds:
         if not _is_whole(seed) or seed < 0:
             raise InvalidInputError(f"--seeds: {seed!r} is not allowed; seeds are whole numbers >= 0.")
@@ -194,6 +195,22 @@ def _param_combinations(method_cls, use_grid: bool) -> list[tuple]:
     return [tuple(zip(keys, values)) for values in itertools.product(*(method_cls.param_grid[k] for k in keys))]
 
 
+def _surfaces_of(dataset: str, suite: Suite) -> list[tuple]:
+    """(size, sampling, noise, seed) of every surface of ``dataset`` in the suite.
+
+    Real datasets are loaded as they are (size 0, no sampling, no noise) unless the suite
+    names a sampling of real meshes ("scattered"): then they are sampled at every size and
+    noise. Generated ones take every other sampling.
+    """
+    if dataset.startswith(REAL_PREFIX):
+        real = tuple(s for s in suite.samplings if s in REAL_SAMPLINGS)
+        if not real:
+            return [(0, "", 0.0, seed) for seed in suite.seeds]
+        return list(itertools.product(suite.sizes, real, suite.noise, suite.seeds))
+    generated = tuple(s for s in suite.samplings if s not in REAL_SAMPLINGS)
+    return list(itertools.product(suite.sizes, generated, suite.noise, suite.seeds))
+
+
 def expand_cells(suite: Suite) -> list[Cell]:
     """Every cell of a suite, in a deterministic order (dataset, size, sampling, seed, method).
 
@@ -207,11 +224,7 @@ def expand_cells(suite: Suite) -> list[Cell]:
     methods = suite.methods or tuple(registered)
     cells = []
     for dataset in suite.datasets:
-        real = dataset.startswith(REAL_PREFIX)
-        sizes = (0,) if real else suite.sizes
-        samplings = ("",) if real else suite.samplings
-        noises = (0.0,) if real else suite.noise
-        for size, sampling, noise, seed in itertools.product(sizes, samplings, noises, suite.seeds):
+        for size, sampling, noise, seed in _surfaces_of(dataset, suite):
             for method in methods:
                 combos = _param_combinations(registered[method], suite.param_grids)
                 combos += [tuple(sorted(p)) for m, p in suite.variants if m == method and tuple(sorted(p)) not in combos]
