@@ -5,7 +5,9 @@
 table (:mod:`parambench.reports.boundary_benchmark`). Without ``--benchmark-only`` every case is
 skipped: the default run took 3 min 46 s on 2 cores shared with other jobs (2 min of CPU),
 most of it ``ocp`` at 20k points, with 53 cases; the three real meshes added since
-(``-k "meg-helmet or spot-top or cortex"``) took 7 s together (numba cache warm).
+(``-k "meg-helmet or spot-top or cortex"``) took 7 s together (numba cache warm); the ten
+scattered cases (``-k scattered``) 3 min 21 s alone, most of it the failing searches
+before ``ocp``'s mesh refinement.
 
 Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 ``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/cortex-lh``,
