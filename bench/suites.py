@@ -217,7 +217,8 @@ def expand_cells(suite: Suite) -> list[Cell]:
     Raises
     ------
     UnknownNameError, TooFewPointsError, InvalidInputError
-        From :func:`validate_suite`.
+        From :func:`validate_suite`; InvalidInputError also when no cell is left (only
+        samplings of real meshes, and no real mesh).
     """
     validate_suite(suite)
     registered = all_methods()
@@ -230,4 +231,8 @@ def expand_cells(suite: Suite) -> list[Cell]:
                 combos += [tuple(sorted(p)) for m, p in suite.variants if m == method and tuple(sorted(p)) not in combos]
                 for params in combos:
                     cells.append(Cell(dataset, int(size), sampling, float(noise), int(seed), method, params))
+    if not cells:  # only samplings of real meshes, and no real mesh to sample
+        raise InvalidInputError(f"the suite has no cell: sampling {', '.join(suite.samplings)} applies to real "
+                                f"meshes only (e.g. --datasets real/lilium); generated surfaces take "
+                                f"{', '.join(SAMPLINGS)}.")
     return cells

@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 from parambench.bench.cells import Cell
+from parambench.datasets_gen.errors import InvalidInputError
 from parambench.bench.storage import ResultStore
 from parambench.bench.suites import Suite, expand_cells, get_suite
 from parambench.bench.sweep import run_sweep
@@ -42,6 +43,8 @@ def test_scattered_sampling_reaches_real_meshes_only_and_their_cells_run(tmp_pat
     lilium = table[table.dataset == "real/lilium"].set_index("method")
     assert set(lilium["status"]) == {"ok"} and (lilium["n_points"] == 800).all()
     assert lilium.loc["ocp", "qc_mean"] < 1.03 * lilium.loc["scp-igl", "qc_mean"]
+    with pytest.raises(InvalidInputError, match="real meshes only"):  # nothing to scatter
+        expand_cells(suite.with_overrides(datasets=["plane"], samplings=["scattered"]))
     # bunny10k cannot be scattered (libigl's map of its five holes folds): recorded, not fatal
     bunny = table[table.dataset == "real/bunny10k"]
     assert set(bunny["status"]) == {"failed"} and bunny["error"].str.contains("folds").all()
