@@ -154,11 +154,16 @@ def _retry_summary(retry: dict | None) -> str:
         return ", ".join(f"{key}={value}" for key, value in note["params"].items())
 
     earlier = [listed(note) for note in retry.get("earlier", [])]
-    run = f"a run after one with {' and one with '.join(earlier)} failed" if earlier else "a second run"
-    if retry["passed"]:
-        return f" (the map of {run} with {listed(retry)}: the first failed, {retry['first_reason']})"
     error = f": {retry['error']}" if retry.get("error") else ""
-    return f" ({run}, with {listed(retry)}, failed too{error})" if earlier else f" ({run} with {listed(retry)} failed too{error})"
+    if not earlier:
+        if retry["passed"]:
+            return f" (the map of a second run with {listed(retry)}: the first failed, {retry['first_reason']})"
+        return f" (a second run with {listed(retry)} failed too{error})"
+    n = len(earlier) + 1
+    if retry["passed"]:
+        return (f" (the map of retry {n} of {n}, with {listed(retry)}: the first failed, {retry['first_reason']}; "
+                f"retries with {'; with '.join(earlier)} failed)")
+    return f" ({n} retries failed too: with {'; with '.join(earlier + [listed(retry)])}{error})"
 
 
 def _holes_summary(diag: dict) -> str:

@@ -130,10 +130,10 @@ def test_the_summary_names_every_retry_and_the_energy_fallback():
 
     earlier = [{"params": {"k_nn": 12}, "passed": False, "first_reason": "x"}]
     passed = {"params": {"energy": "paper"}, "passed": True, "first_reason": "2 flipped", "earlier": earlier}
-    assert _retry_summary(passed) == (" (the map of a run after one with k_nn=12 failed with energy=paper: "
-                                      "the first failed, 2 flipped)")
+    assert _retry_summary(passed) == (" (the map of retry 2 of 2, with energy=paper: the first failed, 2 flipped; "
+                                      "retries with k_nn=12 failed)")
     failed = dict(passed, passed=False)
-    assert _retry_summary(failed) == " (a run after one with k_nn=12 failed, with energy=paper, failed too)"
+    assert _retry_summary(failed) == " (2 retries failed too: with k_nn=12; with energy=paper)"
     assert _energy_summary({"energy_error": "ConvergenceError: no regular map"}) == (
         " (with the paper's energy: the Neumann energy's k search found no regular map)")
     assert _energy_summary({"energy_used": "neumann"}) == ""
