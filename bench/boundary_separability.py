@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from parambench.datasets_gen.surface import circumradii
 from parambench.methods.pointset.boundary_rings import _circumradius_area, ring_candidates
 from parambench.methods.pointset.local_delaunay import local_delaunay_rings
 from parambench.methods.pointset.neighbourhoods import knn_graph, local_spacing
@@ -60,14 +61,6 @@ def spacing_around(points: np.ndarray, boundary: np.ndarray | None = None) -> np
     return np.where(near & src.any(axis=1), fill, h)
 
 
-def _circumradius_3d(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    la, lb, lc = (np.linalg.norm(b - c, axis=1), np.linalg.norm(a - c, axis=1), np.linalg.norm(a - b, axis=1))
-    twice_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(twice_area > 0, la * lb * lc / (2.0 * twice_area), np.inf)
-
-
 def face_regularity(points: np.ndarray, faces: np.ndarray, quantiles=(0.5, 0.9, 0.99)) -> dict:
     """Quantiles of the mesh faces' circumradius over the smallest local spacing of their corners.
 
@@ -82,7 +75,7 @@ def face_regularity(points: np.ndarray, faces: np.ndarray, quantiles=(0.5, 0.9, 
     dict
         ``{"q50": ..., "q90": ..., ...}`` (keys from the quantiles in percent).
     """
-    rel = _circumradius_3d(points, faces) / spacing_around(points)[faces].min(axis=1)
+    rel = circumradii(points, faces) / spacing_around(points)[faces].min(axis=1)
     return {f"q{100 * q:g}": float(np.quantile(rel, q)) for q in quantiles}
 
 

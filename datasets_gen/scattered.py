@@ -29,7 +29,7 @@ from scipy.spatial import Delaunay, cKDTree
 from .build import MIN_GENERATED_POINTS
 from .errors import InvalidInputError, NotADiskError, TooFewPointsError
 from .mesh_loops import boundary_loops
-from .surface import Surface
+from .surface import Surface, circumradii
 
 __all__ = ["PEEL_RADIUS_SPACINGS", "scatter_on_mesh"]
 
@@ -163,10 +163,7 @@ def _peeled(points: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
     and no vertex gets two fans (every drawn point is kept, so the sampling near the rim
     stays uniform).
     """
-    p = points[faces]
-    a, b, c = (np.linalg.norm(p[:, i] - p[:, (i + 1) % 3], axis=1) for i in range(3))
-    twice_area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    too_wide = a * b * c > 2.0 * radius * np.maximum(twice_area, 1e-300)  # R = abc / (4 area)
+    too_wide = circumradii(points, faces) > radius
     edge_faces: dict[tuple[int, int], set[int]] = {}
     for face, (i, j, k) in enumerate(faces.tolist()):
         for edge in ((i, j), (j, k), (k, i)):
@@ -176,7 +173,7 @@ def _peeled(points: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
         if len(owners) == 1:
             rim_edges_at[[i, j]] += 1
     kept = np.ones(faces.shape[0], dtype=bool)
-    queue = [f for f in np.flatnonzero(too_wide & (rim_edges_at[faces] > 0).any(axis=1)).tolist()]
+    queue = np.flatnonzero(too_wide & (rim_edges_at[faces] > 0).any(axis=1)).tolist()
     while queue:
         face = queue.pop()
         if not kept[face]:

@@ -30,7 +30,7 @@ from .errors import (
     TooFewPointsError,
 )
 
-__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "flat_faces", "validate_normals",
+__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "flat_faces", "circumradii", "validate_normals",
            "find_duplicate_points", "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "MIN_POINTS"]
 
 #: Fewer points than this cannot define a surface patch with an interior.
@@ -183,6 +183,15 @@ def flat_faces(points: np.ndarray, faces: np.ndarray, rel_tol: float = DEGENERAT
     area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
     scale = np.mean(np.linalg.norm(e1, axis=1)) ** 2 if len(faces) else 0.0
     return area2 <= rel_tol * max(scale, np.finfo(float).tiny)
+
+
+def circumradii(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(M,) float64: each face's circumradius in 3D, ``abc / (4 area)``; inf for a face without area."""
+    a, b, c = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    product = np.linalg.norm(b - c, axis=1) * np.linalg.norm(a - c, axis=1) * np.linalg.norm(a - b, axis=1)
+    twice_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(twice_area > 0, product / (2.0 * twice_area), np.inf)
 
 
 def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) -> np.ndarray:

@@ -11,7 +11,7 @@ from parambench.bench.metrics import evaluate, turning_number
 from parambench.datasets_gen.errors import InvalidInputError, NotADiskError, TooFewPointsError, UnknownNameError
 from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.scattered import scatter_on_mesh
-from parambench.datasets_gen.surface import Surface
+from parambench.datasets_gen.surface import Surface, circumradii
 
 
 @pytest.fixture(scope="module")
@@ -72,9 +72,7 @@ def test_the_rim_notches_are_opened_not_bridged(scattered):
     the peel, 0.84 of them are wider than 2 spacings, measured at this size)."""
     faces, loop = scattered.faces, scattered.boundary_loops[0]
     rim_edges = {tuple(sorted(e)) for e in zip(loop.tolist(), np.roll(loop, -1).tolist())}
-    p = scattered.points[faces]
-    a, b, c = (np.linalg.norm(p[:, i] - p[:, (i + 1) % 3], axis=1) for i in range(3))
-    radius = a * b * c / (2 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1))
+    radius = circumradii(scattered.points, faces)
     on_rim = np.array([any(tuple(sorted((f[i], f[(i + 1) % 3]))) in rim_edges for i in range(3))
                        for f in faces.tolist()])
     wide = radius > 2.0 * scattered.params["spacing"]
@@ -112,3 +110,11 @@ def test_what_cannot_be_scattered_says_why(lilium):
                           faces=np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
     with pytest.raises(NotADiskError, match="no boundary"):
         scatter_on_mesh(tetrahedron, 200)
+
+
+def test_circumradii_match_their_closed_forms():
+    points = np.array([[0, 0, 0], [2, 0, 0], [1, np.sqrt(3), 0], [0, 3, 4], [4, 0, 0]], dtype=float)
+    faces = np.array([[0, 1, 2], [0, 4, 3], [0, 1, 4]])  # equilateral side 2; right angle at 0; collinear
+    radius = circumradii(points, faces)
+    assert radius[0] == pytest.approx(2 / np.sqrt(3)) and radius[1] == pytest.approx(5 / 2)  # hypotenuse / 2
+    assert np.isinf(radius[2])

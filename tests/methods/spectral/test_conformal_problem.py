@@ -223,9 +223,9 @@ def test_the_direct_fallback_examines_few_candidates_only_for_nonsymmetric_weigh
 
     lap = plane.lap.tolil(copy=True)
     if not symmetric:  # one off-diagonal pair made unequal, rows still summing to zero
-        i, j = plane.lap[0].indices[plane.lap[0].indices != 0][:1][0], 0
-        lap[j, i] += 1e-3
-        lap[j, j] -= 1e-3
+        i = plane.lap[0].indices[plane.lap[0].indices != 0][0]  # a neighbour of vertex 0
+        lap[0, i] += 1e-3
+        lap[0, 0] -= 1e-3
     prob = ConformalProblem(lap.tocsr(), plane.loops, points=plane.points)
     assert prob.hermitian is symmetric
     real_solve, real_direct, seen = prob.solve, prob.k_direct, []
