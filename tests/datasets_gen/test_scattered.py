@@ -116,5 +116,5 @@ def test_circumradii_match_their_closed_forms():
     points = np.array([[0, 0, 0], [2, 0, 0], [1, np.sqrt(3), 0], [0, 3, 4], [4, 0, 0]], dtype=float)
     faces = np.array([[0, 1, 2], [0, 4, 3], [0, 1, 4]])  # equilateral side 2; right angle at 0; collinear
     radius = circumradii(points, faces)
-    assert radius[0] == pytest.approx(2 / np.sqrt(3)) and radius[1] == pytest.approx(5 / 2)  # hypotenuse / 2
+    assert radius[0] == pytest.approx(2 / np.sqrt(3)) and radius[1] == pytest.approx(np.sqrt(41) / 2)  # hypotenuse / 2
     assert np.isinf(radius[2])
