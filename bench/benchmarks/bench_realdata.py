@@ -240,6 +240,11 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
             "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops),
             "boundary_truth": "vertices" if truth is None else "rim"}
     info.update(_detectors(given.points, _vertex_truth(surface) if truth is None else truth, monkeypatch))
+    if truth is not None:
+        # What the ground truth's own boundary (the reference triangulation's loops) scores
+        # on the same yardstick: the ceiling a detector can be held to on these points.
+        ceiling = truth(surface.boundary_mask)
+        info.update(rim_ceiling_recall=ceiling[0], rim_ceiling_precision=ceiling[1])
 
     scp_igl = get_method("scp-igl")
     holder = {}

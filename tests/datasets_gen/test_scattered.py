@@ -6,11 +6,14 @@ from __future__ import annotations
 import igl
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from parambench.bench.metrics import evaluate, turning_number
 from parambench.datasets_gen.errors import InvalidInputError, NotADiskError, TooFewPointsError, UnknownNameError
 from parambench.datasets_gen.registry import make_surface
-from parambench.datasets_gen.scattered import scatter_on_mesh
+from parambench.bench.metrics.rim import rim_samples
+from parambench.datasets_gen import scattered as scattered_module
+from parambench.datasets_gen.scattered import PEEL_RADIUS_SPACINGS, scatter_on_mesh
 from parambench.datasets_gen.surface import Surface, circumradii
 
 
@@ -66,18 +69,36 @@ def test_reference_triangulation_is_a_disk_over_every_point_facing_the_normals(s
     assert turning_number(uv[scattered.boundary_loops[0]]) == pytest.approx(1.0)
 
 
-def test_the_rim_notches_are_opened_not_bridged(scattered):
+def test_the_rim_notches_are_opened_not_bridged(lilium, scattered, monkeypatch):
     """Rim triangles of the reference are not the slivers a plain Delaunay triangulation
-    lays along the outermost points: their circumradius stays near the sampling's (without
-    the peel, 0.84 of them are wider than 2 spacings, measured at this size)."""
-    faces, loop = scattered.faces, scattered.boundary_loops[0]
-    rim_edges = {tuple(sorted(e)) for e in zip(loop.tolist(), np.roll(loop, -1).tolist())}
-    radius = circumradii(scattered.points, faces)
-    on_rim = np.array([any(tuple(sorted((f[i], f[(i + 1) % 3]))) in rim_edges for i in range(3))
-                       for f in faces.tolist()])
-    wide = radius > 2.0 * scattered.params["spacing"]
+    lays along the outermost points: their circumradius stays under the peel's radius,
+    while without the peel a good share of the rim triangles is wider."""
+    alpha = PEEL_RADIUS_SPACINGS * scattered.params["spacing"]
     # Only rim triangles the peel must keep (ears, or a peel that would pinch) stay wide.
-    assert np.mean(wide[on_rim]) < 0.1
+    assert np.mean(_rim_radii(scattered) > alpha) < 0.02
+    monkeypatch.setattr(scattered_module, "_peeled", lambda points, faces, radius: faces)
+    unpeeled = scatter_on_mesh(lilium, 3000, seed=0)
+    assert np.mean(_rim_radii(unpeeled) > alpha) > 0.2
+
+
+def test_the_peel_stops_at_the_rim(lilium, scattered):
+    """The reference's boundary runs along the mesh's rim: no boundary point deeper than
+    the peel's disk diameter. (A peel at 2 spacings ran on through the interior's wide
+    Delaunay triangles, 18 % of them, and cut notches 10-27 spacings deep.)"""
+    spacing = scattered.params["spacing"]
+    rim = rim_samples(lilium.points, lilium.boundary_loops, 0.25 * spacing)
+    depth = cKDTree(rim).query(scattered.points[scattered.boundary_mask])[0] / spacing
+    assert depth.max() < 2 * PEEL_RADIUS_SPACINGS
+    assert np.median(depth) < 1.5
+
+
+def _rim_radii(surface) -> np.ndarray:
+    """Circumradii of the triangles with an edge on the surface's outer loop."""
+    loop = surface.boundary_loops[0]
+    rim_edges = {tuple(sorted(e)) for e in zip(loop.tolist(), np.roll(loop, -1).tolist())}
+    on_rim = np.array([any(tuple(sorted((f[i], f[(i + 1) % 3]))) in rim_edges for i in range(3))
+                       for f in surface.faces.tolist()])
+    return circumradii(surface.points, surface.faces)[on_rim]
 
 
 def test_seeded_and_reproducible(lilium):

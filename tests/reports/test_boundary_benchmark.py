@@ -14,12 +14,14 @@ from parambench.reports.html import render_table
 
 
 def _case(label, *, true_loops=1, old=(1, 1.0, 1.0), new=(1, 1.0, 1.0), ocp_qc=1.01, scp_qc=1.0, folds=0,
-          error=None, passed=True, failed=()):
+          error=None, passed=True, failed=(), ceiling=None):
     info = {CASE_KEY: label, "dataset": label.split("-")[0], "sampling": "random", "noise": 0.0,
             "n_points": 2000, "true_loops": true_loops, "frontend_seconds": 0.05,
             "old_loops": old[0], "old_recall": old[1], "old_precision": old[2], "old_error": None,
             "new_loops": new[0], "new_recall": new[1], "new_precision": new[2], "new_error": None,
             "scp_igl_qc_mean": scp_qc, "scp_igl_foldovers": 0, "scp_igl_seconds": 0.1, "ocp_error": error}
+    if ceiling is not None:
+        info.update(rim_ceiling_recall=ceiling[0], rim_ceiling_precision=ceiling[1])
     if error is None:
         info.update(ocp_qc_mean=ocp_qc, ocp_foldovers=folds, qc_ratio_vs_scp_igl=ocp_qc / scp_qc,
                     time_ratio_vs_scp_igl=5.0, selfcheck_passed=passed, selfcheck_failed=list(failed))
@@ -48,6 +50,8 @@ def stats(tmp_path, mesh_tools):
               error="ConvergenceError: no t = 1 crossing found"),
         # the old front end found nothing at all
         _case("cap-graded-2k", old=(0, 0.0, None), new=(1, 0.98, 0.91)),
+        # scattered: the detector misses recall, as does the ground truth's own boundary
+        _case("lilium-scattered-5k", old=(1, 0.95, 0.95), new=(1, 0.96, 0.97), ceiling=(0.955, 0.98)),
     ]
     other = mesh_tools["write_benchmark_json"](tmp_path / "other.json")  # a benchmark file of another kind
     return load_benchmarks([_write(tmp_path / "realdata.json", cases, seconds=0.25), other])
@@ -67,7 +71,9 @@ def test_targets_by_hand():
 
 def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
     rows = boundary_benchmark_rows(stats)
-    assert sorted(rows["case"]) == ["bump-random-2k", "cap-graded-2k", "plane-random-2k", "real-bunny10k"]
+    assert sorted(rows["case"]) == ["bump-random-2k", "cap-graded-2k", "lilium-scattered-5k", "plane-random-2k",
+                                    "real-bunny10k"]
+    rows = rows[rows["case"] != "lilium-scattered-5k"]
     by_case = rows.set_index("case")
     assert by_case.loc["plane-random-2k", "ocp_seconds"] == pytest.approx(0.25)
     assert by_case.loc["bump-random-2k", "old_loops"] == 2 and by_case.loc["bump-random-2k", "new_loops"] == 1
@@ -86,7 +92,7 @@ def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
 
 def test_table_marks_misses(stats):
     table = boundary_benchmark_table(stats)
-    assert table is not None and len(table.rows) == 4
+    assert table is not None and len(table.rows) == 5
     col = {name: i for i, name in enumerate(table.columns)}
     rows = {row[0].text: row for row in table.rows}
     bump = rows["bump-random-2k"]
@@ -103,15 +109,20 @@ def test_table_marks_misses(stats):
     assert not any("failed" in cell.classes for cell in plane)
     assert plane[col["Self-check"]].text == "passed"
     html = render_table(table)
-    assert html.count("<tr>") == 5 and "cap-graded-2k" in html
+    assert html.count("<tr>") == 6 and "cap-graded-2k" in html
+    scattered = rows["lilium-scattered-5k"]
+    assert "failed" in scattered[col["Recall new"]].classes
+    assert "own boundary scores recall 0.955, precision 0.98" in scattered[col["Recall new"]].title
+    assert plane[col["Recall new"]].title == ""
 
 
 def test_section_summary_counts(stats):
     section = boundary_benchmark_section(stats)
     summary = section.blocks[0].text
-    assert "4 case(s)" in summary
-    assert "old detector 1 of 4, new 3 of 4" in summary
-    assert "ocp 2 of 4; 1 refused, 1 failed their self-check" in summary
+    assert "5 case(s)" in summary
+    assert "old detector 1 of 5, new 3 of 5" in summary
+    assert "ocp 3 of 5; 1 refused, 1 failed their self-check" in summary
+    assert "meets the recall and precision target on 0 of 1 (recall 0.955-0.955" in summary
 
 
 def test_no_section_without_cases(tmp_path, mesh_tools):
