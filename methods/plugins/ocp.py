@@ -68,7 +68,7 @@ REFINE_MODES = ("auto", "mesh", "none")
 OCP_ENERGIES = {"paper": None, "neumann-tan": ("tangent", "tangent"), "neumann": ("quadratic", "linear")}
 
 
-def conformal_problem(front, laplacian=None) -> ConformalProblem:
+def conformal_problem(front, laplacian=None, **options) -> ConformalProblem:
     """The conformal problem of a front end: its boundary loops, B the boundary indicator.
 
     Parameters
@@ -76,13 +76,15 @@ def conformal_problem(front, laplacian=None) -> ConformalProblem:
     front : parambench.methods.pointset.frontend.FrontEnd
     laplacian : (N, N) scipy.sparse matrix, optional
         The Laplacian L; ``front.L`` (``I - W^tan``) when omitted.
+    **options
+        Further keyword arguments of :class:`~parambench.methods.spectral.ConformalProblem`.
 
     Returns
     -------
     parambench.methods.spectral.ConformalProblem
     """
     lap = front.L if laplacian is None else laplacian
-    return ConformalProblem(lap, front.boundary_loops, b_matrix="boundary", points=front.points)
+    return ConformalProblem(lap, front.boundary_loops, b_matrix="boundary", points=front.points, **options)
 
 
 def ocp_laplacian(front, energy: str = "neumann", area_factor: float = DEFAULT_AREA_FACTOR):
@@ -244,19 +246,21 @@ class Ocp(Method):
             front = front.without_balls()
             fronts.append(front)
             if w_tan is not None and not first_pair:
-                first_pair.append((front, w_tan))
+                first_pair.append((front, w_tan, lap))
             # Handed over in a list: the two-level path reorders it and drops this copy.
             box = [lap]
             del lap
             try:
-                return (front, *_solve_front(front, box, solver, params, timer))
+                # With the paper-energy and mesh fallbacks at hand, a failed Neumann search
+                # goes to them at once; its exact searches come last (_exact_last_resort).
+                return (front, *_solve_front(front, box, solver, params, timer, exact_fallbacks=w_tan is None))
             except (ConvergenceError, SolverError) as exc:
                 if w_tan is None:
                     raise
                 return (front, *_paper_energy_fallback(front, w_tan, solver, params, timer, exc))
 
         thin = []  # holes filled before the first attempt
-        first_pair = []  # (front, W^tan) of the first attempt, for the mesh fallback
+        first_pair = []  # (front, W^tan, Laplacian) of the first attempt, for the fallbacks after it
 
         def fill(work: MethodInput):
             if not fronts:  # holes="filled": the loops come from a front end of its own
@@ -274,11 +278,14 @@ class Ocp(Method):
         except (ConvergenceError, SolverError) as exc:
             if not first_pair:
                 raise
-            if params["refine"] == "none":
-                stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
-                raise hinted(type(exc), stem, Hint("use refine='auto'", "refine", "auto"), *hints) from exc
-            sol, counts, extra = _mesh_fallback(*first_pair[0], timer, exc)
-            work, n_filled = first_pair[0][0], 0
+            front, w_tan, lap = first_pair[0]
+            try:
+                if params["refine"] == "none":
+                    raise exc
+                sol, counts, extra = _mesh_fallback(front, w_tan, timer, exc)
+            except (ConvergenceError, SolverError):
+                sol, counts, extra = _exact_last_resort(front, lap, solver, params, timer)
+            work, n_filled = front, 0
         del first_pair
         front = fronts[0]  # loops, spacing and neighbours of the points the user gave
         if _refines(params["refine"], extra):
@@ -401,15 +408,42 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception):
                      "refined": {"first_map": "sdp", **info}}
 
 
+def _exact_last_resort(front, lap, solver: str, params: dict, timer: StageTimer):
+    """(solution, counts, diagnostics) of the Neumann energy's search with its exact searches on.
+
+    The first attempt left them out for the cheaper fallbacks (paper energy, then the
+    mesh an sdp map triangulates; see :func:`_solve_front`); when those failed too, they
+    run here, so no search the method has is left untried. Their failure is raised as
+    the method's error, with ``refine='auto'`` first among the remedies under
+    ``refine="none"``.
+    """
+    try:
+        return _solve_front(front, [lap], solver, params, timer)
+    except (ConvergenceError, SolverError) as exc:
+        if params["refine"] != "none":
+            raise
+        stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
+        raise hinted(type(exc), stem, Hint("use refine='auto'", "refine", "auto"), *hints) from exc
+
+
 #: Largest boundary on which a failed line search is followed by ``k_search="direct"``: its
 #: dense pencil costs O(K^3) (451 boundary points: 3.6 s; 4000 would take minutes).
 DIRECT_FALLBACK_MAX_BOUNDARY = 1000
 
 
-def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer):
+def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer, exact_fallbacks: bool = True):
     """(solution, counts, diagnostics) of the conformal problem of ``front`` on the ``solver`` path.
 
     ``box`` holds the Laplacian (see :func:`~parambench.methods.spectral.multilevel.multilevel_scp`).
+
+    ``exact_fallbacks=False`` leaves out the exact searches on the dense boundary
+    reduction after a failed subspace search (the exact line search, then the direct
+    k): the caller tries a cheaper fallback first and these last. On points scattered
+    over the real meshes (lilium, bump-domain, meg-helmet, spot-top at 5k and 20k) the
+    Neumann energy's exact searches found a map once in 8 runs (meg-helmet 20k, which
+    then failed its self-check) and took most of ``ocp``'s 6-66 s there; the paper
+    energy's search and the refinement on the uv mesh after it gave the same QC (within
+    0.01 %) and foldovers in 4-12 s (twenty-third session).
 
     With ``solver="auto"`` resolved to the two-level path, a ConvergenceError or
     SolverError there falls back to the direct solve: a safety net, since the two-level
@@ -432,7 +466,7 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer)
     else:
         fallback = {}
     with timer("solve"):
-        problem = conformal_problem(front, box.pop())
+        problem = conformal_problem(front, box.pop(), exact_fallbacks=exact_fallbacks)
         if params["k_search"] == "line" and problem.boundary.size <= DIRECT_FALLBACK_MAX_BOUNDARY:
             # The line search's own advice is k_search='direct', and the direct search's is
             # k_search='line': tried here, so a failure of both points upstream instead (a

@@ -149,6 +149,12 @@ class ConformalProblem:
         The same, only when the k search did not settle within ``subspace_rounds`` while
         its refinement reached the interior solves' floor (the solves' error moves
         k_opt from round to round: a jittered cylinder at 1M points).
+    exact_fallbacks : bool
+        May a failed search fall back to the exact searches on the dense boundary
+        reduction (:meth:`exact_fallback_affordable`)? False where the caller has a cheaper
+        fallback to try first: ``ocp`` on points scattered over a real mesh, whose Neumann
+        energy has no regular map there, spent 6-50 s in them before its paper-energy
+        fallback found the map (:func:`solve_line_then_direct` then says they were left out).
     k_start : float
         Where the line search starts (its ``k0``) unless :meth:`solve` is given one: 1 for
         weights at the cotangent scale; a caller that knows the weights' scale differs
@@ -182,7 +188,7 @@ class ConformalProblem:
                  subspace_modes: int = DEFAULT_MODES, subspace_extra: np.ndarray | None = None,
                  subspace_rounds: int = 4, subspace_ktol: float = 1e-6, k_start: float = 1.0,
                  interior_solver=None, refine_rule: dict | None = None, map_error: float | None = None,
-                 unsettled_map_error: float | None = None) -> None:
+                 unsettled_map_error: float | None = None, exact_fallbacks: bool = True) -> None:
         lap = sp.csr_matrix(laplacian, dtype=np.float64)
         n = lap.shape[0]
         if lap.shape != (n, n):
@@ -237,6 +243,7 @@ class ConformalProblem:
         if unsettled_map_error is not None and not unsettled_map_error > 0:
             raise InvalidInputError(f"unsettled_map_error must be positive, got {unsettled_map_error}.")
         self.unsettled_map_error = None if unsettled_map_error is None else float(unsettled_map_error)
+        self.exact_fallbacks = bool(exact_fallbacks)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -318,8 +325,8 @@ class ConformalProblem:
         minutes before its ConvergenceError). Above :data:`EXACT_FALLBACK_MAX_BOUNDARY`
         the failure is reported at once; asking for ``k_search="direct"`` still runs it.
         """
-        return (self.b_on_boundary and self.boundary.size <= min(self.max_boundary_dense,
-                                                                 EXACT_FALLBACK_MAX_BOUNDARY))
+        return (self.exact_fallbacks and self.b_on_boundary
+                and self.boundary.size <= min(self.max_boundary_dense, EXACT_FALLBACK_MAX_BOUNDARY))
 
     def _use_subspace(self, backend: str) -> bool:
         """SCP k search on the boundary subspace?"""
@@ -963,6 +970,11 @@ def solve_line_then_direct(problem: ConformalProblem, mode: str, pins=None, hint
         return problem.solve(mode, "line", pins=pins)
     except ConvergenceError as err:
         line_error = err
+    if not problem.exact_fallbacks:
+        # No k_search hint: the caller runs the exact searches itself if its fallback fails.
+        raise hinted(ConvergenceError,
+                     f"no regular {mode} map found: the line search failed ({_first_clause(line_error)}); "
+                     f"the exact searches were left for the caller's fallback", *hints) from None
     if not problem.exact_fallback_affordable():
         raise hinted(ConvergenceError,
                      f"no regular {mode} map found: the line search failed ({_first_clause(line_error)}); "

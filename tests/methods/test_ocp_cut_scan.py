@@ -64,11 +64,12 @@ def cow_top() -> Surface:
 
 def test_a_failed_k_search_on_a_coarse_cut_scan_points_upstream_not_in_a_circle(cow_top, monkeypatch):
     """Before, the line search failed with "use k_search='direct'" and that failed with
-    "use k_search='line'"; now ocp tries both and names front-end remedies (parameters of
-    ocp). The front end's loop that made both searches fail is the one it found before
+    "use k_search='line'"; now ocp names front-end remedies (parameters of ocp), not
+    k_search. The front end's loop that made the searches fail is the one it found before
     notches were put back on single steps, so that rule is turned off here. The Neumann
-    energy's failure is then followed by the paper energy's search, whose map on that
-    wrong loop must fail its self-check; the first error is kept in the diagnostics."""
+    energy's failure is followed at once by the paper energy's search (the exact searches
+    are left for last), whose map on that wrong loop must fail its self-check; the first
+    error is kept in the diagnostics."""
     from functools import partial
 
     import parambench.methods.pointset.boundary as boundary
@@ -79,8 +80,8 @@ def test_a_failed_k_search_on_a_coarse_cut_scan_points_upstream_not_in_a_circle(
         result = get_method("ocp")(cow_top.method_input(False))
     message = result.diagnostics["energy_error"]
     assert message.startswith("ConvergenceError")
-    assert "the line search failed" in message and "k_search='direct' too" in message
-    assert "use k_search" not in message
+    assert "the line search failed" in message and "the exact searches were left for" in message
+    assert "k_search" not in message
     for name in ("boundary_angle_deg", "ball_eps_factor", "k_nn"):
         assert name in message and name in Ocp.defaults
     assert result.diagnostics["energy_used"] == "paper"

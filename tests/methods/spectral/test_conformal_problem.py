@@ -213,6 +213,47 @@ def test_failed_line_search_falls_back_to_the_direct_k_only_on_small_boundaries(
         assert asked == ["line"]
 
 
+def test_without_exact_fallbacks_a_failed_search_is_left_to_the_caller(saddle, plane, monkeypatch):
+    """``exact_fallbacks=False`` (the caller has a cheaper fallback: ocp's paper energy):
+    a failed subspace search is raised as it is, without the exact search on the dense
+    boundary reduction, and a failed line search without the direct k; the message
+    says they were left to the caller (who runs them if its fallback fails)."""
+    from parambench.methods.spectral import problem as problem_module
+
+    def fails(self, line_kwargs, exact_fallback=False):
+        assert exact_fallback is False  # nor inside the subspace search
+        raise SolverError("the subspace map spins (stand-in)")
+
+    exact_runs = []
+    real_reduced = ConformalProblem._scp_reduced
+    monkeypatch.setattr(ConformalProblem, "_scp_reduced",
+                        lambda self, k: exact_runs.append(k) or real_reduced(self, k))
+    with monkeypatch.context() as patch:
+        patch.setattr(ConformalProblem, "_scp_subspace_search", fails)
+        prob = ConformalProblem(saddle.lap, saddle.loops, points=saddle.points, subspace_from=50,
+                                exact_fallbacks=False)
+        assert not prob.exact_fallback_affordable()
+        with pytest.raises(SolverError, match="stand-in"):
+            prob.solve("scp", "line")
+        assert exact_runs == []
+
+    prob = ConformalProblem(plane.lap, plane.loops, points=plane.points, exact_fallbacks=False)
+    real_solve, asked = prob.solve, []
+
+    def line_fails(mode, k_search="none", **kwargs):
+        asked.append(k_search)
+        if k_search == "line":
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_solve(mode, k_search, **kwargs)
+
+    monkeypatch.setattr(prob, "solve", line_fails)
+    with pytest.raises(ConvergenceError, match="the exact searches were left for the caller's fallback") as err:
+        problem_module.solve_line_then_direct(prob, "scp")
+    assert asked == ["line"] and "k_search" not in str(err.value)
+    # Asked for, the direct search still runs and maps the plane.
+    assert abs(real_solve("scp", "direct").k - 1.0) < 1e-9
+
+
 @pytest.mark.parametrize("symmetric", [True, False])
 def test_the_direct_fallback_examines_few_candidates_only_for_nonsymmetric_weights(plane, monkeypatch, symmetric):
     """With non-symmetric weights each near-real candidate of the direct fallback costs a
