@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, Iterator
 
@@ -40,7 +41,7 @@ from parambench.datasets_gen.surface import MethodInput, Surface
 from .hints import fit_hints, method_hints
 from .pose import run_in_unit_pose
 
-__all__ = ["Parameterization", "MethodOutput", "Method", "as_method_input", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook"]
+__all__ = ["Parameterization", "MethodOutput", "Method", "as_method_input", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook", "retry_memo"]
 
 
 @dataclass(eq=False)
@@ -352,6 +353,13 @@ class Method:
         that raises SolverError on loops that fail the coverage check raises it restated
         (:func:`~parambench.methods.pointset.plugin_support.boundary_doubt`).
         """
+        token = _RETRY_MEMO.set({})
+        try:
+            return self._checked_with_retries(surface, params)
+        finally:
+            _RETRY_MEMO.reset(token)
+
+    def _checked_with_retries(self, surface: MethodInput, params: dict[str, Any]) -> Parameterization:
         from .pointset.plugin_support import boundary_doubt, selfcheck_result
 
         try:
@@ -441,6 +449,21 @@ class Method:
         MethodOutput
         """
         raise NotImplementedError(f"{type(self).__qualname__} implements neither solve nor run")
+
+
+#: The memo of the checked run in progress (:meth:`Method._run_and_check`), None outside one.
+_RETRY_MEMO: ContextVar[dict | None] = ContextVar("parambench_retry_memo", default=None)
+
+
+def retry_memo() -> dict | None:
+    """A dict that lives for one checked point-set run: the first run and its retries.
+
+    A plugin may keep there what a retry with other parameters can reuse (``ocp`` keeps
+    its map before the uv-mesh refinement, so a retry that changes only ``refine`` does
+    not solve again). None outside such a run (:meth:`Method.run` called directly).
+    Context-local, so runs in other threads each see their own.
+    """
+    return _RETRY_MEMO.get()
 
 
 def _as_list(retry: dict | list | None) -> list[dict]:

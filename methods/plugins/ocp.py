@@ -27,7 +27,7 @@ from parambench.datasets_gen.errors import (ConvergenceError, InvalidInputError,
                                             UnknownNameError)
 from parambench.datasets_gen.surface import MethodInput
 
-from ..base import Method, MethodOutput, StageTimer
+from ..base import Method, MethodOutput, StageTimer, retry_memo
 from ..hints import Hint, hinted
 from ..geometry2d import signed_area_2d
 from ..mesh.holes import HOLES_MODES, solve_with_holes
@@ -233,6 +233,24 @@ class Ocp(Method):
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         solver = resolve_solver(params["solver"], surface.n_points, params["k_search"])
+        sol, counts, extra, work, n_filled, n_thin, front = _memoised(
+            _unrefined_key(params, surface.n_points), lambda: self._unrefined(surface, params, timer, solver))
+        if _refines(params["refine"], extra):
+            sol, extra = _refined(sol, extra, front, surface.n_points, params, timer)
+        with timer("solve"):
+            uv = scale_to_spacing(sol.uv[:surface.n_points], front)
+        diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, "solver": solver, **extra,
+                "energy": params["energy"], "energy_used": extra.get("energy_used", params["energy"]),
+                "solver_option": params["solver"], "k_opt": float(sol.k),
+                "turning": np.asarray(sol.turning).tolist(), "holes_filled": int(n_filled + n_thin),
+                "thin_holes_filled": int(n_thin), "n_fill_points": int(work.n_points - surface.n_points),
+                "refined": extra.get("refined")}
+        return MethodOutput(uv, diag)
+
+    def _unrefined(self, surface: MethodInput, params: dict, timer: StageTimer, solver: str) -> tuple:
+        """The map before the uv-mesh refinement: (solution, counts, diagnostics, the input
+        solved (holes filled or not), holes filled, thin holes filled, the front end of
+        ``surface``)."""
         fronts = []  # the front end of each attempt, without its balls; the first is the surface's
         ready = {}  # a front end already run on the surface itself (for the thin-hole test)
 
@@ -287,18 +305,8 @@ class Ocp(Method):
                 sol, counts, extra = _exact_last_resort(front, lap, solver, params, timer)
             work, n_filled = front, 0
         del first_pair
-        front = fronts[0]  # loops, spacing and neighbours of the points the user gave
-        if _refines(params["refine"], extra):
-            sol, extra = _refined(sol, extra, front, surface.n_points, params, timer)
-        with timer("solve"):
-            uv = scale_to_spacing(sol.uv[:surface.n_points], front)
-        diag = {**frontend_diagnostics(front), **sol.diagnostics, **counts, "solver": solver, **extra,
-                "energy": params["energy"], "energy_used": extra.get("energy_used", params["energy"]),
-                "solver_option": params["solver"], "k_opt": float(sol.k),
-                "turning": np.asarray(sol.turning).tolist(), "holes_filled": int(n_filled + n_thin),
-                "thin_holes_filled": int(n_thin), "n_fill_points": int(work.n_points - surface.n_points),
-                "refined": extra.get("refined")}
-        return MethodOutput(uv, diag)
+        # fronts[0]: loops, spacing and neighbours of the points the user gave
+        return sol, counts, extra, work, n_filled, n_thin, fronts[0]
 
     @staticmethod
     def _thin_holes_filled(surface: MethodInput, params: dict, timer: StageTimer, fronts: list,
@@ -326,6 +334,38 @@ class Ocp(Method):
         fronts.append(front.without_balls())
         with timer("fill_holes"):
             return fill_point_holes(surface, front.normals, [loops[0], *thin], front.local_spacing)
+
+
+def _unrefined_key(params: dict, n_points: int) -> tuple | None:
+    """What the map before refinement depends on: every parameter but ``refine``, and
+    whether ``refine`` is ``"none"`` (then a failed search raises instead of falling back
+    on the mesh); None (not kept) from :data:`MULTILEVEL_FROM` points on, where a kept
+    front end would hold hundreds of MB."""
+    if n_points >= MULTILEVEL_FROM:
+        return None
+    rest = tuple(sorted((name, repr(value)) for name, value in params.items() if name != "refine"))
+    return ("ocp-unrefined", params["refine"] == "none", rest)
+
+
+def _memoised(key: tuple | None, compute):
+    """``compute()``, or what it gave (or raised) for ``key`` earlier in this checked run.
+
+    The self-check's retries (:meth:`Ocp.retry_params`) include ``refine="mesh"`` with
+    otherwise unchanged parameters: that retry refines the map an earlier attempt solved
+    instead of solving it again (on points scattered over real meshes a solve took most
+    of each attempt's 3-15 s). A failure is kept too, and raised again.
+    """
+    memo = retry_memo()
+    if key is None or memo is None:
+        return compute()
+    if key not in memo:
+        try:
+            memo[key] = compute()
+        except ParambenchError as exc:
+            memo[key] = exc
+    if isinstance(memo[key], ParambenchError):
+        raise memo[key]
+    return memo[key]
 
 
 #: The ``energy`` whose failed k search is followed by one with the paper's energy.

@@ -82,3 +82,38 @@ def test_a_paper_energy_map_spares_the_exact_searches(plane, monkeypatch):
     quality = evaluate(plane.points, plane.faces, result.uv)
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01
     assert np.isfinite(result.uv).all()
+
+
+def test_a_retry_that_changes_only_refine_reuses_the_solved_map(monkeypatch):
+    """The self-check's retry ``refine="mesh"`` refines the map the first attempt solved
+    (kept for the checked run, :func:`parambench.methods.base.retry_memo`) instead of
+    solving it again, and gives the map a fresh run with ``refine="mesh"`` gives."""
+    import parambench.methods.pointset.plugin_support as support
+    from parambench.methods.plugins.ocp import Ocp
+
+    surface = make_surface("bump", 800, sampling="random", seed=1)
+    real_check, solved = support.selfcheck_result, []
+
+    def fails_unless_refined(surf, result):
+        facts = real_check(surf, result)
+        if result.params["refine"] != "mesh":  # stand-in: the unrefined maps "fold"
+            facts.update(passed=False, failed=["flipped"], reason="1 flipped triangle(s) (stand-in)")
+        return facts
+
+    real_unrefined = Ocp._unrefined
+
+    def counting(self, *args):
+        solved.append(args[1]["k_nn"])
+        return real_unrefined(self, *args)
+
+    monkeypatch.setattr(support, "selfcheck_result", fails_unless_refined)
+    monkeypatch.setattr(Ocp, "_unrefined", counting)
+    retried = get_method("ocp")(surface.method_input(False))
+    # first (k_nn 8), k_nn=12 (fails too), then refine="mesh" on the first map: no third solve
+    assert solved == [8, 12]
+    assert retried.diagnostics["selfcheck"]["retry"]["params"] == {"refine": "mesh"}
+    assert retried.diagnostics["refined"]["first_map"].startswith("ocp")
+    monkeypatch.setattr(support, "selfcheck_result", real_check)
+    fresh = get_method("ocp")(surface.method_input(False), refine="mesh")
+    assert solved == [8, 12, 8]  # a new checked run keeps nothing from the last one
+    assert np.allclose(retried.uv, fresh.uv, rtol=0, atol=1e-9 * np.ptp(fresh.uv))
