@@ -182,6 +182,20 @@ def test_a_failed_subspace_search_goes_to_the_exact_search_only_with_direct_solv
         iterative.solve("scp", "line")
 
 
+def _line_searches_fail(prob: ConformalProblem, monkeypatch) -> list:
+    """Make every line search of ``prob`` fail; the list records each k_search asked for."""
+    real_solve, asked = prob.solve, []
+
+    def line_fails(mode, k_search="none", **kwargs):
+        asked.append(k_search)
+        if k_search == "line":
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_solve(mode, k_search, **kwargs)
+
+    monkeypatch.setattr(prob, "solve", line_fails)
+    return asked
+
+
 @pytest.mark.parametrize("cap_above_boundary", [True, False])
 def test_failed_line_search_falls_back_to_the_direct_k_only_on_small_boundaries(plane, monkeypatch,
                                                                                cap_above_boundary):
@@ -194,15 +208,7 @@ def test_failed_line_search_falls_back_to_the_direct_k_only_on_small_boundaries(
     n_boundary = prob.boundary.size
     monkeypatch.setattr(problem_module, "EXACT_FALLBACK_MAX_BOUNDARY",
                         n_boundary if cap_above_boundary else n_boundary - 1)
-    real_solve, asked = prob.solve, []
-
-    def line_fails(mode, k_search="none", **kwargs):
-        asked.append(k_search)
-        if k_search == "line":
-            raise ConvergenceError("no t = 1 crossing found (stand-in)")
-        return real_solve(mode, k_search, **kwargs)
-
-    monkeypatch.setattr(prob, "solve", line_fails)
+    asked = _line_searches_fail(prob, monkeypatch)
     if cap_above_boundary:
         sol = problem_module.solve_line_then_direct(prob, "scp")
         assert asked == ["line", "direct"] and sol.diagnostics["k_search_fallback"] == "direct"
@@ -238,15 +244,8 @@ def test_without_exact_fallbacks_a_failed_search_is_left_to_the_caller(saddle, p
         assert exact_runs == []
 
     prob = ConformalProblem(plane.lap, plane.loops, points=plane.points, exact_fallbacks=False)
-    real_solve, asked = prob.solve, []
-
-    def line_fails(mode, k_search="none", **kwargs):
-        asked.append(k_search)
-        if k_search == "line":
-            raise ConvergenceError("no t = 1 crossing found (stand-in)")
-        return real_solve(mode, k_search, **kwargs)
-
-    monkeypatch.setattr(prob, "solve", line_fails)
+    real_solve = prob.solve
+    asked = _line_searches_fail(prob, monkeypatch)
     with pytest.raises(ConvergenceError, match="the exact searches were left for the caller's fallback") as err:
         problem_module.solve_line_then_direct(prob, "scp")
     assert asked == ["line"] and "k_search" not in str(err.value)
@@ -269,18 +268,13 @@ def test_the_direct_fallback_examines_few_candidates_only_for_nonsymmetric_weigh
         lap[0, 0] -= 1e-3
     prob = ConformalProblem(lap.tocsr(), plane.loops, points=plane.points)
     assert prob.hermitian is symmetric
-    real_solve, real_direct, seen = prob.solve, prob.k_direct, []
-
-    def line_fails(mode, k_search="none", **kwargs):
-        if k_search == "line":
-            raise ConvergenceError("no t = 1 crossing found (stand-in)")
-        return real_solve(mode, k_search, **kwargs)
+    real_direct, seen = prob.k_direct, []
 
     def direct_spy(extra=(), max_candidates=None, imag_tol=None):
         seen.append(max_candidates)
         return real_direct(extra, max_candidates, imag_tol)
 
-    monkeypatch.setattr(prob, "solve", line_fails)
+    _line_searches_fail(prob, monkeypatch)
     monkeypatch.setattr(prob, "k_direct", direct_spy)
     sol = problem_module.solve_line_then_direct(prob, "scp")
     assert seen == [None if symmetric else problem_module.FALLBACK_NONSYMMETRIC_CANDIDATES]
