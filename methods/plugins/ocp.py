@@ -297,12 +297,7 @@ class Ocp(Method):
             if not first_pair:
                 raise
             front, w_tan, lap = first_pair[0]
-            try:
-                if params["refine"] == "none":
-                    raise exc
-                sol, counts, extra = _mesh_fallback(front, w_tan, timer, exc)
-            except (ConvergenceError, SolverError):
-                sol, counts, extra = _exact_last_resort(front, lap, solver, params, timer)
+            sol, counts, extra = _after_failed_searches(front, w_tan, lap, solver, params, timer, exc)
             work, n_filled = front, 0
         del first_pair
         # fronts[0]: loops, spacing and neighbours of the points the user gave
@@ -448,6 +443,17 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception):
                      "refined": {"first_map": "sdp", **info}}
 
 
+def _after_failed_searches(front, w_tan, lap, solver: str, params: dict, timer: StageTimer, exc: Exception):
+    """(solution, counts, diagnostics) once both energies' searches failed: the mesh an sdp
+    map triangulates (not under ``refine="none"``), else the exact searches, last."""
+    if params["refine"] != "none":
+        try:
+            return _mesh_fallback(front, w_tan, timer, exc)
+        except (ConvergenceError, SolverError):
+            pass
+    return _exact_last_resort(front, lap, solver, params, timer)
+
+
 def _exact_last_resort(front, lap, solver: str, params: dict, timer: StageTimer):
     """(solution, counts, diagnostics) of the Neumann energy's search with its exact searches on.
 
@@ -481,9 +487,9 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer,
     k): the caller tries a cheaper fallback first and these last. On points scattered
     over the real meshes (lilium, bump-domain, meg-helmet, spot-top at 5k and 20k) the
     Neumann energy's exact searches found a map once in 8 runs (meg-helmet 20k, which
-    then failed its self-check) and took most of ``ocp``'s 6-66 s there; the paper
+    then failed its self-check) and took most of ``ocp``'s 9-50 s there; the paper
     energy's search and the refinement on the uv mesh after it gave the same QC (within
-    0.01 %) and foldovers in 4-12 s (twenty-third session).
+    0.01 %) and foldovers in 3.6-12.3 s (twenty-third session).
 
     With ``solver="auto"`` resolved to the two-level path, a ConvergenceError or
     SolverError there falls back to the direct solve: a safety net, since the two-level

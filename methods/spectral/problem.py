@@ -153,7 +153,7 @@ class ConformalProblem:
         May a failed search fall back to the exact searches on the dense boundary
         reduction (:meth:`exact_fallback_affordable`)? False where the caller has a cheaper
         fallback to try first: ``ocp`` on points scattered over a real mesh, whose Neumann
-        energy has no regular map there, spent 6-50 s in them before its paper-energy
+        energy has no regular map there, spent most of its 9-50 s in them before its paper-energy
         fallback found the map (:func:`solve_line_then_direct` then says they were left out).
     k_start : float
         Where the line search starts (its ``k0``) unless :meth:`solve` is given one: 1 for
