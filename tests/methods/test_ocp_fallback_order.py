@@ -117,3 +117,34 @@ def test_a_retry_that_changes_only_refine_reuses_the_solved_map(monkeypatch):
     fresh = get_method("ocp")(surface.method_input(False), refine="mesh")
     assert solved == [8, 12, 8]  # a new checked run keeps nothing from the last one
     assert np.allclose(retried.uv, fresh.uv, rtol=0, atol=1e-9 * np.ptp(fresh.uv))
+
+
+def _folded(z: np.ndarray) -> np.ndarray:
+    """``z`` with the part beyond 60 % of its u range folded back over the rest."""
+    cut = z.real.min() + 0.6 * np.ptp(z.real)
+    return np.where(z.real > cut, 2 * cut - z.real, z.real) + 1j * z.imag
+
+
+def test_a_paper_energy_map_whose_boundary_folds_goes_on_to_the_mesh_fallback(plane, monkeypatch):
+    """A paper-energy map that gives no mesh of the surface (its triangulation holds a
+    fraction of the points) is not refined into a map of a few triangles: the mesh an
+    sdp map triangulates is used instead."""
+    from dataclasses import replace
+
+    _line_search_fails(monkeypatch, [])
+    real_front, attempts = ocp_module._solve_front, []
+
+    def paper_map_folds(front, box, solver, params, timer, exact_fallbacks=True):
+        attempts.append(exact_fallbacks)
+        sol, counts, extra = real_front(front, box, solver, params, timer, exact_fallbacks)
+        return replace(sol, z=_folded(sol.z)), counts, extra
+
+    monkeypatch.setattr(ocp_module, "_solve_front", paper_map_folds)
+    result = get_method("ocp")(plane.method_input(False))
+    diag = result.diagnostics
+    # Neumann's search failed (stand-in); the paper energy's, by the direct k, mapped and folded.
+    assert attempts == [False, True]
+    assert diag["energy_used"] == "mesh" and diag["refined"]["first_map"] == "sdp"
+    assert diag["refined"]["n_unplaced"] <= 0.01 * plane.n_points
+    quality = evaluate(plane.points, plane.faces, result.uv)
+    assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01 and diag["selfcheck"]["passed"]

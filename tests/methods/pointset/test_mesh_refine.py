@@ -8,7 +8,9 @@ import pytest
 from parambench.bench.metrics.alignment import exact_map_error
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.pointset.frontend import build_frontend
-from parambench.methods.pointset.mesh_refine import refine_on_uv_mesh, similarity_placed
+from parambench.datasets_gen.errors import SolverError
+from parambench.methods.pointset.mesh_refine import (MIN_MESHED_SHARE, first_map_faces, refine_on_uv_mesh,
+                                                      similarity_placed)
 from parambench.methods.registry import get_method
 
 
@@ -33,6 +35,24 @@ def test_a_planar_patch_refines_to_its_own_coordinates(plane):
     sol, info = refine_on_uv_mesh(surface.points, first, front.boundary_loops)
     assert info["n_faces"] > surface.n_points and sol.turning.tolist() == [1]
     assert exact_map_error(sol.uv, surface.exact_uv, surface.diameter) < 1e-9
+
+
+def test_a_first_map_folded_over_gives_no_mesh_to_refine_on(plane):
+    # Folded back beyond u = 0.6, the outer loop's image crosses itself and the constrained
+    # triangulation keeps a sliver of the domain (a quarter of the points): refined, the
+    # rest would be placed by similarity from that sliver.
+    surface, front = plane
+    u, v = surface.exact_uv.T
+    folded = np.column_stack([np.where(u > 0.6, 1.2 - u, u), v])
+    faces, _ = first_map_faces(surface.points, folded, front.boundary_loops, min_share=0.0)
+    assert np.unique(faces).size < 0.5 * surface.n_points
+    with pytest.raises(SolverError, match="holds only .* points"):
+        first_map_faces(surface.points, folded, front.boundary_loops)
+    with pytest.raises(SolverError, match="no mesh to refine on"):
+        refine_on_uv_mesh(surface.points, folded, front.boundary_loops)
+    # Mirrored, the map folds nowhere: every point is meshed.
+    faces, _ = first_map_faces(surface.points, np.column_stack([-u, v]), front.boundary_loops)
+    assert np.unique(faces).size >= MIN_MESHED_SHARE * surface.n_points
 
 
 def test_points_left_out_of_the_triangulation_follow_the_local_similarity():
