@@ -18,6 +18,10 @@ lilium 20k, bump-domain 20k and meg-helmet 5k (where ``ocp`` finds no map) 0 fol
 on a reference triangulation and QC 0.998-1.000x that of the scp-igl map of the true mesh
 carried to the points; lilium 5k 1.000x (``ocp`` with the paper's energy: 1.10x).
 
+The refined map is near conformal, so its own uv triangulation is a better mesh than the
+first map's: the solve is repeated on it until the mesh stops changing
+(:data:`MAX_MESH_PASSES`).
+
 Points in no triangle of the uv triangulation (isolated by the constraints) are placed by
 the similarity that best carries the first map to the refined one over their nearest
 triangulated neighbours.
@@ -28,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from parambench.datasets_gen.errors import InvalidInputError, SolverError
+from parambench.datasets_gen.errors import InvalidInputError, ParambenchError, SolverError
 from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, MethodInput, flat_faces
 
 from ..base import StageTimer
@@ -36,7 +40,8 @@ from ..mesh.conformal_setup import build_mesh_problem, solve_with_k_rule
 from ..spectral.problem import ConformalSolution
 from .selfcheck import pointset_faces
 
-__all__ = ["SIMILARITY_NEIGHBOURS", "MIN_MESHED_SHARE", "first_map_faces", "refine_on_uv_mesh", "similarity_placed"]
+__all__ = ["SIMILARITY_NEIGHBOURS", "MIN_MESHED_SHARE", "MAX_MESH_PASSES", "first_map_faces", "refine_on_uv_mesh",
+           "similarity_placed"]
 
 #: Triangulated neighbours whose first and refined positions fit the similarity that
 #: places a point left out of the triangulation.
@@ -51,10 +56,26 @@ SIMILARITY_NEIGHBOURS = 8
 #: self-check stopped it.
 MIN_MESHED_SHARE = 0.99
 
+#: Most solves of "triangulate the map in uv, solve cotangent SCP on that mesh". The first
+#: map (the paper energy's or an sdp map, QC 1.1-1.7x that of scp-igl) is distorted, so
+#: its Delaunay triangulation is not the one the conformal map would give; the refined
+#: map is near conformal, and its own triangulation is the better mesh. Measured on the
+#: scattered real meshes from an sdp first map (k_nn = 8, seed 0): spot-top 20k 1 -> 0
+#: folded reference triangles (QC 1.0004x -> 1.0003x scp-igl's), spot-top 5k 3 -> 2
+#: (1.0116x -> 1.0024x), lilium 20k 1.0021x -> 1.0015x; the mesh then stops changing
+#: (lilium) or swaps 4 triangles between cocircular diagonals from pass to pass
+#: (spot-top), so a third solve gains nothing. camelhead, where every pass folds
+#: hundreds of triangles, gets no better.
+MAX_MESH_PASSES = 3
+
 
 def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray],
-                      timer: StageTimer | None = None) -> tuple[ConformalSolution, dict]:
+                      timer: StageTimer | None = None, max_passes: int = MAX_MESH_PASSES
+                      ) -> tuple[ConformalSolution, dict]:
     """Cotangent SCP on the mesh of ``points`` connected as ``uv``'s constrained Delaunay triangulation.
+
+    Repeated on the mesh the refined map's own triangulation gives until that mesh stops
+    changing, at most ``max_passes`` solves (see :data:`MAX_MESH_PASSES`).
 
     Parameters
     ----------
@@ -64,35 +85,61 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     loops : list of (L_i,) numpy.ndarray of int64
         The detected boundary loops (outer first), kept as constraints and holes.
     timer : StageTimer, optional
-        Records ``refine_mesh`` (the triangulation) and the mesh problem's stages.
+        Records ``refine_mesh`` (the triangulations) and the mesh problems' stages.
+    max_passes : int
+        Most solves (>= 1).
 
     Returns
     -------
     solution : ConformalSolution
-        The refined map on all N points (k and turning numbers of the mesh's solve).
+        The refined map on all N points (k and turning numbers of the last mesh's solve).
     info : dict
         ``n_faces``, ``n_flat_dropped`` (triangles without area in 3D, left out),
-        ``n_unplaced`` (points in no triangle, placed by :func:`similarity_placed`).
+        ``n_unplaced`` (points in no triangle, placed by :func:`similarity_placed`), all of
+        the last mesh; ``n_passes`` (solves) and ``converged`` (the last map's
+        triangulation is the mesh it was solved on).
 
     Raises
     ------
     InvalidInputError
         The first map cannot be triangulated (collapsed).
     NotADiskError, DisconnectedError
-        The triangulation is not a connected, manifold surface with boundary.
+        The first triangulation is not a connected, manifold surface with boundary.
     SolverError, ConvergenceError
-        The triangulation holds under ``MIN_MESHED_SHARE`` of the points (the first map
-        folds, :func:`first_map_faces`), or the mesh's conformal problem has no regular map.
+        The first triangulation holds under ``MIN_MESHED_SHARE`` of the points (the first
+        map folds, :func:`first_map_faces`), or its mesh has no regular conformal map. A
+        later pass that fails keeps the pass before it.
     """
     timer = StageTimer() if timer is None else timer
     points = np.asarray(points, dtype=np.float64)
-    uv = np.asarray(uv, dtype=np.float64)
+    first = np.asarray(uv, dtype=np.float64)
     with timer("refine_mesh"):
-        faces, flat = first_map_faces(points, uv, loops)
-        used = np.unique(faces)
-        index = np.full(points.shape[0], -1, dtype=np.int64)
-        index[used] = np.arange(used.size)
-        mesh = MethodInput(points=points[used], faces=index[faces])
+        faces, n_flat = first_map_faces(points, first, loops)
+    sol, info = _solved_on(points, first, faces, n_flat, timer)
+    n_passes, converged = 1, False
+    while n_passes < max_passes:
+        previous = sol.uv[:points.shape[0]]
+        try:
+            with timer("refine_mesh"):
+                next_faces, next_flat = first_map_faces(points, previous, loops)
+            if _same_faces(next_faces, faces):
+                converged = True
+                break
+            next_sol, next_info = _solved_on(points, previous, next_faces, next_flat, timer)
+        except ParambenchError:
+            break
+        sol, info, faces, n_passes = next_sol, next_info, next_faces, n_passes + 1
+    return sol, {**info, "n_passes": n_passes, "converged": converged}
+
+
+def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat: int,
+               timer: StageTimer) -> tuple[ConformalSolution, dict]:
+    """Cotangent SCP on ``points`` connected by ``faces``; the points in no face placed by
+    the similarity from ``first`` (:func:`similarity_placed`)."""
+    used = np.unique(faces)
+    index = np.full(points.shape[0], -1, dtype=np.int64)
+    index[used] = np.arange(used.size)
+    mesh = MethodInput(points=points[used], faces=index[faces])
     problem, _, _ = build_mesh_problem(mesh, timer, weights="cotangent", normalized=False, uniform_at=None,
                                        b_matrix="boundary")
     with timer("solve"):
@@ -101,11 +148,19 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     refined[used] = sol.uv
     unplaced = np.setdiff1d(np.arange(points.shape[0]), used)
     if unplaced.size:
-        refined[unplaced] = similarity_placed(points, uv, refined, used, unplaced)
+        refined[unplaced] = similarity_placed(points, first, refined, used, unplaced)
     z = refined[:, 0] + 1j * refined[:, 1]
     full = ConformalSolution(z=z, k=sol.k, energy=sol.energy, turning=sol.turning, eigenvalue=sol.eigenvalue,
                              diagnostics=dict(sol.diagnostics))
-    return full, {"n_faces": int(faces.shape[0]), "n_flat_dropped": int(flat), "n_unplaced": int(unplaced.size)}
+    return full, {"n_faces": int(faces.shape[0]), "n_flat_dropped": int(n_flat), "n_unplaced": int(unplaced.size)}
+
+
+def _same_faces(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two face lists hold the same triangles, in any order and any rotation."""
+    if a.shape != b.shape:
+        return False
+    sa, sb = np.sort(a, axis=1), np.sort(b, axis=1)
+    return bool(np.array_equal(sa[np.lexsort(sa.T[::-1])], sb[np.lexsort(sb.T[::-1])]))
 
 
 def first_map_faces(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray],

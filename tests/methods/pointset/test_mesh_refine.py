@@ -35,6 +35,26 @@ def test_a_planar_patch_refines_to_its_own_coordinates(plane):
     sol, info = refine_on_uv_mesh(surface.points, first, front.boundary_loops)
     assert info["n_faces"] > surface.n_points and sol.turning.tolist() == [1]
     assert exact_map_error(sol.uv, surface.exact_uv, surface.diameter) < 1e-9
+    # The exact map's own triangulation is not the bent map's: solved once more on it
+    # (exact again), after which the mesh is a fixed point.
+    assert info["n_passes"] == 2 and info["converged"]
+
+
+def test_solving_again_on_the_refined_maps_own_mesh_nears_the_exact_flattening():
+    # The spherical cap's stereographic map is its exact conformal flattening. From a
+    # distorted first map, the first solve's mesh is that map's triangulation; the
+    # refined map's own triangulation is a better mesh of the cap.
+    surface = make_surface("cap", 2000, sampling="jittered", seed=0)
+    front = build_frontend(surface.points)
+    u, v = surface.exact_uv.T
+    u, v = (u - u.min()) / np.ptp(u), (v - v.min()) / np.ptp(v)
+    first = _bent(np.column_stack([u, v]))
+    once, info_once = refine_on_uv_mesh(surface.points, first, front.boundary_loops, max_passes=1)
+    again, info = refine_on_uv_mesh(surface.points, first, front.boundary_loops)
+    assert info_once["n_passes"] == 1 and not info_once["converged"] and info["n_passes"] >= 2
+    error_once = exact_map_error(once.uv, surface.exact_uv, surface.diameter)
+    error = exact_map_error(again.uv, surface.exact_uv, surface.diameter)
+    assert error < 0.5 * error_once and error < 1e-3
 
 
 def test_a_first_map_folded_over_gives_no_mesh_to_refine_on(plane):
