@@ -383,16 +383,20 @@ def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: Stage
     its boundary folds, and the refinement would have nothing to refine on): on
     ``real/meg-helmet`` scattered at 20k its loop crossed itself in uv and its triangulation
     held 25 of 20,000 points, where the mesh an sdp map triangulates, the next fallback,
-    gives QC 1.0001x that of scp-igl with 0 foldovers. Below :data:`MULTILEVEL_FROM` points
+    gives QC 1.0001-1.0002x that of scp-igl with 0 foldovers (whatever ``refine``: under
+    ``"none"`` the exact searches come next). Below :data:`MULTILEVEL_FROM` points
     only (``w_tan``, the front end's W^tan, is not kept through larger solves).
     """
     try:
         with timer("laplacian"):
             box = [graph_laplacian(w_tan)]
         sol, counts, extra = _solve_front(front, box, solver, params, timer)
+    except (ConvergenceError, SolverError):
+        raise exc from None
+    try:
         with timer("refine_mesh"):
             first_map_faces(front.points, sol.uv[:front.points.shape[0]], front.boundary_loops)
-    except (ConvergenceError, SolverError, InvalidInputError):
+    except (SolverError, InvalidInputError):  # folded or collapsed: no map of the surface
         raise exc from None
     return sol, counts, {**extra, "energy_used": "paper", "energy_error": f"{type(exc).__name__}: {exc}"}
 
