@@ -33,7 +33,7 @@ from ..geometry2d import signed_area_2d
 from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..pointset.hole_filling import fill_point_holes, is_slot
 from ..pointset.laplacian import graph_laplacian
-from ..pointset.mesh_refine import first_map_faces, refine_on_uv_mesh
+from ..pointset.mesh_refine import first_map_faces, mesh_passes, refine_on_uv_mesh
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
                                       scale_to_spacing)
@@ -407,10 +407,16 @@ def _refined(sol, extra: dict, front, n_points: int, params: dict, timer: StageT
     or the mesh has no regular map (the unrefined map then faces the self-check)."""
     refined = {"first_map": f"ocp ({extra.get('energy_used', params['energy'])} energy)", "first_k_opt": float(sol.k)}
     try:  # the triangulation and the similarity placement do not depend on the first map's scale
-        mesh_sol, info = refine_on_uv_mesh(front.points, sol.uv[:n_points], front.boundary_loops, timer)
+        mesh_sol, info = refine_on_uv_mesh(front.points, sol.uv[:n_points], front.boundary_loops, timer,
+                                           _passes(front))
     except ParambenchError as exc:
         return sol, {**extra, "refined": {**refined, "error": f"{type(exc).__name__}: {exc}"}}
     return mesh_sol, {**extra, "refined": {**refined, **info}}
+
+
+def _passes(front) -> int:
+    """Solves of the uv-mesh refinement: repeated on clean points only (:func:`mesh_passes`)."""
+    return mesh_passes((front.diagnostics or {}).get("normal_fit"))
 
 
 def _refines(refine: str, extra: dict) -> bool:
@@ -446,7 +452,7 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception):
             # away from the normals and so would the refined map (loops turning -1).
             if signed_area_2d(pair[front.boundary_loops[0]]) < 0:
                 pair[:, 1] *= -1.0
-        sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer)
+        sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer, _passes(front))
     except ParambenchError:
         raise exc from None
     return sol, {}, {"energy_used": "mesh", "energy_error": f"{type(exc).__name__}: {exc}",

@@ -9,8 +9,8 @@ from parambench.bench.metrics.alignment import exact_map_error
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.pointset.frontend import build_frontend
 from parambench.datasets_gen.errors import SolverError
-from parambench.methods.pointset.mesh_refine import (MIN_MESHED_SHARE, first_map_faces, refine_on_uv_mesh,
-                                                      similarity_placed)
+from parambench.methods.pointset.mesh_refine import (MAX_MESH_PASSES, MIN_MESHED_SHARE, first_map_faces,
+                                                      mesh_passes, refine_on_uv_mesh, similarity_placed)
 from parambench.methods.registry import get_method
 
 
@@ -73,6 +73,18 @@ def test_a_first_map_folded_over_gives_no_mesh_to_refine_on(plane):
     # Mirrored, the map folds nowhere: every point is meshed.
     faces, _ = first_map_faces(surface.points, np.column_stack([-u, v]), front.boundary_loops)
     assert np.unique(faces).size >= MIN_MESHED_SHARE * surface.n_points
+
+
+def test_the_solve_is_repeated_on_clean_points_only():
+    # Under noise the refined map's own triangulation is the worse mesh (its close pairs'
+    # order is the noise's): one solve there. Told apart by the front end's own fits.
+    clean = make_surface("cap", 1500, sampling="jittered", seed=0)
+    noisy = make_surface("cap", 1500, sampling="jittered", seed=0, noise=0.25)
+    fits = [build_frontend(s.points).diagnostics["normal_fit"] for s in (clean, noisy)]
+    assert [mesh_passes(fit) for fit in fits] == [MAX_MESH_PASSES, 1]
+    assert mesh_passes(None) == 1  # normals given: their error is not known
+    runs = [get_method("ocp")(s.method_input(False), refine="mesh") for s in (clean, noisy)]
+    assert runs[0].diagnostics["refined"]["n_passes"] >= 2 and runs[1].diagnostics["refined"]["n_passes"] == 1
 
 
 def test_points_left_out_of_the_triangulation_follow_the_local_similarity():
