@@ -416,7 +416,8 @@ def _refined(sol, extra: dict, front, n_points: int, params: dict, timer: StageT
 
 def _passes(front) -> int:
     """Solves of the uv-mesh refinement: repeated on clean points only (:func:`mesh_passes`)."""
-    return mesh_passes((front.diagnostics or {}).get("normal_fit"))
+    diagnostics = front.diagnostics or {}
+    return mesh_passes(diagnostics.get("normal_fit"), int(diagnostics.get("k_nn") or front.knn_indices.shape[1]))
 
 
 def _refines(refine: str, extra: dict) -> bool:

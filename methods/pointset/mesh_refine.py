@@ -80,6 +80,9 @@ MAX_MESH_PASSES = 3
 #: (camelhead 5k 2.04, which fails either way).
 CLEAN_NORMAL_ERROR_DEG = 1.5
 
+#: The kNN size those predicted errors were measured at (the front end's default).
+GATE_K_NN = 8
+
 
 def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray],
                       timer: StageTimer | None = None, max_passes: int = MAX_MESH_PASSES
@@ -144,22 +147,30 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     return sol, {**info, "n_passes": n_passes, "converged": converged}
 
 
-def mesh_passes(normal_fit: dict | None) -> int:
+def mesh_passes(normal_fit: dict | None, k_nn: int = GATE_K_NN) -> int:
     """How many solves :func:`refine_on_uv_mesh` makes for points whose normals were fitted so.
 
     Parameters
     ----------
     normal_fit : dict or None
         The front end's ``diagnostics["normal_fit"]`` (None when the normals were given).
+    k_nn : int
+        The neighbours of those fits. A plane fit's predicted error falls about as 1 / k
+        (its points spread over a radius growing as sqrt(k)): scattered bump-domain at
+        20k, noise 0.1 spacings, predicts 1.98 degrees at k = 8 and 1.28 at 12 (0.65,
+        against 8 / 12 = 0.67), so the median is scaled by ``k_nn / GATE_K_NN`` and a
+        ``k_nn=12`` retry is judged as the first run was.
 
     Returns
     -------
     int
-        :data:`MAX_MESH_PASSES` where the fits' median predicted error is below
+        :data:`MAX_MESH_PASSES` where the scaled median predicted error is below
         :data:`CLEAN_NORMAL_ERROR_DEG` (clean points), else 1 (noisy, or not known).
     """
     median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
-    return MAX_MESH_PASSES if median is not None and float(median) < CLEAN_NORMAL_ERROR_DEG else 1
+    if median is None:
+        return 1
+    return MAX_MESH_PASSES if float(median) * k_nn / GATE_K_NN < CLEAN_NORMAL_ERROR_DEG else 1
 
 
 def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat: int,
