@@ -161,13 +161,15 @@ class Ocp(Method):
     default ``energy="neumann"``, a k search that finds no regular map is followed by one
     with the paper's energy (:func:`_paper_energy_fallback`; ``energy_used`` in the
     diagnostics), before any hole is filled. ``refine``: ``"mesh"`` triangulates the map
-    in uv (the self-check's triangulation) and returns cotangent SCP on that mesh
-    (:mod:`parambench.methods.pointset.mesh_refine`); ``"auto"`` (default) does so only
+    in uv (the self-check's triangulation) and returns cotangent SCP on that mesh, on
+    clean points solved again on the refined map's own triangulation until it stops
+    changing (:mod:`parambench.methods.pointset.mesh_refine`); ``"auto"`` (default) does so only
     where no energy gave a map (below :data:`MULTILEVEL_FROM` points, from an SDP map,
     :func:`_mesh_fallback`; ``energy_used`` is then ``"mesh"``) and as the last retry of a
     map that fails its self-check; ``"none"`` never. ``refined`` in the diagnostics says
-    from which map (``first_map``, and its k as ``first_k_opt``) and with how many
-    triangles; ``k_opt`` is then the mesh's (1 for cotangent weights).
+    from which map (``first_map``, and its k as ``first_k_opt``), with how many
+    triangles and solves (``n_passes``); ``k_opt`` is then the mesh's (1 for cotangent
+    weights).
     """
 
     name = "ocp"
