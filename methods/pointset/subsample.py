@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
+from .reorder import spatial_order
 
 __all__ = ["poisson_disk_subsample"]
 
@@ -68,17 +69,25 @@ def poisson_disk_subsample(points: np.ndarray, radius: float, keep: np.ndarray |
     k = min(_MAX_NEIGHBOURS, n - 1)
     if k < 1:
         return np.arange(n, dtype=np.int64)
+    # The query runs in kd-tree leaf order (at a million points 1.0 s against 3.4 s in a
+    # generator's or scanner's order; the order is usually cached from the front end).
+    # Priorities and kept points go with their points, so the sample does not depend on
+    # the order the points are processed in.
+    order = spatial_order(pts)
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(n, dtype=np.int64)
+    p = pts[order]
     # Sliding-midpoint splits: a faster build, the same neighbours within the radius.
-    dist, nbr = cKDTree(pts, balanced_tree=False).query(pts, k=k + 1, distance_upper_bound=radius, workers=-1)
+    dist, nbr = cKDTree(p, balanced_tree=False).query(p, k=k + 1, distance_upper_bound=radius, workers=-1)
     nbr = nbr[:, 1:]
     close = np.isfinite(dist[:, 1:])  # misses are returned as index n, distance inf
     nbr = np.where(close, nbr, n)
     # State: 1 sampled, -1 excluded (a sampled point is too close), 0 undecided; index n is a sentinel.
     state = np.zeros(n + 1, dtype=np.int8)
-    state[kept] = 1
-    priority = np.append(np.random.default_rng(seed).random(n), -1.0)
+    state[inverse[kept]] = 1
+    priority = np.append(np.random.default_rng(seed).random(n)[order], -1.0)
     _luby_rounds(np.ascontiguousarray(nbr, dtype=np.int64), state, priority)
-    return np.flatnonzero(state[:n] == 1)
+    return np.sort(order[state[:n] == 1])
 
 
 @numba.njit(cache=_CACHE, nogil=True)

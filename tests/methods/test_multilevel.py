@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from scipy.spatial.distance import pdist, squareform
+from scipy.spatial import cKDTree
 
 from parambench.bench.metrics import evaluate
 from parambench.bench.metrics.alignment import similarity_align
@@ -88,6 +89,22 @@ def test_compiled_luby_rounds_equal_the_whole_array_rounds(seed):
     _luby_rounds(nbr, state, priority)
     np.testing.assert_array_equal(state, expected)
     assert not np.any(state[:n] == 0)
+
+
+def test_subsample_in_leaf_order_is_the_sample_of_the_input_order():
+    # The kd-tree query runs on the points in leaf order for speed; each point keeps its
+    # own priority, so the sample is the one the input order gives (no order-dependent choice).
+    rng = np.random.default_rng(5)
+    pts = rng.random((4000, 3)) * [20, 20, 0.2]  # scrambled order, as a scanner writes it
+    keep = rng.choice(4000, 60, replace=False)
+    radius, seed = 0.9, 11
+    dist, nbr = cKDTree(pts).query(pts, k=25, distance_upper_bound=radius)
+    nbr = np.where(np.isfinite(dist[:, 1:]), nbr[:, 1:], pts.shape[0])
+    state = np.zeros(pts.shape[0] + 1, dtype=np.int8)
+    state[keep] = 1
+    _luby_reference(nbr, state, np.append(np.random.default_rng(seed).random(pts.shape[0]), -1.0))
+    np.testing.assert_array_equal(poisson_disk_subsample(pts, radius, keep, seed=seed),
+                                  np.flatnonzero(state[:-1] == 1))
 
 
 @pytest.mark.parametrize("kwargs", [dict(radius=0.0), dict(radius=1.0, keep=[400])])
