@@ -19,14 +19,17 @@ Measured on ocp's Neumann Laplacian (29 nonzeros per row, non-symmetric) at 100k
 weights the smoother does not suit), the solver factorises L_II once and solves directly
 from then on (``fell_back``), so a bad case is slow, never wrong.
 
-The columns of a block are shared out among the workers, each owning a contiguous
-block of them for the whole solve: its sweeps, its residual (restricted through P as
-it is formed, never stored), its coarse solves (SuperLU releases the GIL) and its
-share of the correction. Every block of right-hand sides costs a full set of cycles,
-so the solver asks for large blocks (:attr:`TwoGridSolver.max_block_bytes`). Measured
-at 1M points (bump, 21 right-hand sides, 2 cores, the fine level of :mod:`.multilevel`):
-three blocks of at most 8 columns in one shared array, 27 cycles, 49 s; one block
-with the work split as above, 9 cycles, 14-15 s.
+The rows are shared out among the workers in ROW_BLOCKS contiguous blocks, each sweeping
+all columns of its rows and reading the other blocks' rows as they stood before the
+sweep (a hybrid Gauss-Seidel, the same iterates whatever the number of cores); each
+worker restricts its rows' residual and adds the coarse correction to its rows, and
+the coarse solves (SuperLU releases the GIL) run side by side on column blocks. Every
+block of right-hand sides costs a full set of cycles, so the solver asks for large
+blocks (:attr:`TwoGridSolver.max_block_bytes`). Measured at 1M points (bump, 21
+right-hand sides, 2 cores, the fine level of :mod:`.multilevel`): three blocks of at
+most 8 columns in one shared array, 27 cycles, 49 s; one block with the columns
+shared out among the workers, 9 cycles, 14-15 s; with the rows shared out instead
+(each worker then reads half the matrix per sweep), see :data:`ROW_BLOCKS`.
 """
 
 from __future__ import annotations
@@ -50,28 +53,79 @@ _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 
 @numba.njit(cache=_CACHE, nogil=True, fastmath=True)
-def _gauss_seidel(indptr, indices, data, diag, b, b0, x, sweeps, backward):  # pragma: no cover - compiled
-    """In-place Gauss-Seidel sweeps on the block x, right-hand sides columns b0: of b (rows in order or reversed).
+def _gauss_seidel_rows(indptr, indices, data, diag, b, x, r0, r1, halo_slot, halo, backward):  # pragma: no cover
+    """One in-place Gauss-Seidel sweep over rows r0:r1 of the column block x (in order or reversed).
 
-    The diagonal term is summed with the others and added back, so the inner loop over
-    the columns has no branch and vectorises (2.3x faster at 11 columns).
+    Entries in columns outside r0:r1 read ``halo[halo_slot[j]]`` (the other blocks' rows
+    as they stood before the sweep). The rows' indices are sorted, so such entries sit
+    at either end of a row, and the many rows without any take the plain loop. The
+    diagonal term is summed with the others and added back, so the inner loop over the
+    columns has no branch and vectorises (2.3x faster at 11 columns).
     """
-    n, width = x.shape
+    width = x.shape[1]
     acc = np.empty(width)
-    for _ in range(sweeps):
-        for step in range(n):
-            i = n - 1 - step if backward else step
-            for c in range(width):
-                acc[c] = b[i, b0 + c]
-            for p in range(indptr[i], indptr[i + 1]):
+    for step in range(r1 - r0):
+        i = r1 - 1 - step if backward else r0 + step
+        for c in range(width):
+            acc[c] = b[i, c]
+        lo, hi = indptr[i], indptr[i + 1]
+        if hi > lo and (indices[lo] < r0 or indices[hi - 1] >= r1):
+            for p in range(lo, hi):
+                a = data[p]
+                j = indices[p]
+                xj = x[j] if r0 <= j < r1 else halo[halo_slot[j]]
+                for c in range(width):
+                    acc[c] -= a * xj[c]
+        else:
+            for p in range(lo, hi):
                 a = data[p]
                 xj = x[indices[p]]
                 for c in range(width):
                     acc[c] -= a * xj[c]
-            di = diag[i]
-            xi = x[i]
-            for c in range(width):
-                xi[c] = (acc[c] + di * xi[c]) / di
+        di = diag[i]
+        xi = x[i]
+        for c in range(width):
+            xi[c] = (acc[c] + di * xi[c]) / di
+
+
+#: Contiguous row blocks the sweeps are shared out in, from ROW_SPLIT_MIN_ROWS rows (fixed,
+#: so that the iterates do not depend on the machine's number of cores). Measured at 1M
+#: points (bump, 21 columns, 2 cores): one sweep 0.15-0.20 s against 0.21-0.29 s with the
+#: columns shared out instead (each worker then reads the whole matrix); the fine solve
+#: 21.4-21.9 s against 23.3-27.5 s, the same 9 cycles, the map the same to 4.8e-9 of the
+#: diameter.
+ROW_BLOCKS = 2
+
+#: Below this many rows the sweeps run on one block. Smaller problems gain little from the
+#: split, and the iterates change: ``real/meg-helmet`` with two levels forced (2k points)
+#: ended 4.6e-3 of the diameter from the direct map with two blocks, 8.6e-7 with one (its
+#: Davidson refinement on inexact products is sensitive to them, see
+#: :data:`~parambench.methods.spectral.multilevel.TWO_LEVEL_REFINE`).
+ROW_SPLIT_MIN_ROWS = 200_000
+
+
+def _row_blocks(a: sp.csr_matrix, count: int) -> tuple[list[tuple[int, int]], np.ndarray, np.ndarray]:
+    """Row ranges of about equal nonzeros, the rows other blocks read, and each one's slot.
+
+    Returns
+    -------
+    blocks : list of (int, int)
+        ``count`` (or fewer, for tiny matrices) half-open row ranges covering the rows.
+    halo_rows : (H,) numpy.ndarray of int64
+        Rows read by a row of another block (sorted).
+    halo_slot : (n,) numpy.ndarray of int64
+        ``halo_slot[halo_rows[h]] == h``; 0 elsewhere.
+    """
+    n = a.shape[0]
+    cuts = np.searchsorted(a.indptr, np.arange(1, count) * a.nnz / count)
+    edges = np.unique(np.concatenate([[0], np.clip(cuts, 0, n), [n]]))
+    blocks = [(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
+    owner = np.repeat(np.arange(len(blocks)), np.diff(edges))
+    row_of_entry = np.repeat(owner, np.diff(a.indptr))
+    halo_rows = np.unique(a.indices[owner[a.indices] != row_of_entry]).astype(np.int64)
+    halo_slot = np.zeros(n, dtype=np.int64)
+    halo_slot[halo_rows] = np.arange(halo_rows.size)
+    return blocks, halo_rows, halo_slot
 
 
 class TwoGridSolver:
@@ -153,6 +207,8 @@ class TwoGridSolver:
         self._p = prolong if self._identity else sp.csr_matrix(prolong[self._order])
         self._coarse_solve = coarse_solve
         self._diag = self._a.diagonal()
+        self._blocks, self._halo_rows, self._halo_slot = _row_blocks(
+            self._a, ROW_BLOCKS if self._a.shape[0] >= ROW_SPLIT_MIN_ROWS else 1)
         self.rtol, self.max_cycles, self.sweeps, self.stall = float(rtol), int(max_cycles), int(sweeps), float(stall)
         self.workers = max(1, int(numba.config.NUMBA_NUM_THREADS if workers is None else workers))
         self.n_solves = 0
@@ -231,68 +287,64 @@ class TwoGridSolver:
             return self._direct.solve(b)
         norm_b = np.linalg.norm(b, axis=0)
         norm_b[norm_b == 0] = 1.0
-        # Each worker owns a contiguous block of columns for the whole solve: threads
-        # writing neighbouring columns of one (n, c) array share its cache lines, which
-        # made two threads slower than one (measured at 1M points, 21 columns: one
-        # Gauss-Seidel sweep 0.22-0.37 s on two threads sharing the array, 0.16 s on one
-        # thread, 0.13 s on two threads with their own arrays); the right-hand side is
-        # only read, so the workers share it in place. The workers also restrict
-        # their residual and add their share of the coarse correction, so no (n, c)
-        # array is gathered or formed per cycle.
-        cols = b.shape[1]
-        chunks = max(1, min(self.workers, cols))
-        bounds = [(c * cols // chunks, (c + 1) * cols // chunks) for c in range(chunks)]
-        xs = [np.zeros((b.shape[0], hi - lo)) if guess is None else np.array(guess[:, lo:hi], dtype=np.float64, order="C")
-              for lo, hi in bounds]
-        m = self._p.shape[1]
-        restricted = [np.empty((m, hi - lo)) for lo, hi in bounds]
-        squares = [np.empty(hi - lo) for lo, hi in bounds]
+        # The rows are shared out in ROW_BLOCKS contiguous blocks (from ROW_SPLIT_MIN_ROWS rows), every block sweeping all
+        # columns: each worker then reads only its part of the matrix, which bounds the
+        # sweeps (measured at 1M points, 21 columns, one sweep on 2 cores: 0.15-0.20 s
+        # against 0.21-0.29 s with the columns shared out and the whole matrix read by
+        # each worker). A block reads the rows of the others as they stood at the start
+        # of the sweep (a snapshot of those few rows), so the iterates depend on the
+        # fixed block count only, not on the number of workers or their timing.
+        x = np.zeros(b.shape) if guess is None else np.array(guess, dtype=np.float64, order="C")
+        blocks = self._blocks
+        m, cols = self._p.shape[1], b.shape[1]
+        halo = np.empty((self._halo_rows.size, cols))
+        restricted = [np.empty((m, cols)) for _ in blocks]
+        squares = [np.empty(cols) for _ in blocks]
+        col_bounds = [(c * cols // ROW_BLOCKS, (c + 1) * cols // ROW_BLOCKS) for c in range(min(ROW_BLOCKS, cols))]
         a, p = self._a, self._p
         previous = np.inf
-        with ThreadPoolExecutor(max_workers=chunks) as pool:
-            def each(task):
-                list(pool.map(task, range(chunks)))
+        with ThreadPoolExecutor(max_workers=min(self.workers, max(len(blocks), len(col_bounds)))) as pool:
+            def each(task, items=range(len(blocks))):
+                return list(pool.map(task, items))
 
-            def pre(t):
+            def sweeps(backward: bool) -> None:
+                for _ in range(self.sweeps):
+                    np.take(x, self._halo_rows, axis=0, out=halo)
+                    each(lambda k: _gauss_seidel_rows(a.indptr, a.indices, a.data, self._diag, b, x, blocks[k][0],
+                                                      blocks[k][1], self._halo_slot, halo, backward))
+
+            def residual(k: int) -> None:
                 # The residual after the pre-smoothing both feeds the coarse correction
                 # and decides convergence: one product with A per cycle instead of two.
-                self._sweep(b, bounds[t][0], xs[t], backward=False)
-                _restricted_residual(a.indptr, a.indices, a.data, b, bounds[t][0], xs[t], p.indptr, p.indices,
-                                     p.data, restricted[t], squares[t])
+                _restricted_residual(a.indptr, a.indices, a.data, b, x, blocks[k][0], blocks[k][1], p.indptr,
+                                     p.indices, p.data, restricted[k], squares[k])
 
             for cycle in range(self.max_cycles):
-                each(pre)
-                rel = float((np.sqrt(np.concatenate(squares)) / norm_b).max())
+                sweeps(backward=False)
+                each(residual)
+                rel = float((np.sqrt(sum(squares[1:], squares[0])) / norm_b).max())
                 if rel <= self.rtol:
                     if not overwrite:
-                        return np.hstack(xs)
-                    for (lo, hi), part in zip(bounds, xs):
-                        b[:, lo:hi] = part
+                        return x
+                    b[...] = x
                     return b
                 if cycle >= 3 and rel > self.stall * previous:
                     break
                 previous = rel
-
-                def post(t):
-                    # The coarse solves run in the workers too (SuperLU releases the GIL).
-                    coarse = np.ascontiguousarray(self._coarse_solve(restricted[t]))
-                    _add_csr_product(p.indptr, p.indices, p.data, coarse, xs[t])
-                    self._sweep(b, bounds[t][0], xs[t], backward=True)
-
-                each(post)
+                total = sum(restricted[1:], restricted[0])
+                # Coarse solves on column blocks, side by side (SuperLU releases the GIL).
+                coarse = np.hstack(each(lambda c: self._coarse_solve(np.ascontiguousarray(total[:, c[0]:c[1]])),
+                                        col_bounds))
+                each(lambda k: _add_csr_product(p.indptr, p.indices, p.data, coarse, x, blocks[k][0], blocks[k][1]))
+                sweeps(backward=True)
                 self.n_cycles += 1
         self._fall_back()
         return self._direct.solve(b)
 
-    def _sweep(self, b: np.ndarray, b0: int, x: np.ndarray, backward: bool) -> None:
-        """Gauss-Seidel sweeps on a worker's block x, whose right-hand sides are columns b0: of b."""
-        a = self._a
-        _gauss_seidel(a.indptr, a.indices, a.data, self._diag, b, b0, x, self.sweeps, backward)
-
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _restricted_residual(indptr, indices, data, b, b0, x, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
-    """``out = P^T (b - A x)`` for a column block x (right-hand sides: columns b0: of b), and each column's squared residual norm.
+def _restricted_residual(indptr, indices, data, b, x, r0, r1, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
+    """``out = P[r0:r1]^T (b - A x)[r0:r1]`` for a column block x, and each column's squared residual norm on those rows.
 
     Each row's residual (summed in CSR order, as scipy's product) is scattered through
     its row of P and never stored: no (n, c) residual array.
@@ -301,7 +353,7 @@ def _restricted_residual(indptr, indices, data, b, b0, x, p_ptr, p_idx, p_val, o
     ri = np.empty(width)
     out[:] = 0.0
     squares[:] = 0.0
-    for i in range(x.shape[0]):
+    for i in range(r0, r1):
         for c in range(width):
             ri[c] = 0.0
         for p in range(indptr[i], indptr[i + 1]):
@@ -310,7 +362,7 @@ def _restricted_residual(indptr, indices, data, b, b0, x, p_ptr, p_idx, p_val, o
             for c in range(width):
                 ri[c] += a * xj[c]
         for c in range(width):
-            ri[c] = b[i, b0 + c] - ri[c]
+            ri[c] = b[i, c] - ri[c]
             squares[c] += ri[c] * ri[c]
         for q in range(p_ptr[i], p_ptr[i + 1]):
             w = p_val[q]
@@ -320,10 +372,10 @@ def _restricted_residual(indptr, indices, data, b, b0, x, p_ptr, p_idx, p_val, o
 
 
 @numba.njit(cache=_CACHE, nogil=True)
-def _add_csr_product(indptr, indices, data, x, out):  # pragma: no cover - compiled
-    """``out += M x`` for a CSR matrix M and a column block x."""
+def _add_csr_product(indptr, indices, data, x, out, r0, r1):  # pragma: no cover - compiled
+    """``out[r0:r1] += M[r0:r1] x`` for a CSR matrix M and a column block x."""
     width = x.shape[1]
-    for i in range(out.shape[0]):
+    for i in range(r0, r1):
         oi = out[i]
         for p in range(indptr[i], indptr[i + 1]):
             a = data[p]

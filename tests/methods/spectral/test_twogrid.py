@@ -161,6 +161,28 @@ def test_the_same_solution_whatever_the_workers_and_the_row_order(cap_problem, w
         assert not solver.fell_back
 
 
+def test_row_blocks_solve_to_the_tolerance_with_the_same_digits_on_any_number_of_cores(cap_problem, monkeypatch):
+    """The sweeps shared out by rows (large problems) converge as the single sweep does, and
+    the iterates depend on the block count only: 1, 2 or 3 workers give the same bits."""
+    from parambench.methods.spectral import twogrid
+
+    _, _, _, l_ii, p_ii = cap_problem
+    monkeypatch.setattr(twogrid, "ROW_SPLIT_MIN_ROWS", 0)
+    b = np.random.default_rng(9).standard_normal((l_ii.shape[0], 6))
+    exact = sla.spsolve(sp.csc_matrix(l_ii), b)
+    single = TwoGridSolver(l_ii, p_ii, _coarse_solver(l_ii, p_ii), rtol=1e-10, order=np.arange(l_ii.shape[0]))
+    assert len(single._blocks) == 2 and single._halo_rows.size > 0
+    solutions = []
+    for workers in (1, 2, 3):
+        solver = TwoGridSolver(l_ii, p_ii, _coarse_solver(l_ii, p_ii), rtol=1e-10, workers=workers,
+                               order=np.arange(l_ii.shape[0]))
+        solutions.append(solver.solve(b))
+        assert np.linalg.norm(solutions[-1] - exact) <= 1e-8 * np.linalg.norm(exact)
+        assert not solver.fell_back and solver.n_cycles <= 25
+    for other in solutions[1:]:
+        np.testing.assert_array_equal(other, solutions[0])
+
+
 def test_an_order_that_is_not_a_permutation_is_refused(cap_problem):
     _, _, _, l_ii, p_ii = cap_problem
     with pytest.raises(ValueError, match="permutation"):
@@ -174,19 +196,22 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     _, _, _, l_ii, p_ii = cap_problem
     p_ii = sp.csr_matrix(p_ii)
     rng = np.random.default_rng(4)
-    # A worker's block x holds columns 3:8 of the right-hand sides b, read in place.
-    x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 8))
-    residual = b[:, 3:] - l_ii @ x
+    # A worker's rows 100:700 of the residual, restricted; its rows of the prolongation.
+    x, b = rng.standard_normal((l_ii.shape[0], 5)), rng.standard_normal((l_ii.shape[0], 5))
+    rows = slice(100, 700)
+    residual = b - l_ii @ x
     restricted, squares = np.empty((p_ii.shape[1], 5)), np.empty(5)
-    _restricted_residual(l_ii.indptr, l_ii.indices, l_ii.data, b, 3, x, p_ii.indptr, p_ii.indices, p_ii.data,
-                         restricted, squares)
-    expected = p_ii.T @ residual
+    _restricted_residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, 100, 700, p_ii.indptr, p_ii.indices,
+                         p_ii.data, restricted, squares)
+    expected = p_ii[rows].T @ residual[rows]
     np.testing.assert_allclose(restricted, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
-    np.testing.assert_allclose(np.sqrt(squares), np.linalg.norm(residual, axis=0), rtol=1e-12)
+    np.testing.assert_allclose(np.sqrt(squares), np.linalg.norm(residual[rows], axis=0), rtol=1e-12)
     e = rng.standard_normal((p_ii.shape[1], 5))
     total = x.copy()
-    _add_csr_product(p_ii.indptr, p_ii.indices, p_ii.data, e, total)
-    np.testing.assert_allclose(total, x + p_ii @ e, rtol=0, atol=1e-12 * np.abs(x + p_ii @ e).max())
+    _add_csr_product(p_ii.indptr, p_ii.indices, p_ii.data, e, total, 100, 700)
+    want = x.copy()
+    want[rows] += p_ii[rows] @ e
+    np.testing.assert_allclose(total, want, rtol=0, atol=1e-12 * np.abs(want).max())
     order = rng.permutation(l_ii.shape[0])
     permuted = symmetric_permutation(l_ii, order)
     expected = sp.csr_matrix(l_ii[order][:, order])
@@ -197,23 +222,34 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     np.testing.assert_array_equal(permuted.data, expected.data)
 
 
-def test_gauss_seidel_reads_the_workers_columns_of_the_right_hand_side():
-    """One sweep on a worker's block, its right-hand sides columns b0: of a wider b, equals
-    the textbook forward Gauss-Seidel step on those columns."""
-    from parambench.methods.spectral.twogrid import _gauss_seidel
+@pytest.mark.parametrize("backward", [False, True])
+def test_a_block_s_sweep_uses_its_newest_rows_and_the_others_as_they_stood(backward):
+    """One sweep over rows r0:r1 equals the textbook Gauss-Seidel step on those rows, with
+    newest values inside the block and the snapshot (halo) values of the rows outside."""
+    from parambench.methods.spectral.twogrid import _gauss_seidel_rows, _row_blocks
 
     rng = np.random.default_rng(5)
     n = 40
     a = sp.random(n, n, density=0.15, random_state=6, format="csr")
     a = (a + a.T + sp.diags(np.full(n, 4.0 + n * 0.3))).tocsr()
     a.sort_indices()
-    b = rng.standard_normal((n, 6))
+    blocks, halo_rows, halo_slot = _row_blocks(a, 2)
+    assert blocks[0][0] == 0 and blocks[-1][1] == n and len(blocks) == 2
+    r0, r1 = blocks[1]
+    b = rng.standard_normal((n, 4))
     x = rng.standard_normal((n, 4))
+    halo = x[halo_rows].copy()
+    x[:r0] += 100.0  # the other block changed meanwhile: the sweep must not see it
     expected = x.copy()
     dense = a.toarray()
-    for i in range(n):  # forward sweep, newest values used
-        expected[i] = (b[i, 2:] - dense[i] @ expected + dense[i, i] * expected[i]) / dense[i, i]
-    _gauss_seidel(a.indptr, a.indices, a.data, a.diagonal(), b, 2, x, 1, False)
+    stood = np.zeros_like(x)
+    stood[halo_rows] = halo
+    for i in (range(r1 - 1, r0 - 1, -1) if backward else range(r0, r1)):
+        inside = dense[i, r0:r1] @ expected[r0:r1] - dense[i, i] * expected[i]
+        outside = dense[i, :r0] @ stood[:r0] + dense[i, r1:] @ stood[r1:]
+        expected[i] = (b[i] - inside - outside) / dense[i, i]
+    assert np.any(dense[r0:r1, :r0] != 0)  # the test needs couplings across the blocks
+    _gauss_seidel_rows(a.indptr, a.indices, a.data, a.diagonal(), b, x, r0, r1, halo_slot, halo, backward)
     np.testing.assert_allclose(x, expected, rtol=1e-12, atol=1e-12)
 
 
