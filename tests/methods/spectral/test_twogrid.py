@@ -331,3 +331,22 @@ def test_tightened_solves_make_a_subspace_s_products_exact(cap_problem):
     tight_s, tight_ext = errors()
     assert tight_s <= 1e-8 and tight_ext <= 1e-8
     assert sub.n_solves == solves + sub.size and red.interior_factor.n_cycles > cycles
+
+
+@pytest.mark.parametrize("count", [1, 2, 3])
+def test_row_blocks_find_every_row_another_block_reads(count):
+    """The halo from each row's first and last index equals the one from every entry's owner
+    (empty rows and matrices included)."""
+    from parambench.methods.spectral.twogrid import _row_blocks
+
+    for seed in range(60):
+        n = 1 + seed % 45
+        a = sp.random(n, n, density=0.02 + 0.3 * (seed % 7) / 7, random_state=seed, format="csr")
+        a.sort_indices()
+        blocks, halo_rows, halo_slot = _row_blocks(a, count)
+        edges = [lo for lo, _ in blocks] + [n]
+        assert edges[0] == 0 and np.all(np.diff(edges) > 0)
+        owner = np.repeat(np.arange(len(blocks)), np.diff(edges))
+        rows = np.repeat(np.arange(n), np.diff(a.indptr))
+        np.testing.assert_array_equal(halo_rows, np.unique(a.indices[owner[a.indices] != owner[rows]]))
+        np.testing.assert_array_equal(halo_slot[halo_rows], np.arange(halo_rows.size))
