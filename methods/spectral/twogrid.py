@@ -300,9 +300,9 @@ class TwoGridSolver:
             return self._direct.solve(b)
         norm_b = np.linalg.norm(b, axis=0)
         norm_b[norm_b == 0] = 1.0
-        # The rows are shared out in ROW_BLOCKS contiguous blocks (from ROW_SPLIT_MIN_ROWS rows), every block sweeping all
-        # columns: each worker then reads only its part of the matrix, which bounds the
-        # sweeps (measured at 1M points, 21 columns, one sweep on 2 cores: 0.15-0.20 s
+        # From ROW_SPLIT_MIN_ROWS rows on, the rows are shared out in ROW_BLOCKS contiguous
+        # blocks, every block sweeping all columns: each worker then reads only its part
+        # of the matrix, which bounds the sweeps (measured at 1M points, 21 columns, one sweep on 2 cores: 0.15-0.20 s
         # against 0.21-0.29 s with the columns shared out and the whole matrix read by
         # each worker). A block reads the rows of the others as they stood at the start
         # of the sweep (a snapshot of those few rows), so the iterates depend on the
@@ -357,7 +357,7 @@ class TwoGridSolver:
 
 @numba.njit(cache=_CACHE, nogil=True)
 def _restricted_residual(indptr, indices, data, b, x, r0, r1, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
-    """``out = P[r0:r1]^T (b - A x)[r0:r1]`` for a column block x, and each column's squared residual norm on those rows.
+    """``out = P[r0:r1]^T (b - A x)[r0:r1]`` for a column block x, and each column's squared residual on those rows.
 
     Each row's residual (summed in CSR order, as scipy's product) is scattered through
     its row of P and never stored: no (n, c) residual array.
