@@ -16,7 +16,7 @@ from typing import Any, Iterator, Mapping
 
 from parambench.datasets_gen.errors import ParambenchError
 
-__all__ = ["Hint", "hinted", "fit_hints", "method_hints"]
+__all__ = ["Hint", "hinted", "fit_hints", "error_note", "method_hints"]
 
 _ANY = object()
 
@@ -104,6 +104,31 @@ def fit_hints(exc: BaseException, defaults: Mapping[str, Any], params: Mapping[s
     kept = tuple(h for h in hints if h.applies(defaults, params)) or (Hint(FALLBACK),)
     exc.args = (_render(stem, kept),)
     exc.parambench_hints = (stem, kept)
+
+
+def error_note(exc: BaseException, defaults: Mapping[str, Any] | None = None,
+               params: Mapping[str, Any] | None = None) -> str:
+    """``"ErrorClass: message"`` of an error a method recovered from, for its diagnostics.
+
+    The message's hints are fitted to the method first (:func:`fit_hints`, in place), so
+    a diagnostic never suggests a parameter the method does not have; without
+    ``defaults`` (shared numerics, which do not know the method) they are left out.
+
+    Parameters
+    ----------
+    exc : BaseException
+    defaults, params : mapping, optional
+        As for :func:`fit_hints`.
+
+    Returns
+    -------
+    str
+    """
+    if defaults is None:
+        stem, hints = getattr(exc, "parambench_hints", (None, ()))
+        return f"{type(exc).__name__}: {exc if stem is None else _render(stem, ())}"
+    fit_hints(exc, defaults, params or {})
+    return f"{type(exc).__name__}: {exc}"
 
 
 @contextmanager

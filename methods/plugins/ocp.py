@@ -28,7 +28,7 @@ from parambench.datasets_gen.errors import (ConvergenceError, InvalidInputError,
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer, retry_memo
-from ..hints import Hint, hinted
+from ..hints import Hint, error_note, hinted
 from ..geometry2d import signed_area_2d
 from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..pointset.hole_filling import fill_point_holes, is_slot
@@ -164,8 +164,10 @@ class Ocp(Method):
     in uv (the self-check's triangulation) and returns cotangent SCP on that mesh, on
     clean points solved again on the refined map's own triangulation until it stops
     changing (:mod:`parambench.methods.pointset.mesh_refine`); ``"auto"`` (default) does so only
-    where no energy gave a map (below :data:`MULTILEVEL_FROM` points, from an SDP map,
-    :func:`_mesh_fallback`; ``energy_used`` is then ``"mesh"``) and as the last retry of a
+    where the Neumann energy gave no map (from the paper energy's map, or where that
+    failed too from an SDP map, :func:`_mesh_fallback`, ``energy_used`` then ``"mesh"``;
+    from :data:`MULTILEVEL_FROM` points on W^tan for these is rebuilt,
+    :class:`TangentWeights`) and as the last retry of a
     map that fails its self-check; ``"none"`` never. ``refined`` in the diagnostics says
     from which map (``first_map``, and its k as ``first_k_opt``), with how many
     triangles and solves (``n_passes``); ``k_opt`` is then the mesh's (1 for cotangent
@@ -260,13 +262,17 @@ class Ocp(Method):
             front = ready.pop(id(work), None) or run_frontend(work, params, timer)
             with timer("laplacian"):
                 lap = ocp_laplacian(front, params["energy"], params["area_factor"])
-            # W^tan for the paper-energy fallback; not held at sizes where its memory counts.
             small = front.points.shape[0] < MULTILEVEL_FROM
-            w_tan = front.W if params["energy"] == ENERGY_FALLBACK_FROM and small else None
+            w_tan = None
+            if params["energy"] == ENERGY_FALLBACK_FROM:
+                w_tan = TangentWeights(front.W) if small else TangentWeights(rebuild=lambda: run_frontend(
+                    work, params, timer).W)
             front = front.without_balls()
             fronts.append(front)
             if w_tan is not None and not first_pair:
-                first_pair.append((front, w_tan, lap))
+                # The Laplacian, for the exact searches run last, only where its memory
+                # does not count: from MULTILEVEL_FROM points on they are not run.
+                first_pair.append((front, w_tan, lap if small else None))
             # Handed over in a list: the two-level path reorders it and drops this copy.
             box = [lap]
             del lap
@@ -277,7 +283,7 @@ class Ocp(Method):
             except (ConvergenceError, SolverError) as exc:
                 if w_tan is None:
                     raise
-                return (front, *_paper_energy_fallback(front, w_tan, solver, params, timer, exc))
+                return (front, *_paper_energy_fallback(front, w_tan.matrix(), solver, params, timer, exc))
 
         thin = []  # holes filled before the first attempt
         first_pair = []  # (front, W^tan, Laplacian) of the first attempt, for the fallbacks after it
@@ -369,6 +375,41 @@ def _memoised(key: tuple | None, compute):
 ENERGY_FALLBACK_FROM = "neumann"
 
 
+class TangentWeights:
+    """The W^tan of a front end, for the fallbacks after a failed Neumann-energy search.
+
+    Below :data:`MULTILEVEL_FROM` points the front end's matrix is held (``matrix``).
+    From there on it is not held through the Neumann solve (about 0.3 GB at a million
+    points, on top of that solve's peak); ``rebuild`` runs the front end again when a
+    fallback needs it, and only then. ``real/meg-helmet`` loop-subdivided (pymeshlab) to
+    32k, 128k and 511k points, given as bare points: the Neumann energy finds no regular
+    map at any of these sizes (its Hermitian part has negative modes on the most curved
+    stretches of the rim), the paper energy's map refined on its uv mesh is within
+    0.0013 / 0.0006 / 0.0003 % of the QC of ``scp-igl`` on the subdivided mesh, 0
+    foldovers. At 511k that took 120-130 s (``scp-igl``: 137 s) and 5.9 GB peak (the
+    cotangent solves of the refinement); before, with no fallback at that size, ``ocp``
+    raised ConvergenceError, after 274 s with ``solver="direct"``.
+
+    Parameters
+    ----------
+    matrix : (N, N) scipy.sparse.csr_matrix of float64, optional
+        W^tan, held.
+    rebuild : callable, optional
+        Returns W^tan; called at most once, by the first :meth:`matrix` call.
+    """
+
+    def __init__(self, matrix=None, rebuild=None):
+        if (matrix is None) == (rebuild is None):
+            raise ValueError("give exactly one of matrix and rebuild")
+        self._matrix, self._rebuild = matrix, rebuild
+
+    def matrix(self):
+        """W^tan, built on first use when it was not held."""
+        if self._matrix is None:
+            self._matrix, self._rebuild = self._rebuild(), None
+        return self._matrix
+
+
 def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: StageTimer, exc: Exception):
     """(solution, counts, diagnostics) with the paper's energy after the Neumann energy's search failed.
 
@@ -386,8 +427,8 @@ def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: Stage
     ``real/meg-helmet`` scattered at 20k its loop crossed itself in uv and its triangulation
     held 25 of 20,000 points, where the mesh an sdp map triangulates, the next fallback,
     gives QC 1.0001-1.0002x that of scp-igl with 0 foldovers (whatever ``refine``: under
-    ``"none"`` the exact searches come next). Below :data:`MULTILEVEL_FROM` points
-    only (``w_tan``, the front end's W^tan, is not kept through larger solves).
+    ``"none"`` the exact searches come next). From :data:`MULTILEVEL_FROM` points on,
+    ``w_tan`` comes from a second run of the front end (:class:`TangentWeights`).
     """
     try:
         with timer("laplacian"):
@@ -400,7 +441,7 @@ def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: Stage
             first_map_faces(front.points, sol.uv[:front.points.shape[0]], front.boundary_loops)
     except (SolverError, InvalidInputError):  # folded or collapsed: no map of the surface
         raise exc from None
-    return sol, counts, {**extra, "energy_used": "paper", "energy_error": f"{type(exc).__name__}: {exc}"}
+    return sol, counts, {**extra, "energy_used": "paper", "energy_error": error_note(exc, Ocp.defaults, params)}
 
 
 def _refined(sol, extra: dict, front, n_points: int, params: dict, timer: StageTimer):
@@ -412,7 +453,7 @@ def _refined(sol, extra: dict, front, n_points: int, params: dict, timer: StageT
         mesh_sol, info = refine_on_uv_mesh(front.points, sol.uv[:n_points], front.boundary_loops, timer,
                                            _passes(front))
     except ParambenchError as exc:
-        return sol, {**extra, "refined": {**refined, "error": f"{type(exc).__name__}: {exc}"}}
+        return sol, {**extra, "refined": {**refined, "error": error_note(exc, Ocp.defaults, params)}}
     return mesh_sol, {**extra, "refined": {**refined, **info}}
 
 
@@ -438,7 +479,7 @@ def _refines(refine: str, extra: dict) -> bool:
     return refine == "mesh" or (extra.get("energy_used") == "paper" and bool(extra.get("energy_error")))
 
 
-def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception):
+def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict):
     """(solution, counts, diagnostics) of cotangent SCP on the mesh an SDP map of ``front`` triangulates.
 
     After both energies' k searches failed (``refine="auto"`` or ``"mesh"``): on points
@@ -458,18 +499,22 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception):
         sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer, _passes(front))
     except ParambenchError:
         raise exc from None
-    return sol, {}, {"energy_used": "mesh", "energy_error": f"{type(exc).__name__}: {exc}",
+    return sol, {}, {"energy_used": "mesh", "energy_error": error_note(exc, Ocp.defaults, params),
                      "refined": {"first_map": "sdp", **info}}
 
 
-def _after_failed_searches(front, w_tan, lap, solver: str, params: dict, timer: StageTimer, exc: Exception):
+def _after_failed_searches(front, w_tan: "TangentWeights", lap, solver: str, params: dict, timer: StageTimer,
+                           exc: Exception):
     """(solution, counts, diagnostics) once both energies' searches failed: the mesh an sdp
-    map triangulates (not under ``refine="none"``), else the exact searches, last."""
+    map triangulates (not under ``refine="none"``), else the exact searches, last (``lap``
+    None: they ran in the first search, and ``exc`` is raised)."""
     if params["refine"] != "none":
         try:
-            return _mesh_fallback(front, w_tan, timer, exc)
+            return _mesh_fallback(front, w_tan.matrix(), timer, exc, params)
         except (ConvergenceError, SolverError):
             pass
+    if lap is None:
+        raise exc
     return _exact_last_resort(front, lap, solver, params, timer)
 
 
@@ -503,7 +548,13 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer,
 
     ``exact_fallbacks=False`` leaves out the exact searches on the dense boundary
     reduction after a failed subspace search (the exact line search, then the direct
-    k): the caller tries a cheaper fallback first and these last. On points scattered
+    k), and the direct solve after a failed two-level one: the caller tries a cheaper
+    fallback first (the exact searches come last below :data:`MULTILEVEL_FROM` points;
+    from there on not at all). On ``real/meg-helmet`` loop-subdivided to 511k points the
+    Neumann energy's direct solve took 260 s to fail after its two-level one (274 s
+    with its exact searches), where the paper energy's two-level search and the
+    refinement on its uv mesh gave the map in 120 s all told (383 s with that direct
+    solve tried first). On points scattered
     over the real meshes (lilium, bump-domain, meg-helmet, spot-top at 5k and 20k) the
     Neumann energy's exact searches found a map once in 8 runs (meg-helmet 20k, which
     then failed its self-check) and took most of ``ocp``'s 9-50 s there; the paper
@@ -527,7 +578,9 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer,
             if params["solver"] != "auto":
                 stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
                 raise hinted(type(exc), stem, *hints, Hint("use solver='direct'", "solver", "direct")) from exc
-            fallback = {"solver": "direct", "multilevel_error": f"{type(exc).__name__}: {exc}"}
+            if not exact_fallbacks:  # the caller's cheaper fallback comes first
+                raise
+            fallback = {"solver": "direct", "multilevel_error": error_note(exc, Ocp.defaults, params)}
     else:
         fallback = {}
     with timer("solve"):

@@ -8,7 +8,7 @@ from parambench.datasets_gen.errors import ConvergenceError, SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..hints import Hint, hinted
+from ..hints import Hint, error_note, hinted
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
@@ -57,7 +57,7 @@ class Sdp(Method):
                 if params["solver"] != "auto":
                     stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
                     raise hinted(type(exc), stem, *hints, Hint("use solver='direct'", "solver", "direct")) from exc
-                extra = {"multilevel_error": f"{type(exc).__name__}: {exc}"}
+                extra = {"multilevel_error": error_note(exc, self.defaults, params)}
                 solver = "direct"
         with timer("solve"):
             if pair is None:

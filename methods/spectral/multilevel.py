@@ -86,6 +86,7 @@ from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError
 
+from ..hints import error_note
 from ..numba_cache import configure_numba_cache
 from ..pointset.reorder import spatial_order
 from .ordering import submatrix, symmetric_permutation
@@ -485,7 +486,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
             "coarse_regular": bool(coarse_info["regular"]),
             "coarse_triangular_solves": int(coarse_problem.counts["triangular_solves"]),
             "fine_solver": settings.fine_solver, "fine_enlarged": bool(enlarged),
-            "coarse_error": None if coarse_error is None else f"{type(coarse_error).__name__}: {coarse_error}",
+            "coarse_error": None if coarse_error is None else error_note(coarse_error),
             "fine_counts": counts}
     if solvers:
         info.update(twogrid_cycles=int(sum(s.n_cycles for s in solvers)),

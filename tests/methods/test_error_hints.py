@@ -118,3 +118,42 @@ def test_errors_without_hints_pass_unchanged():
     with pytest.raises(ParambenchError, match=r"^plain; try normalized=True\.$"):
         with method_hints({"k_nn": 8}, {"k_nn": 8}):
             raise SolverError("plain; try normalized=True.")
+
+
+def test_errors_a_method_recovered_from_are_noted_with_its_own_hints(monkeypatch):
+    """A failed search that a fallback recovered from is kept in the diagnostics
+    (``energy_error``); its remedies, too, name only parameters of the method."""
+    import parambench.methods.plugins.ocp as ocp_module
+
+    real_front, calls = ocp_module._solve_front, []
+
+    def neumann_fails(front, box, solver, params, timer, exact_fallbacks=True):
+        calls.append(1)
+        if len(calls) == 1:
+            raise hinted(ConvergenceError, "no t = 1 crossing found (stand-in)",
+                         Hint("try normalized=False", "normalized", False),
+                         Hint("use k_search='direct'", "k_search", "direct"))
+        return real_front(front, box, solver, params, timer, exact_fallbacks)
+
+    monkeypatch.setattr(ocp_module, "_solve_front", neumann_fails)
+    result = get_method("ocp")(make_surface("plane", 600, seed=0).method_input(False))
+    note = result.diagnostics["energy_error"]
+    assert note.startswith("ConvergenceError: no t = 1 crossing found (stand-in)")
+    assert "normalized" not in note and "k_search='direct'" in note
+
+
+def test_error_note_fits_the_hints_to_the_method():
+    from parambench.methods.hints import error_note
+
+    exc = hinted(SolverError, "no map", Hint("use normalized=False", "normalized", False),
+                 Hint("use k_nn=12", "k_nn", 12))
+    assert error_note(exc, {"k_nn": 8}, {"k_nn": 8}) == "SolverError: no map; use k_nn=12."
+    assert error_note(exc, {"k_nn": 8}, {"k_nn": 12}) == f"SolverError: no map; {FALLBACK}."
+
+
+def test_error_note_without_a_method_leaves_the_remedies_out():
+    from parambench.methods.hints import error_note
+
+    exc = hinted(ConvergenceError, "no regular coarse map", Hint("use normalized=False", "normalized", False))
+    assert error_note(exc) == "ConvergenceError: no regular coarse map."
+    assert error_note(SolverError("plain")) == "SolverError: plain"

@@ -304,11 +304,25 @@ def test_auto_falls_back_to_the_direct_solve_where_two_levels_fail(monkeypatch):
     monkeypatch.setattr(ocp_plugin, "_multilevel_solve", fails)
     ocp = get_method("ocp")
     with pytest.raises(ConvergenceError, match="use solver='direct'"):
-        ocp(surf.points_only(), solver="multilevel")
-    auto = ocp(surf.points_only())
+        ocp(surf.points_only(), solver="multilevel", refine="none")
+    # With the refinement allowed, both energies' two-level searches failing leave the
+    # mesh an sdp map triangulates (as on the direct path).
+    meshed = ocp(surf.points_only(), solver="multilevel")
+    assert meshed.diagnostics["energy_used"] == "mesh" and meshed.diagnostics["selfcheck"]["passed"]
+    # An energy without a fallback of its own is solved directly, as solver='direct' does.
+    auto = ocp(surf.points_only(), energy="paper")
     assert auto.diagnostics["solver"] == "direct" and auto.diagnostics["solver_option"] == "auto"
     assert auto.diagnostics["multilevel_error"].startswith("ConvergenceError")
-    assert np.array_equal(auto.uv, ocp(surf.points_only(), solver="direct").uv)
+    assert np.array_equal(auto.uv, ocp(surf.points_only(), solver="direct", energy="paper").uv)
+    # The default energy goes to its paper-energy fallback first (cheaper than a direct
+    # solve at the sizes two levels are for); that one's two levels failing too, it is
+    # solved directly and refined on its uv mesh.
+    default = ocp(surf.points_only())
+    diag = default.diagnostics
+    assert diag["solver"] == "direct" and diag["energy_used"] == "paper"
+    assert diag["multilevel_error"].startswith("ConvergenceError") and diag["selfcheck"]["passed"]
+    quality = evaluate(surf.points, surf.faces, default.uv)
+    assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01
 
 
 def test_interpolation_stays_on_its_own_sheet():

@@ -45,7 +45,7 @@ def test_the_exact_searches_run_last_after_the_cheap_fallbacks_failed(plane, mon
         order.append("paper")
         raise exc
 
-    def mesh(front, w_tan, timer, exc):
+    def mesh(front, w_tan, timer, exc, params):
         order.append("mesh")
         raise exc
 
@@ -148,3 +148,91 @@ def test_a_paper_energy_map_whose_boundary_folds_goes_on_to_the_mesh_fallback(pl
     assert diag["refined"]["n_unplaced"] <= 0.01 * plane.n_points
     quality = evaluate(plane.points, plane.faces, result.uv)
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01 and diag["selfcheck"]["passed"]
+
+
+def _neumann_search_fails(monkeypatch, attempts: list):
+    """The first k search (the Neumann energy's) fails; the later ones run as they would."""
+    real_front = ocp_module._solve_front
+
+    def first_fails(front, box, solver, params, timer, exact_fallbacks=True):
+        attempts.append(exact_fallbacks)
+        if len(attempts) == 1:
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_front(front, box, solver, params, timer, exact_fallbacks)
+
+    monkeypatch.setattr(ocp_module, "_solve_front", first_fails)
+
+
+def _counting_front_ends(monkeypatch) -> list:
+    runs, real_run = [], ocp_module.run_frontend
+
+    def counting(*args, **kwargs):
+        runs.append(1)
+        return real_run(*args, **kwargs)
+
+    monkeypatch.setattr(ocp_module, "run_frontend", counting)
+    return runs
+
+
+def test_large_point_sets_rebuild_w_tan_for_the_paper_energy_fallback(plane, monkeypatch):
+    """From MULTILEVEL_FROM points on W^tan is not held through the Neumann solve; a
+    failed search runs the front end again for it, and the fallback maps as it does
+    where W^tan was held (same matrix, same map)."""
+    attempts = []
+    _neumann_search_fails(monkeypatch, attempts)
+    runs = _counting_front_ends(monkeypatch)
+    held = get_method("ocp")(plane.method_input(False), solver="direct")
+    assert len(runs) == 1 and attempts == [False, True]  # exact searches left for last
+    monkeypatch.setattr(ocp_module, "MULTILEVEL_FROM", plane.n_points)  # the plane counts as large
+    runs.clear(), attempts.clear()
+    rebuilt = get_method("ocp")(plane.method_input(False), solver="direct")
+    # Cheap fallback first as before; the front end ran a second time, for W^tan.
+    assert len(runs) == 2 and attempts == [False, True]
+    for result in (held, rebuilt):
+        assert result.diagnostics["energy_used"] == "paper" and result.diagnostics["selfcheck"]["passed"]
+    assert np.array_equal(held.uv, rebuilt.uv)
+    quality = evaluate(plane.points, plane.faces, rebuilt.uv)
+    assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01
+
+
+def test_large_point_sets_run_the_front_end_once_when_the_neumann_search_maps(plane, monkeypatch):
+    runs = _counting_front_ends(monkeypatch)
+    monkeypatch.setattr(ocp_module, "MULTILEVEL_FROM", plane.n_points)
+    result = get_method("ocp")(plane.method_input(False), solver="direct")
+    assert len(runs) == 1 and result.diagnostics["energy_used"] == "neumann"
+
+
+def test_tangent_weights_are_built_once_and_only_when_asked():
+    built = []
+    lazy = ocp_module.TangentWeights(rebuild=lambda: built.append(1) or "W")
+    assert built == []
+    assert lazy.matrix() == "W" and lazy.matrix() == "W" and built == [1]
+    with pytest.raises(ValueError):
+        ocp_module.TangentWeights()
+
+
+def test_a_failed_two_level_neumann_search_goes_to_the_paper_energy_before_any_direct_solve(plane, monkeypatch):
+    """With the paper-energy fallback at hand, the two-level path's safety net (the
+    direct solve of the same energy, 274 s to fail on a 511k-point helmet) is not run."""
+    order = []
+    real_multilevel, real_problem = ocp_module._multilevel_solve, ocp_module.conformal_problem
+
+    def multilevel(*args, **kwargs):
+        order.append("multilevel")
+        if len(order) == 1:
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_multilevel(*args, **kwargs)
+
+    def direct(*args, **kwargs):
+        order.append("direct")
+        return real_problem(*args, **kwargs)
+
+    monkeypatch.setattr(ocp_module, "_multilevel_solve", multilevel)
+    monkeypatch.setattr(ocp_module, "conformal_problem", direct)
+    monkeypatch.setattr(ocp_module, "MULTILEVEL_FROM", plane.n_points)
+    result = get_method("ocp")(plane.method_input(False))
+    assert order[:2] == ["multilevel", "multilevel"]  # Neumann's, then the paper energy's
+    diag = result.diagnostics
+    assert diag["energy_used"] == "paper" and diag["selfcheck"]["passed"]
+    quality = evaluate(plane.points, plane.faces, result.uv)
+    assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01
