@@ -26,6 +26,7 @@ itself (the contract before ``solve``) still works: ``__call__`` only calls ``ru
 
 from __future__ import annotations
 
+import gc
 import time
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -35,7 +36,7 @@ from typing import Any, Callable, ClassVar, Iterator
 import numpy as np
 
 from parambench.datasets_gen.errors import (InvalidInputError, MissingFacesError, ParambenchError, SolverError,
-                                           UnknownNameError)
+                                            UnknownNameError, released)
 from parambench.datasets_gen.surface import MethodInput, Surface
 
 from .hints import fit_hints, method_hints
@@ -371,13 +372,17 @@ class Method:
                 raise
             raise doubt from exc
         check = selfcheck_result(surface, result)
-        retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
+        retries = [] if check["passed"] else _as_list(self.retry_params(params, check, result.diagnostics))
         notes: list[dict] = []
         for retry in retries:
             changed = {key: value for key, value in retry.items() if params.get(key) != value}
+            # Whatever the last run left in reference cycles (errors caught and passed on
+            # inside the solvers keep their frames' arrays) goes before the next one starts.
+            gc.collect()
             try:
                 second = self.run(surface, **retry)
             except ParambenchError as exc:  # a retry is another chance, never a new way to fail
+                released(exc)  # the failed run's arrays go before the next retry
                 fit_hints(exc, self.defaults, retry)  # what it suggests must exist for this method
                 notes.append({"params": changed, "passed": False, "first_reason": check["reason"],
                               "error": f"{type(exc).__name__}: {exc}"})
@@ -394,10 +399,12 @@ class Method:
             check["retry"] = _retry_note(notes)
         return result
 
-    def retry_params(self, params: dict[str, Any], check: dict) -> dict[str, Any] | list | None:
+    def retry_params(self, params: dict[str, Any], check: dict,
+                     diagnostics: dict | None = None) -> dict[str, Any] | list | None:
         """Parameters for another run when the first map failed its self-check, or None (no retry).
 
-        Point-set methods only. A list gives several, tried in order until a map passes.
+        Point-set methods only. ``check`` is the failed self-check, ``diagnostics`` the
+        first map's (what its run already tried). A list gives several, tried in order until a map passes.
         A later map replaces the first only if it passes; either way
         ``diagnostics["selfcheck"]["retry"]`` says what was tried last (``params``: the
         changed ones), whether it passed and why the first failed, and ``earlier`` lists

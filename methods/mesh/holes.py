@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from parambench.datasets_gen.errors import ConvergenceError, SolverError
+from parambench.datasets_gen.errors import ConvergenceError, SolverError, released
 from parambench.datasets_gen.surface import MethodInput
 
 from ..spectral.turning import is_regular_turning
@@ -114,7 +114,7 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
     except (SolverError, ConvergenceError) as err:
         if holes == "free":
             raise
-        first_error = err
+        first_error = released(err)  # held through the filled attempt: not its frames
     else:
         sol = result[1]
         if holes == "free" or (sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)):

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from parambench.datasets_gen.errors import (ConvergenceError, InvalidInputError, ParambenchError, SolverError,
-                                            UnknownNameError)
+                                            UnknownNameError, released)
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer, retry_memo
@@ -34,12 +34,13 @@ from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..pointset.hole_filling import fill_point_holes, is_slot
 from ..pointset.laplacian import graph_laplacian
 from ..pointset.mesh_refine import first_map_faces, mesh_passes, refine_on_uv_mesh
+from ..pointset.two_level import coarse_subsample, two_level_sdp_pair
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
                                       scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
-from ..spectral.dirichlet import direct_sdp_pair
+from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
 from ..spectral.problem import solve_line_then_direct
 from ..spectral.multilevel import FINE_SOLVERS
 
@@ -167,7 +168,8 @@ class Ocp(Method):
     where the Neumann energy gave no map (from the paper energy's map, or where that
     failed too from an SDP map, :func:`_mesh_fallback`, ``energy_used`` then ``"mesh"``;
     from :data:`MULTILEVEL_FROM` points on W^tan for these is rebuilt,
-    :class:`TangentWeights`) and as the last retry of a
+    :class:`TangentWeights`, and on the two-level path they keep to two levels) and as
+    the last retry of a
     map that fails its self-check; ``"none"`` never. ``refined`` in the diagnostics says
     from which map (``first_map``, and its k as ``first_k_opt``), with how many
     triangles and solves (``n_passes``); ``k_opt`` is then the mesh's (1 for cotangent
@@ -203,11 +205,17 @@ class Ocp(Method):
             raise InvalidInputError(f"solver='multilevel' searches k along a line; use k_search='line', "
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
 
-    def retry_params(self, params: dict, check: dict) -> dict | None:
+    def retry_params(self, params: dict, check: dict, diagnostics: dict | None = None) -> dict | None:
         """``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours;
         then the paper's energy after a Neumann-energy map that folds at its boundary or spins;
         then, with ``refine="auto"``, the map refined on its own uv mesh (``refine="mesh"``),
         and last after flipped triangles refined with ``k_nn = retry_k_nn``.
+
+        Retries that would run what the first run's fallbacks already ran are left out
+        (:func:`_repeats_the_fallbacks`): their maps are the first one again, and from
+        :data:`MULTILEVEL_FROM` points on, where no solve is kept between runs, each cost
+        a whole run (points scattered over ``real/lilium`` at 300k: 2 of the 4 retries,
+        about 2 minutes each).
 
         The second: on a ragged boundary (random points over a real mesh, see
         :func:`_paper_energy_fallback`) the Neumann energy's map crossed its own boundary
@@ -233,6 +241,7 @@ class Ocp(Method):
                 # Both at once: on "protrusions" (jittered, 2k) each alone left flipped
                 # triangles at the fingertips, together 0 (QC 1.02x scp-igl's).
                 retries.append({**params, "refine": "mesh", "k_nn": int(params["retry_k_nn"])})
+        retries = [retry for retry in retries if not _repeats_the_fallbacks(params, retry, diagnostics or {})]
         return retries or None
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
@@ -283,7 +292,8 @@ class Ocp(Method):
             except (ConvergenceError, SolverError) as exc:
                 if w_tan is None:
                     raise
-                return (front, *_paper_energy_fallback(front, w_tan.matrix(), solver, params, timer, exc))
+                return (front, *_paper_energy_fallback(front, w_tan.matrix(), solver, params, timer, released(exc),
+                                                       exact_fallbacks=small))
 
         thin = []  # holes filled before the first attempt
         first_pair = []  # (front, W^tan, Laplacian) of the first attempt, for the fallbacks after it
@@ -305,7 +315,7 @@ class Ocp(Method):
             if not first_pair:
                 raise
             front, w_tan, lap = first_pair[0]
-            sol, counts, extra = _after_failed_searches(front, w_tan, lap, solver, params, timer, exc)
+            sol, counts, extra = _after_failed_searches(front, w_tan, lap, solver, params, timer, released(exc))
             work, n_filled = front, 0
         del first_pair
         # fronts[0]: loops, spacing and neighbours of the points the user gave
@@ -337,6 +347,22 @@ class Ocp(Method):
         fronts.append(front.without_balls())
         with timer("fill_holes"):
             return fill_point_holes(surface, front.normals, [loops[0], *thin], front.local_spacing)
+
+
+def _repeats_the_fallbacks(params: dict, retry: dict, diagnostics: dict) -> bool:
+    """Whether ``retry`` would only run again what the first run's fallbacks ran.
+
+    That is so when the first map came from the fallbacks (``energy_used`` "paper" or
+    "mesh": the Neumann search had failed) and was refined on its uv mesh, and the retry
+    changes nothing but ``refine`` to ``"mesh"`` and, or, ``energy`` to ``"paper"``: the
+    Neumann search fails again and the same fallbacks give the same refined map, or the
+    paper energy's search, already tried, is run alone.
+    """
+    refined = diagnostics.get("refined") or {}
+    if diagnostics.get("energy_used") not in ("paper", "mesh") or not refined or "error" in refined:
+        return False
+    changed = {key for key, value in retry.items() if params.get(key) != value}
+    return bool(changed) and changed <= {"refine", "energy"}
 
 
 def _unrefined_key(params: dict, n_points: int) -> tuple | None:
@@ -410,7 +436,8 @@ class TangentWeights:
         return self._matrix
 
 
-def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: StageTimer, exc: Exception):
+def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: StageTimer, exc: Exception,
+                           exact_fallbacks: bool = True):
     """(solution, counts, diagnostics) with the paper's energy after the Neumann energy's search failed.
 
     The Neumann energy's boundary rows assume boundary points that lie on the boundary.
@@ -428,12 +455,15 @@ def _paper_energy_fallback(front, w_tan, solver: str, params: dict, timer: Stage
     held 25 of 20,000 points, where the mesh an sdp map triangulates, the next fallback,
     gives QC 1.0001-1.0002x that of scp-igl with 0 foldovers (whatever ``refine``: under
     ``"none"`` the exact searches come next). From :data:`MULTILEVEL_FROM` points on,
-    ``w_tan`` comes from a second run of the front end (:class:`TangentWeights`).
+    ``w_tan`` comes from a second run of the front end (:class:`TangentWeights`), and
+    ``exact_fallbacks=False`` keeps the search on its path (:func:`_solve_front`): on
+    points scattered over ``real/lilium`` at 300k the two-level search failed, and the
+    direct solve after it took minutes and gigabytes to fail too.
     """
     try:
         with timer("laplacian"):
             box = [graph_laplacian(w_tan)]
-        sol, counts, extra = _solve_front(front, box, solver, params, timer)
+        sol, counts, extra = _solve_front(front, box, solver, params, timer, exact_fallbacks)
     except (ConvergenceError, SolverError):
         raise exc from None
     try:
@@ -479,7 +509,7 @@ def _refines(refine: str, extra: dict) -> bool:
     return refine == "mesh" or (extra.get("energy_used") == "paper" and bool(extra.get("energy_error")))
 
 
-def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict):
+def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict, solver: str = "direct"):
     """(solution, counts, diagnostics) of cotangent SCP on the mesh an SDP map of ``front`` triangulates.
 
     After both energies' k searches failed (``refine="auto"`` or ``"mesh"``): on points
@@ -487,20 +517,34 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict
     k gives a regular map (:mod:`parambench.methods.pointset.mesh_refine`). The SDP pair
     of the paper's ``I - W^tan`` (B-orthonormal, as ``sdp``) needs no k; its uv
     triangulation gives the mesh. If that fails too, ``exc`` (the first error) is raised.
-    ``energy_used`` is ``"mesh"`` and ``energy_error`` keeps the first error.
+    ``energy_used`` is ``"mesh"`` and ``energy_error`` keeps the first error. The pair
+    is solved on two levels where ``solver`` is ``"multilevel"`` (:func:`_sdp_pair`).
     """
     try:
-        with timer("solve"):
-            _, pair = direct_sdp_pair(graph_laplacian(w_tan), front.boundary_mask, front.points)
-            # An eigenvector pair has no handedness: mirrored, its triangulation would face
-            # away from the normals and so would the refined map (loops turning -1).
-            if signed_area_2d(pair[front.boundary_loops[0]]) < 0:
-                pair[:, 1] *= -1.0
+        pair = _sdp_pair(front, graph_laplacian(w_tan), solver, params, timer)
+        # An eigenvector pair has no handedness: mirrored, its triangulation would face
+        # away from the normals and so would the refined map (loops turning -1).
+        if signed_area_2d(pair[front.boundary_loops[0]]) < 0:
+            pair[:, 1] *= -1.0
         sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer, _passes(front))
     except ParambenchError:
         raise exc from None
     return sol, {}, {"energy_used": "mesh", "energy_error": error_note(exc, Ocp.defaults, params),
                      "refined": {"first_map": "sdp", **info}}
+
+
+def _sdp_pair(front, lap, solver: str, params: dict, timer: StageTimer) -> np.ndarray:
+    """SDP's B-orthonormal pair of ``lap`` for :func:`_mesh_fallback`, (N, 2) float64.
+
+    On two levels (:func:`~parambench.methods.pointset.two_level.two_level_sdp_pair`)
+    where ``solver`` is ``"multilevel"``, with no direct solve after a failure: on points
+    scattered over ``real/lilium`` at 300k the direct pair took 4 minutes and 8 GB.
+    """
+    if solver == "multilevel":
+        pair, _ = two_level_sdp_pair(front, lap, params["fine_solver"], timer)
+        return b_orthonormalize(pair, front.boundary_mask.astype(np.float64))
+    with timer("solve"):
+        return direct_sdp_pair(lap, front.boundary_mask, front.points)[1]
 
 
 def _after_failed_searches(front, w_tan: "TangentWeights", lap, solver: str, params: dict, timer: StageTimer,
@@ -510,7 +554,7 @@ def _after_failed_searches(front, w_tan: "TangentWeights", lap, solver: str, par
     None: they ran in the first search, and ``exc`` is raised)."""
     if params["refine"] != "none":
         try:
-            return _mesh_fallback(front, w_tan.matrix(), timer, exc, params)
+            return _mesh_fallback(front, w_tan.matrix(), timer, exc, params, solver)
         except (ConvergenceError, SolverError):
             pass
     if lap is None:
@@ -580,7 +624,7 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer,
                 raise hinted(type(exc), stem, *hints, Hint("use solver='direct'", "solver", "direct")) from exc
             if not exact_fallbacks:  # the caller's cheaper fallback comes first
                 raise
-            fallback = {"solver": "direct", "multilevel_error": error_note(exc, Ocp.defaults, params)}
+            fallback = {"solver": "direct", "multilevel_error": error_note(released(exc), Ocp.defaults, params)}
     else:
         fallback = {}
     with timer("solve"):
@@ -613,13 +657,11 @@ def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "t
     Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
     ``solve`` (the fine level, as on the direct path).
     """
-    from ..pointset.subsample import poisson_disk_subsample
     from ..spectral.multilevel import MultilevelSettings, multilevel_scp
 
     settings = MultilevelSettings(fine_solver=fine_solver, map_error=map_error)
     with timer("subsample"):
-        coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
-                                        np.concatenate(front.boundary_loops), seed=settings.seed)
+        coarse = coarse_subsample(front, settings)
     sol, info = multilevel_scp(box, front.boundary_loops, front.points, coarse, normals=front.normals,
                                settings=settings, stage=lambda name: timer("solve" if name == "fine" else name))
     counts = info.pop("fine_counts")

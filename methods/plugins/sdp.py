@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from parambench.datasets_gen.errors import ConvergenceError, SolverError
+from parambench.datasets_gen.errors import ConvergenceError, SolverError, released
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, error_note, hinted
 from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.two_level import two_level_sdp_pair
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
 from ..spectral.multilevel import FINE_SOLVERS
@@ -52,12 +53,12 @@ class Sdp(Method):
         pair = None
         if solver == "multilevel":
             try:
-                pair, extra = _multilevel_pair(front, lap, params["fine_solver"], timer)
+                pair, extra = two_level_sdp_pair(front, lap, params["fine_solver"], timer)
             except (ConvergenceError, SolverError) as exc:
                 if params["solver"] != "auto":
                     stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
                     raise hinted(type(exc), stem, *hints, Hint("use solver='direct'", "solver", "direct")) from exc
-                extra = {"multilevel_error": error_note(exc, self.defaults, params)}
+                extra = {"multilevel_error": error_note(released(exc), self.defaults, params)}
                 solver = "direct"
         with timer("solve"):
             if pair is None:
@@ -69,18 +70,3 @@ class Sdp(Method):
             uv = scale_to_spacing(pair, front)
         diag = dict(frontend_diagnostics(front), solver=solver, solver_option=params["solver"], **extra)
         return MethodOutput(uv, diag)
-
-
-def _multilevel_pair(front, lap, fine_solver: str, timer: StageTimer) -> tuple[np.ndarray, dict]:
-    """SDP's pair by :func:`~parambench.methods.spectral.multilevel_dirichlet.multilevel_sdp` (stages
-    ``subsample``, ``coarse``, ``solve``), and its diagnostics."""
-    from ..pointset.subsample import poisson_disk_subsample
-    from ..spectral.multilevel import MultilevelSettings
-    from ..spectral.multilevel_dirichlet import multilevel_sdp
-
-    settings = MultilevelSettings(fine_solver=fine_solver)
-    with timer("subsample"):
-        coarse = poisson_disk_subsample(front.points, settings.radius_factor * front.mean_spacing,
-                                        np.concatenate(front.boundary_loops), seed=settings.seed)
-    return multilevel_sdp(lap, front.boundary_loops, front.points, coarse, normals=front.normals, settings=settings,
-                          stage=lambda name: timer("solve" if name == "fine" else name))

@@ -314,13 +314,18 @@ def test_auto_falls_back_to_the_direct_solve_where_two_levels_fail(monkeypatch):
     assert auto.diagnostics["solver"] == "direct" and auto.diagnostics["solver_option"] == "auto"
     assert auto.diagnostics["multilevel_error"].startswith("ConvergenceError")
     assert np.array_equal(auto.uv, ocp(surf.points_only(), solver="direct", energy="paper").uv)
-    # The default energy goes to its paper-energy fallback first (cheaper than a direct
-    # solve at the sizes two levels are for); that one's two levels failing too, it is
-    # solved directly and refined on its uv mesh.
+    # The default energy goes to its fallbacks instead, which keep to two levels at the
+    # sizes two levels are for (a direct solve there costs minutes and gigabytes): the
+    # paper energy's search (failing here too), then the mesh a two-level sdp map
+    # triangulates.
+    def no_direct_pair(*args, **kwargs):
+        raise AssertionError("the direct sdp pair was solved")
+
+    monkeypatch.setattr(ocp_plugin, "direct_sdp_pair", no_direct_pair)
     default = ocp(surf.points_only())
     diag = default.diagnostics
-    assert diag["solver"] == "direct" and diag["energy_used"] == "paper"
-    assert diag["multilevel_error"].startswith("ConvergenceError") and diag["selfcheck"]["passed"]
+    assert diag["solver"] == "multilevel" and diag["energy_used"] == "mesh" and diag["selfcheck"]["passed"]
+    assert diag["refined"]["first_map"] == "sdp"
     quality = evaluate(surf.points, surf.faces, default.uv)
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01
 

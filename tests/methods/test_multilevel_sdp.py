@@ -101,7 +101,7 @@ def test_auto_takes_two_levels_from_the_threshold_and_falls_back_where_they_fail
     def fails(*args, **kwargs):
         raise ConvergenceError("the boundary eigenproblem's refinement did not converge (stand-in)")
 
-    monkeypatch.setattr(sdp_plugin, "_multilevel_pair", fails)
+    monkeypatch.setattr(sdp_plugin, "two_level_sdp_pair", fails)
     with pytest.raises(ConvergenceError, match="use solver='direct'"):
         sdp(surf.points_only(), solver="multilevel")
     auto = sdp(surf.points_only())

@@ -41,11 +41,11 @@ def test_the_exact_searches_run_last_after_the_cheap_fallbacks_failed(plane, mon
     calls, order = [], []
     _line_search_fails(monkeypatch, calls)
 
-    def paper(front, w_tan, solver, params, timer, exc):
+    def paper(front, w_tan, solver, params, timer, exc, **options):
         order.append("paper")
         raise exc
 
-    def mesh(front, w_tan, timer, exc, params):
+    def mesh(front, w_tan, timer, exc, params, solver):
         order.append("mesh")
         raise exc
 
@@ -186,8 +186,9 @@ def test_large_point_sets_rebuild_w_tan_for_the_paper_energy_fallback(plane, mon
     monkeypatch.setattr(ocp_module, "MULTILEVEL_FROM", plane.n_points)  # the plane counts as large
     runs.clear(), attempts.clear()
     rebuilt = get_method("ocp")(plane.method_input(False), solver="direct")
-    # Cheap fallback first as before; the front end ran a second time, for W^tan.
-    assert len(runs) == 2 and attempts == [False, True]
+    # Cheap fallback first as before; the front end ran a second time, for W^tan; the
+    # paper energy's search keeps to its path (no exact searches, no direct solve).
+    assert len(runs) == 2 and attempts == [False, False]
     for result in (held, rebuilt):
         assert result.diagnostics["energy_used"] == "paper" and result.diagnostics["selfcheck"]["passed"]
     assert np.array_equal(held.uv, rebuilt.uv)
@@ -236,3 +237,32 @@ def test_a_failed_two_level_neumann_search_goes_to_the_paper_energy_before_any_d
     assert diag["energy_used"] == "paper" and diag["selfcheck"]["passed"]
     quality = evaluate(plane.points, plane.faces, result.uv)
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01
+
+
+def test_the_fallback_runs_without_the_failed_solves_arrays(plane, monkeypatch):
+    """The error of the failed Neumann search is held through the paper-energy fallback;
+    the arrays of the failed solve's frames are not (at 300k points they were gigabytes)."""
+    import weakref
+
+    class Big:
+        pass
+
+    refs, alive_in_fallback = [], []
+    real_front, real_paper = ocp_module._solve_front, ocp_module._paper_energy_fallback
+
+    def fails_holding_big(front, box, solver, params, timer, exact_fallbacks=True):
+        if not refs:
+            big = Big()
+            refs.append(weakref.ref(big))
+            raise ConvergenceError("no t = 1 crossing found (stand-in)")
+        return real_front(front, box, solver, params, timer, exact_fallbacks)
+
+    def paper(*args, **kwargs):
+        alive_in_fallback.append(refs[0]() is not None)
+        return real_paper(*args, **kwargs)
+
+    monkeypatch.setattr(ocp_module, "_solve_front", fails_holding_big)
+    monkeypatch.setattr(ocp_module, "_paper_energy_fallback", paper)
+    result = get_method("ocp")(plane.method_input(False))
+    assert alive_in_fallback == [False]
+    assert result.diagnostics["energy_used"] == "paper"

@@ -99,3 +99,26 @@ def test_fingertips_folded_under_slivers_get_both_retries_at_once():
     quality = evaluate(surf.points, surf.faces, result.uv)
     baseline = evaluate(surf.points, surf.faces, get_method("scp-igl")(surf).uv)["qc_mean"]
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.03 * baseline  # measured 1.022x
+
+
+def test_retries_that_repeat_the_first_runs_fallbacks_are_left_out():
+    """A first map that came from the fallbacks (the Neumann search failed) and was
+    refined: a retry that only asks for the refinement or the paper energy would give it
+    again (or fail as the paper energy's search did), at a whole run's cost."""
+    ocp = get_method("ocp")
+    params = dict(ocp.defaults)
+    check = {"failed": ["flipped", "boundary-crossing"]}
+    every = [{"k_nn": 12}, {"energy": "paper", "refine": "mesh"}, {"refine": "mesh"}, {"refine": "mesh", "k_nn": 12}]
+
+    def changed(retries):
+        return [{k: v for k, v in r.items() if params[k] != v} for r in retries or []]
+
+    neumann_map = {"energy_used": "neumann", "refined": None}
+    assert changed(ocp.retry_params(params, check, neumann_map)) == every
+    assert changed(ocp.retry_params(params, check)) == every
+    for energy_used, first_map in (("paper", "ocp (paper energy)"), ("mesh", "sdp")):
+        refined = {"energy_used": energy_used, "refined": {"first_map": first_map, "n_passes": 2}}
+        assert changed(ocp.retry_params(params, check, refined)) == [{"k_nn": 12}, {"refine": "mesh", "k_nn": 12}]
+    # A refinement that failed left the first map unrefined: refining it is a new try.
+    failed = {"energy_used": "paper", "refined": {"first_map": "ocp (paper energy)", "error": "SolverError: x"}}
+    assert changed(ocp.retry_params(params, check, failed)) == every
