@@ -372,9 +372,12 @@ class Method:
                 raise
             raise doubt from exc
         check = selfcheck_result(surface, result)
-        retries = [] if check["passed"] else _as_list(self.retry_params(params, check, result.diagnostics))
+        retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
         notes: list[dict] = []
+        runs = [(params, result.diagnostics)]  # the runs made: parameters, diagnostics
         for retry in retries:
+            if self.repeats_a_run(retry, runs):
+                continue
             changed = {key: value for key, value in retry.items() if params.get(key) != value}
             # Whatever the last run left in reference cycles (errors caught and passed on
             # inside the solvers keep their frames' arrays) goes before the next one starts.
@@ -387,6 +390,7 @@ class Method:
                 notes.append({"params": changed, "passed": False, "first_reason": check["reason"],
                               "error": f"{type(exc).__name__}: {exc}"})
                 continue
+            runs.append((retry, second.diagnostics))
             second_check = selfcheck_result(surface, second)
             notes.append({"params": changed, "passed": bool(second_check["passed"]), "first_reason": check["reason"]})
             if second_check["passed"]:
@@ -399,18 +403,24 @@ class Method:
             check["retry"] = _retry_note(notes)
         return result
 
-    def retry_params(self, params: dict[str, Any], check: dict,
-                     diagnostics: dict | None = None) -> dict[str, Any] | list | None:
+    def retry_params(self, params: dict[str, Any], check: dict) -> dict[str, Any] | list | None:
         """Parameters for another run when the first map failed its self-check, or None (no retry).
 
-        Point-set methods only. ``check`` is the failed self-check, ``diagnostics`` the
-        first map's (what its run already tried). A list gives several, tried in order until a map passes.
+        Point-set methods only. A list gives several, tried in order until a map passes
+        (those :meth:`repeats_a_run` says would repeat a run already made are left out).
         A later map replaces the first only if it passes; either way
         ``diagnostics["selfcheck"]["retry"]`` says what was tried last (``params``: the
         changed ones), whether it passed and why the first failed, and ``earlier`` lists
         the attempts before it, when there were several.
         """
         return None
+
+    def repeats_a_run(self, retry: dict[str, Any], runs: list[tuple[dict, dict]]) -> bool:
+        """Whether the retry ``retry`` (parameters) would only run again what one of ``runs``
+        ran (the parameters and diagnostics of the runs made so far, the first run's first);
+        such a retry is left out. False by default.
+        """
+        return False
 
     def run(self, surface: MethodInput, **params: Any) -> Parameterization:
         """Time :meth:`solve` on ``surface`` and wrap its output in a :class:`Parameterization`.

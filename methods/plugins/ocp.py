@@ -205,17 +205,14 @@ class Ocp(Method):
             raise InvalidInputError(f"solver='multilevel' searches k along a line; use k_search='line', "
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
 
-    def retry_params(self, params: dict, check: dict, diagnostics: dict | None = None) -> dict | None:
+    def retry_params(self, params: dict, check: dict) -> dict | None:
         """``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours;
         then the paper's energy after a Neumann-energy map that folds at its boundary or spins;
         then, with ``refine="auto"``, the map refined on its own uv mesh (``refine="mesh"``),
         and last after flipped triangles refined with ``k_nn = retry_k_nn``.
 
-        Retries that would run what the first run's fallbacks already ran are left out
-        (:func:`_repeats_the_fallbacks`): their maps are the first one again, and from
-        :data:`MULTILEVEL_FROM` points on, where no solve is kept between runs, each cost
-        a whole run (points scattered over ``real/lilium`` at 300k: 2 of the 4 retries,
-        about 2 minutes each).
+        Retries that would run what an earlier run's fallbacks already ran are left out
+        (:meth:`repeats_a_run`).
 
         The second: on a ragged boundary (random points over a real mesh, see
         :func:`_paper_energy_fallback`) the Neumann energy's map crossed its own boundary
@@ -241,8 +238,15 @@ class Ocp(Method):
                 # Both at once: on "protrusions" (jittered, 2k) each alone left flipped
                 # triangles at the fingertips, together 0 (QC 1.02x scp-igl's).
                 retries.append({**params, "refine": "mesh", "k_nn": int(params["retry_k_nn"])})
-        retries = [retry for retry in retries if not _repeats_the_fallbacks(params, retry, diagnostics or {})]
         return retries or None
+
+    def repeats_a_run(self, retry: dict, runs: list[tuple[dict, dict]]) -> bool:
+        """Whether ``retry`` would run again what one of ``runs`` ran through its fallbacks
+        (:func:`_repeats_the_fallbacks`): its map would be that run's again, and from
+        :data:`MULTILEVEL_FROM` points on, where no solve is kept between runs, each such
+        retry cost a whole run (points scattered over ``real/lilium`` at 300k: 3 of the 4
+        retries, about 2 minutes each)."""
+        return any(_repeats_the_fallbacks(params, retry, diagnostics or {}) for params, diagnostics in runs)
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         solver = resolve_solver(params["solver"], surface.n_points, params["k_search"])

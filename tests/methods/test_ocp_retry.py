@@ -101,24 +101,44 @@ def test_fingertips_folded_under_slivers_get_both_retries_at_once():
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.03 * baseline  # measured 1.022x
 
 
-def test_retries_that_repeat_the_first_runs_fallbacks_are_left_out():
-    """A first map that came from the fallbacks (the Neumann search failed) and was
-    refined: a retry that only asks for the refinement or the paper energy would give it
-    again (or fail as the paper energy's search did), at a whole run's cost."""
+def test_retries_that_repeat_a_runs_fallbacks_are_left_out():
+    """A map that came from the fallbacks (the Neumann search failed) and was refined: a
+    retry that only asks for the refinement or the paper energy would give it again (or
+    fail as the paper energy's search did), at a whole run's cost."""
     ocp = get_method("ocp")
     params = dict(ocp.defaults)
-    check = {"failed": ["flipped", "boundary-crossing"]}
-    every = [{"k_nn": 12}, {"energy": "paper", "refine": "mesh"}, {"refine": "mesh"}, {"refine": "mesh", "k_nn": 12}]
+    every = ocp.retry_params(params, {"failed": ["flipped", "boundary-crossing"]})
+    changed = [{k: v for k, v in r.items() if params[k] != v} for r in every]
+    assert changed == [{"k_nn": 12}, {"energy": "paper", "refine": "mesh"}, {"refine": "mesh"},
+                       {"refine": "mesh", "k_nn": 12}]
 
-    def changed(retries):
-        return [{k: v for k, v in r.items() if params[k] != v} for r in retries or []]
+    def kept(runs):
+        return [c for r, c in zip(every, changed) if not ocp.repeats_a_run(r, runs)]
 
-    neumann_map = {"energy_used": "neumann", "refined": None}
-    assert changed(ocp.retry_params(params, check, neumann_map)) == every
-    assert changed(ocp.retry_params(params, check)) == every
+    assert kept([(params, {"energy_used": "neumann", "refined": None})]) == changed
     for energy_used, first_map in (("paper", "ocp (paper energy)"), ("mesh", "sdp")):
         refined = {"energy_used": energy_used, "refined": {"first_map": first_map, "n_passes": 2}}
-        assert changed(ocp.retry_params(params, check, refined)) == [{"k_nn": 12}, {"refine": "mesh", "k_nn": 12}]
-    # A refinement that failed left the first map unrefined: refining it is a new try.
+        assert kept([(params, refined)]) == [{"k_nn": 12}, {"refine": "mesh", "k_nn": 12}]
+        # ... and once the k_nn = 12 run came from the fallbacks too, its refinement goes.
+        assert kept([(params, refined), (every[0], refined)]) == [{"k_nn": 12}]
+    # A refinement that failed left the map unrefined: refining it is a new try.
     failed = {"energy_used": "paper", "refined": {"first_map": "ocp (paper energy)", "error": "SolverError: x"}}
-    assert changed(ocp.retry_params(params, check, failed)) == every
+    assert kept([(params, failed)]) == changed
+
+
+def test_a_skipped_retry_is_not_run(monkeypatch):
+    """The checked run asks repeats_a_run before each retry and runs only the others."""
+    from parambench.methods.plugins.ocp import Ocp
+
+    surf = make_surface("protrusions", 2000, sampling="random", seed=0)
+    asked, real_run = [], Ocp.run
+
+    def counting_run(self, surface, **params):
+        asked.append({k: v for k, v in params.items() if Ocp.defaults[k] != v})
+        return real_run(self, surface, **params)
+
+    monkeypatch.setattr(Ocp, "run", counting_run)
+    monkeypatch.setattr(Ocp, "repeats_a_run", lambda self, retry, runs: retry.get("refine") == "mesh")
+    result = get_method("ocp")(surf.method_input(False))
+    assert asked == [{}, {"k_nn": 12}]  # the two refine="mesh" retries were left out
+    assert not result.diagnostics["selfcheck"]["passed"]
