@@ -245,7 +245,7 @@ class Ocp(Method):
         (:func:`_repeats_the_fallbacks`): its map would be that run's again, and from
         :data:`MULTILEVEL_FROM` points on, where no solve is kept between runs, each such
         retry cost a whole run (points scattered over ``real/lilium`` at 300k: 3 of the 4
-        retries, about 2 minutes each)."""
+        retries left out, 567 s -> 257 s for the same map)."""
         return any(_repeats_the_fallbacks(params, retry, diagnostics or {}) for params, diagnostics in runs)
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
