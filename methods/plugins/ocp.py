@@ -354,9 +354,10 @@ class Ocp(Method):
 
 
 def _repeats_the_fallbacks(params: dict, retry: dict, diagnostics: dict) -> bool:
-    """Whether ``retry`` would only run again what the first run's fallbacks ran.
+    """Whether ``retry`` would only run again what the run with ``params`` (and
+    ``diagnostics``) ran through its fallbacks.
 
-    That is so when the first map came from the fallbacks (``energy_used`` "paper" or
+    That is so when that run's map came from the fallbacks (``energy_used`` "paper" or
     "mesh": the Neumann search had failed) and was refined on its uv mesh, and the retry
     changes nothing but ``refine`` to ``"mesh"`` and, or, ``energy`` to ``"paper"``: the
     Neumann search fails again and the same fallbacks give the same refined map, or the
