@@ -241,7 +241,7 @@ def multilevel_sdp(laplacian: sp.spmatrix, loops: Sequence[np.ndarray], points: 
     if not np.isin(boundary, coarse).all():
         raise InvalidInputError("the coarse level must keep every boundary-loop point.")
     with stage("coarse"):
-        lap, order, inverse = leaf_ordered(laplacian, points)
+        lap, order, inverse = leaf_ordered(laplacian, points, last=boundary)
         loops = [inverse[np.asarray(lp, dtype=np.int64)] for lp in loops]
         points, coarse = points[order], np.sort(inverse[coarse])
         normals = None if normals is None else normals[order]

@@ -26,6 +26,7 @@ import scipy.sparse.linalg as sla
 from parambench.datasets_gen.errors import ConvergenceError, SolverError, UnknownNameError
 
 from ..hints import Hint, hinted
+from .leading_block import LeadingBlock
 from .threads import single_threaded_blas, solver_threads
 
 __all__ = ["SparseFactor", "EigenResult", "smallest_eigenpair", "MIXED_PRECISION_FROM"]
@@ -47,7 +48,7 @@ class SparseFactor:
 
     Parameters
     ----------
-    matrix : (V, V) scipy.sparse matrix (real or complex)
+    matrix : (V, V) scipy.sparse matrix (real or complex), or a LeadingBlock (copied out)
         In mixed precision a CSR or CSC matrix is kept by reference for the
         refinement residuals: do not modify it while the factor is in use.
     perm : (V,) numpy.ndarray of int64, optional
@@ -72,6 +73,8 @@ class SparseFactor:
                  precision: str = "auto", refine_rtol: float = 1e-12, max_refine: int = 4) -> None:
         if precision not in ("auto", "double", "mixed"):
             raise UnknownNameError(f"precision must be 'auto', 'double' or 'mixed', got {precision!r}.")
+        if isinstance(matrix, LeadingBlock):  # a factorisation needs the block's own arrays
+            matrix = matrix.tocsr()
         real = not np.issubdtype(matrix.dtype, np.complexfloating)
         self.perm = perm
         self.n_solves = 0

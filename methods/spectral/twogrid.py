@@ -44,6 +44,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..numba_cache import configure_numba_cache
+from .leading_block import LeadingBlock, as_leading_block
 from .ordering import symmetric_permutation
 from .sparse_eigen import SparseFactor
 
@@ -53,8 +54,11 @@ _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 
 @numba.njit(cache=_CACHE, nogil=True, fastmath=True)
-def _gauss_seidel_rows(indptr, indices, data, diag, b, x, r0, r1, halo_slot, halo, backward):  # pragma: no cover
+def _gauss_seidel_rows(starts, stops, indices, data, diag, b, x, r0, r1, halo_slot, halo, backward):  # pragma: no cover
     """One in-place Gauss-Seidel sweep over rows r0:r1 of the column block x (in order or reversed).
+
+    Row i's entries are ``indices[starts[i]:stops[i]]`` (a CSR matrix's ``indptr[:-1]``
+    and ``indptr[1:]``, or a :class:`~.leading_block.LeadingBlock`'s rows).
 
     Entries in columns outside r0:r1 read ``halo[halo_slot[j]]`` (the other blocks' rows
     as they stood before the sweep). The rows' indices are sorted, so such entries sit
@@ -68,7 +72,7 @@ def _gauss_seidel_rows(indptr, indices, data, diag, b, x, r0, r1, halo_slot, hal
         i = r1 - 1 - step if backward else r0 + step
         for c in range(width):
             acc[c] = b[i, c]
-        lo, hi = indptr[i], indptr[i + 1]
+        lo, hi = starts[i], stops[i]
         if hi > lo and (indices[lo] < r0 or indices[hi - 1] >= r1):
             for p in range(lo, hi):
                 a = data[p]
@@ -104,8 +108,15 @@ ROW_BLOCKS = 2
 ROW_SPLIT_MIN_ROWS = 200_000
 
 
-def _row_blocks(a: sp.csr_matrix, count: int) -> tuple[list[tuple[int, int]], np.ndarray, np.ndarray]:
+def _row_blocks(a: LeadingBlock, count: int) -> tuple[list[tuple[int, int]], np.ndarray, np.ndarray]:
     """Row ranges of about equal nonzeros, the rows other blocks read, and each one's slot.
+
+    Parameters
+    ----------
+    a : LeadingBlock
+        The matrix's rows (indices sorted).
+    count : int
+        Blocks wanted.
 
     Returns
     -------
@@ -117,21 +128,23 @@ def _row_blocks(a: sp.csr_matrix, count: int) -> tuple[list[tuple[int, int]], np
         ``halo_slot[halo_rows[h]] == h``; 0 elsewhere.
     """
     n = a.shape[0]
-    cuts = np.searchsorted(a.indptr, np.arange(1, count) * a.nnz / count)
+    start, stop = a.starts, a.stops
+    lengths_all = stop - start
+    cuts = np.searchsorted(np.concatenate([[0], np.cumsum(lengths_all)]), np.arange(1, count) * a.nnz / count)
     edges = np.unique(np.concatenate([[0], np.clip(cuts, 0, n), [n]]))
     blocks = [(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
-    # A row's indices are sorted (the caller sorts them), so its first and last say
-    # whether it reads another block: per-row arrays only, no nonzero-sized temporaries
-    # (at 1M points those were 0.5 GB).
+    # A row's indices are sorted, so its first and last say whether it reads another
+    # block: per-row arrays only, no nonzero-sized temporaries (at 1M points those were
+    # 0.5 GB).
     sizes = np.diff(edges)
     lo = np.repeat(edges[:-1], sizes)
     hi = np.repeat(edges[1:], sizes)
-    start, stop = a.indptr[:-1], a.indptr[1:]
-    filled = stop > start
-    first = np.where(filled, a.indices[np.minimum(start, max(a.nnz - 1, 0))], lo) if a.nnz else lo
-    last = np.where(filled, a.indices[np.maximum(stop - 1, 0)], lo) if a.nnz else lo
+    filled = lengths_all > 0
+    size = a.indices.size
+    first = np.where(filled, a.indices[np.minimum(start, max(size - 1, 0))], lo) if size else lo
+    last = np.where(filled, a.indices[np.clip(stop - 1, 0, max(size - 1, 0))], lo) if size else lo
     crossing = np.flatnonzero(filled & ((first < lo) | (last >= hi)))
-    lengths = (stop - start)[crossing]
+    lengths = lengths_all[crossing]
     entries = np.repeat(start[crossing] - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
     cols = a.indices[entries]
     row_lo, row_hi = np.repeat(lo[crossing], lengths), np.repeat(hi[crossing], lengths)
@@ -146,8 +159,12 @@ class TwoGridSolver:
 
     Parameters
     ----------
-    matrix : (n, n) scipy.sparse matrix of float64
-        The interior block L_II; its diagonal must be positive.
+    matrix : (n, n) scipy.sparse matrix of float64, or a LeadingBlock
+        The interior block L_II; its diagonal must be positive. A
+        :class:`~parambench.methods.spectral.leading_block.LeadingBlock` (L_II as the
+        leading rows of L, the kept rows numbered last) is read in place in the caller's
+        order; anything else is held as a CSR matrix (the caller's own arrays, its indices
+        sorted in place, when it is CSR of float64 already).
     prolong : (n, m) scipy.sparse matrix of float64
         Coarse-to-fine interpolation of interior values.
     coarse_solve : callable
@@ -199,29 +216,30 @@ class TwoGridSolver:
     max_block_bytes = 640 * 2**20
     iterative = True
 
-    def __init__(self, matrix: sp.spmatrix, prolong: sp.spmatrix, coarse_solve: Callable[[np.ndarray], np.ndarray],
-                 *, rtol: float = 1e-10, max_cycles: int = 40, sweeps: int = 2, stall: float = 0.7,
-                 workers: int | None = None, order: np.ndarray | None = None) -> None:
-        a = sp.csr_matrix(matrix, dtype=np.float64)
+    def __init__(self, matrix: sp.spmatrix | LeadingBlock, prolong: sp.spmatrix,
+                 coarse_solve: Callable[[np.ndarray], np.ndarray], *, rtol: float = 1e-10, max_cycles: int = 40,
+                 sweeps: int = 2, stall: float = 0.7, workers: int | None = None,
+                 order: np.ndarray | None = None) -> None:
+        n = matrix.shape[0]
         # The sweeps gather neighbours' rows of the block: in the caller's order (any
         # order the points came in) they miss the cache; reverse Cuthill-McKee keeps
         # neighbours close in memory (measured at 100k points, 21 columns: 2 sweeps
         # 0.46 s -> 0.08 s). A spatial order does as well for a tenth of the cost (1M
         # points: kd-tree order 0.42 s, RCM 2.7 s; one sweep 0.12-0.14 s either way).
         if order is None:
-            order = reverse_cuthill_mckee(a, symmetric_mode=False)
+            order = reverse_cuthill_mckee(_own_csr(matrix), symmetric_mode=False)
         self._order = np.asarray(order, dtype=np.int64)
-        if not np.array_equal(np.sort(self._order), np.arange(a.shape[0])):
+        if not np.array_equal(np.sort(self._order), np.arange(n)):
             raise ValueError("order must be a permutation of the matrix's rows.")
-        self._identity = bool(np.array_equal(self._order, np.arange(a.shape[0])))
-        self._a = a if self._identity else symmetric_permutation(a, self._order)
-        self._a.sort_indices()
+        self._identity = bool(np.array_equal(self._order, np.arange(n)))
+        # In the caller's order a LeadingBlock is read in place: no copy of the block.
+        self._a = as_leading_block(matrix if self._identity else symmetric_permutation(_own_csr(matrix), self._order))
         prolong = sp.csr_matrix(prolong, dtype=np.float64)
         self._p = prolong if self._identity else sp.csr_matrix(prolong[self._order])
         self._coarse_solve = coarse_solve
         self._diag = self._a.diagonal()
         self._blocks, self._halo_rows, self._halo_slot = _row_blocks(
-            self._a, ROW_BLOCKS if self._a.shape[0] >= ROW_SPLIT_MIN_ROWS else 1)
+            self._a, ROW_BLOCKS if n >= ROW_SPLIT_MIN_ROWS else 1)
         self.rtol, self.max_cycles, self.sweeps, self.stall = float(rtol), int(max_cycles), int(sweeps), float(stall)
         self.workers = max(1, int(numba.config.NUMBA_NUM_THREADS if workers is None else workers))
         self.n_solves = 0
@@ -246,7 +264,7 @@ class TwoGridSolver:
         return self._direct is not None
 
     def _fall_back(self) -> None:
-        self._direct = SparseFactor(self._a)
+        self._direct = SparseFactor(self._a.tocsr())
 
     def solve(self, rhs: np.ndarray, guess: np.ndarray | None = None, *, overwrite_rhs: bool = False) -> np.ndarray:
         """Solve for a vector or an (n, c) block of right-hand sides (real or complex).
@@ -323,13 +341,13 @@ class TwoGridSolver:
             def sweeps(backward: bool) -> None:
                 for _ in range(self.sweeps):
                     np.take(x, self._halo_rows, axis=0, out=halo)
-                    each(lambda k: _gauss_seidel_rows(a.indptr, a.indices, a.data, self._diag, b, x, blocks[k][0],
+                    each(lambda k: _gauss_seidel_rows(a.starts, a.stops, a.indices, a.data, self._diag, b, x, blocks[k][0],
                                                       blocks[k][1], self._halo_slot, halo, backward))
 
             def residual(k: int) -> None:
                 # The residual after the pre-smoothing both feeds the coarse correction
                 # and decides convergence: one product with A per cycle instead of two.
-                _restricted_residual(a.indptr, a.indices, a.data, b, x, blocks[k][0], blocks[k][1], p.indptr,
+                _restricted_residual(a.starts, a.stops, a.indices, a.data, b, x, blocks[k][0], blocks[k][1], p.indptr,
                                      p.indices, p.data, restricted[k], squares[k])
 
             for cycle in range(self.max_cycles):
@@ -355,9 +373,17 @@ class TwoGridSolver:
         return self._direct.solve(b)
 
 
+def _own_csr(matrix: sp.spmatrix | LeadingBlock) -> sp.csr_matrix:
+    """The matrix as CSR of float64 (a LeadingBlock's rows copied out)."""
+    return matrix.tocsr() if isinstance(matrix, LeadingBlock) else sp.csr_matrix(matrix, dtype=np.float64)
+
+
 @numba.njit(cache=_CACHE, nogil=True)
-def _restricted_residual(indptr, indices, data, b, x, r0, r1, p_ptr, p_idx, p_val, out, squares):  # pragma: no cover
+def _restricted_residual(starts, stops, indices, data, b, x, r0, r1, p_ptr, p_idx, p_val, out,
+                         squares):  # pragma: no cover
     """``out = P[r0:r1]^T (b - A x)[r0:r1]`` for a column block x, and each column's squared residual on those rows.
+
+    A's rows are read as in :func:`_gauss_seidel_rows`; P is CSR.
 
     Each row's residual (summed in CSR order, as scipy's product) is scattered through
     its row of P and never stored: no (n, c) residual array.
@@ -369,7 +395,7 @@ def _restricted_residual(indptr, indices, data, b, x, r0, r1, p_ptr, p_idx, p_va
     for i in range(r0, r1):
         for c in range(width):
             ri[c] = 0.0
-        for p in range(indptr[i], indptr[i + 1]):
+        for p in range(starts[i], stops[i]):
             a = data[p]
             xj = x[indices[p]]
             for c in range(width):

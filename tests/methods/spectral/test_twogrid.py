@@ -201,7 +201,7 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
     rows = slice(100, 700)
     residual = b - l_ii @ x
     restricted, squares = np.empty((p_ii.shape[1], 5)), np.empty(5)
-    _restricted_residual(l_ii.indptr, l_ii.indices, l_ii.data, b, x, 100, 700, p_ii.indptr, p_ii.indices,
+    _restricted_residual(l_ii.indptr[:-1], l_ii.indptr[1:], l_ii.indices, l_ii.data, b, x, 100, 700, p_ii.indptr, p_ii.indices,
                          p_ii.data, restricted, squares)
     expected = p_ii[rows].T @ residual[rows]
     np.testing.assert_allclose(restricted, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
@@ -226,6 +226,7 @@ def test_compiled_kernels_and_permutation_match_scipy(cap_problem):
 def test_a_block_s_sweep_uses_its_newest_rows_and_the_others_as_they_stood(backward):
     """One sweep over rows r0:r1 equals the textbook Gauss-Seidel step on those rows, with
     newest values inside the block and the snapshot (halo) values of the rows outside."""
+    from parambench.methods.spectral.leading_block import as_leading_block
     from parambench.methods.spectral.twogrid import _gauss_seidel_rows, _row_blocks
 
     rng = np.random.default_rng(5)
@@ -233,7 +234,7 @@ def test_a_block_s_sweep_uses_its_newest_rows_and_the_others_as_they_stood(backw
     a = sp.random(n, n, density=0.15, random_state=6, format="csr")
     a = (a + a.T + sp.diags(np.full(n, 4.0 + n * 0.3))).tocsr()
     a.sort_indices()
-    blocks, halo_rows, halo_slot = _row_blocks(a, 2)
+    blocks, halo_rows, halo_slot = _row_blocks(as_leading_block(a), 2)
     assert blocks[0][0] == 0 and blocks[-1][1] == n and len(blocks) == 2
     r0, r1 = blocks[1]
     b = rng.standard_normal((n, 4))
@@ -249,7 +250,7 @@ def test_a_block_s_sweep_uses_its_newest_rows_and_the_others_as_they_stood(backw
         outside = dense[i, :r0] @ stood[:r0] + dense[i, r1:] @ stood[r1:]
         expected[i] = (b[i] - inside - outside) / dense[i, i]
     assert np.any(dense[r0:r1, :r0] != 0)  # the test needs couplings across the blocks
-    _gauss_seidel_rows(a.indptr, a.indices, a.data, a.diagonal(), b, x, r0, r1, halo_slot, halo, backward)
+    _gauss_seidel_rows(a.indptr[:-1], a.indptr[1:], a.indices, a.data, a.diagonal(), b, x, r0, r1, halo_slot, halo, backward)
     np.testing.assert_allclose(x, expected, rtol=1e-12, atol=1e-12)
 
 
@@ -337,13 +338,14 @@ def test_tightened_solves_make_a_subspace_s_products_exact(cap_problem):
 def test_row_blocks_find_every_row_another_block_reads(count):
     """The halo from each row's first and last index equals the one from every entry's owner
     (empty rows and matrices included)."""
+    from parambench.methods.spectral.leading_block import as_leading_block
     from parambench.methods.spectral.twogrid import _row_blocks
 
     for seed in range(60):
         n = 1 + seed % 45
         a = sp.random(n, n, density=0.02 + 0.3 * (seed % 7) / 7, random_state=seed, format="csr")
         a.sort_indices()
-        blocks, halo_rows, halo_slot = _row_blocks(a, count)
+        blocks, halo_rows, halo_slot = _row_blocks(as_leading_block(a), count)
         edges = [lo for lo, _ in blocks] + [n]
         assert edges[0] == 0 and np.all(np.diff(edges) > 0)
         owner = np.repeat(np.arange(len(blocks)), np.diff(edges))
