@@ -72,7 +72,8 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   2484-point outer boundary on no loop, largest group 514; ``real/cortex-lh``: 72).
 
 The facts are JSON-serialisable; ``passed`` is their conjunction and ``reason`` says in
-one line what failed. The check never raises and never changes the map.
+one line what failed, and why where the geometry tells
+(:mod:`parambench.methods.pointset.failure_causes`). The check never raises and never changes the map.
 """
 
 from __future__ import annotations
@@ -88,6 +89,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import triangle_signed_areas, turning_number
+from .failure_causes import cause_advice, describe_causes, failure_causes
 from .row_chunks import for_each_chunk
 from .uv_triangulation import triangulate_uv
 
@@ -314,8 +316,17 @@ def _per_face(points, uv, normals, faces, spacing_pt, tol_deg: float) -> _PerFac
     return out
 
 
+class _FailedFaces(NamedTuple):
+    """The triangles the facts counted as failing (for :mod:`.failure_causes`)."""
+
+    faces: np.ndarray  # (M, 3) the triangles judged
+    flipped: np.ndarray  # (M,) flipped, slivers and uncertain ones included
+    zero: np.ndarray  # (M,) zero uv area, off the rim
+
+
 def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
-                tol_deg: float = NORMAL_TOL_DEG, on_loop: np.ndarray | None = None) -> tuple[dict, int]:
+                tol_deg: float = NORMAL_TOL_DEG, on_loop: np.ndarray | None = None
+                ) -> tuple[dict, int, _FailedFaces]:
     per = _per_face(points, uv, normals, faces, spacing_pt, tol_deg)
     n_dropped = 0
     if drop_bridging:
@@ -344,7 +355,7 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
              "n_zero_area": int(zero.sum()), "n_bridging": int(bridging.sum()), "n_rim_slivers": int(rim.sum()),
              "n_degenerate": n_degenerate,
              "degenerate_fraction": n_degenerate / m if m else 1.0}
-    return facts, n_dropped
+    return facts, n_dropped, _FailedFaces(faces, flipped, zero & ~rim)
 
 
 def _turning(uv: np.ndarray, loops: list, mirrored: bool) -> dict:
@@ -427,7 +438,10 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         loop), ``n_flipped_uncertain``, ``mirrored``,
         ``n_zero_area``, ``n_bridging``, ``n_degenerate``, ``degenerate_fraction``,
         ``turning_numbers`` and ``expected_turning`` (per loop), ``turning_ok``,
-        ``coverage`` (:func:`loop_coverage`, or None), ``thresholds``, ``seconds``.
+        ``coverage`` (:func:`loop_coverage`, or None), ``thresholds``, ``seconds``; when
+        flipped or degenerate triangles fail it, ``causes``
+        (:func:`~parambench.methods.pointset.failure_causes.failure_causes`: a thin part or a
+        collapse, named in ``reason`` too).
     """
     start = time.perf_counter()
     points = np.asarray(points, dtype=np.float64)
@@ -437,6 +451,7 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     spacing_pt = _local_spacing(points, knn)
     l_mean = float(spacing_pt.mean()) if spacing is None else float(spacing)
     facts: dict[str, Any] = {}
+    failing = None
     if not np.all(np.isfinite(uv)):
         facts.update(triangulation="none", n_triangles=0, reason_override="the map has non-finite uv coordinates")
     else:
@@ -449,8 +464,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
             on_loop = np.zeros(points.shape[0], dtype=bool)
             for loop in loops or ():
                 on_loop[np.asarray(loop, dtype=np.int64)] = True
-            face_facts, n_dropped = _face_facts(points, uv, normals, tri.faces, spacing_pt, drop_bridging=not loops,
-                                                tol_deg=tol, on_loop=on_loop)
+            face_facts, n_dropped, failing = _face_facts(points, uv, normals, tri.faces, spacing_pt,
+                                                         drop_bridging=not loops, tol_deg=tol, on_loop=on_loop)
             facts.update(normal_tol_deg=round(tol, 3), triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
                          boundary_crosses=tri.boundary_crosses, **face_facts)
     if loops and np.all(np.isfinite(uv)):
@@ -471,8 +486,12 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         failed.append("turning")
     if facts["coverage"] is not None and not facts["coverage"]["passed"]:
         failed.append("coverage")
+    if failing is not None and ("flipped" in failed or "degenerate" in failed):
+        facts["causes"] = failure_causes(points, uv, normals, knn, spacing_pt, failing.faces, failing.flipped,
+                                         failing.zero)
     override = facts.pop("reason_override", None)
-    reason = "; ".join(r for r in (override, _reason(facts)) if r and r != "ok") or "ok"
+    reason = "; ".join(r for r in (override, _reason(facts), describe_causes(facts.get("causes", {})))
+                       if r and r != "ok") or "ok"
     facts.update(passed=not failed, reason=reason, failed=failed, thresholds=dict(THRESHOLDS),
                  seconds=round(time.perf_counter() - start, 4))
     return facts
@@ -537,7 +556,9 @@ def failure_line(check: dict, params: dict, method: str) -> str:
     tried = dict(params)
     for note in [*retry.get("earlier", []), retry]:
         tried.update(note.get("params", {}))
-    return f"{method}: the map fails its self-check: {check['reason']}; {suggest_fix(check['failed'], tried, method)}"
+    advice, alone = cause_advice(check.get("causes", {}), check["failed"])
+    hint = advice if alone else "; ".join(a for a in (advice, suggest_fix(check["failed"], tried, method)) if a)
+    return f"{method}: the map fails its self-check: {check['reason']}; {hint}"
 
 
 def pointset_faces(points: np.ndarray, uv: np.ndarray, loops: list | None) -> np.ndarray:

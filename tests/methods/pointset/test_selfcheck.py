@@ -538,14 +538,14 @@ def test_a_flipped_sliver_off_the_loops_fails_a_rim_sliver_does_not(on_the_loop)
     normals = np.tile([0.0, 0.0, 1.0], (n + 3, 1))
     on_loop = np.zeros(n + 3, dtype=bool)
     on_loop[n:] = on_the_loop
-    facts, _ = _face_facts(points, uv, normals, faces, np.ones(n + 3), drop_bridging=False, tol_deg=0.0,
+    facts, _, _ = _face_facts(points, uv, normals, faces, np.ones(n + 3), drop_bridging=False, tol_deg=0.0,
                            on_loop=on_loop)
     assert facts["n_flipped"] == 0 and facts["n_flipped_slivers"] == 1
     assert facts["n_flipped_inner_slivers"] == (0 if on_the_loop else 1)
     assert _too_many_inner_slivers(facts) is (not on_the_loop)
     assert ("flipped sliver" in _reason(facts)) is (not on_the_loop)
     # Without detected loops (a peer without the front end) no sliver is known to lie off them.
-    no_loops, _ = _face_facts(points, uv, normals, faces, np.ones(n + 3), drop_bridging=True, tol_deg=0.0,
+    no_loops, _, _ = _face_facts(points, uv, normals, faces, np.ones(n + 3), drop_bridging=True, tol_deg=0.0,
                               on_loop=np.zeros(n + 3, dtype=bool))
     assert no_loops["n_flipped_slivers"] == 1 and no_loops["n_flipped_inner_slivers"] == 0
     # Where slivers are common (3 % of the triangles), one flipped says nothing.

@@ -1,0 +1,162 @@
+"""Why a point-set map failed its self-check, told from the geometry where it failed.
+
+A parameter hint ("try --param k_nn=16") helps where the neighbourhoods were too small
+for the sampling. It cannot help where the points do not resolve the surface, or where
+the map itself is right but useless, and there each hint leads to the next one (a cow cut
+open and loop-subdivided to 22k points as bare points: ``k_nn=16`` then suggested
+``boundary_angle_deg=100``, ``ball_eps_factor=3.5`` suggested ``k_nn=16``). Two such causes
+are recognised, and the self-check's reason names them:
+
+* **thin**: the flipped triangles have a corner with a neighbour across the surface (off
+  its tangent plane, within 45 degrees of its normal, nearer than ``THIN_GAP`` local
+  spacings) far more often than the points at large do: at least ``MIN_SHARE`` of them,
+  and ``ENRICHMENT`` times the share of all points (a sample of ``BASE_SAMPLE``). The
+  surface there comes back within about a spacing of itself (an ear, a lip, a fold, a
+  fingertip thinner than the sampling) and the neighbourhoods join its two sides.
+  Measured on failed ``ocp`` maps (8 neighbours): the cow's ears (18k of the 22k points
+  above) all 17 flipped triangles; ``real/camelhead``'s lips 43 % of 116 against 3.3 % of
+  all points; ``protrusions`` random 2k 59 % against 1.4 %; ``real/bunny10k`` all 17
+  against 5.8 %. Under normal noise of 0.5 spacings most points have such a neighbour
+  (77-79 % within 2 spacings), so the share of the flipped ones says nothing there and the
+  enrichment rule keeps quiet.
+* **collapse**: most zero-area triangles are ones the map shrank, not ones the points
+  made: their scale (longest uv edge over longest 3D edge) is below ``COLLAPSE_SCALE`` of
+  the median triangle's. A conformal map shrinks a long protrusion exponentially along it
+  (the same cow cut across its body, with legs, 9.6k points: 607 triangles shrunk 7e4-1e6
+  times in length, and ``scp-igl`` on the true mesh has QC 1.43 there); no parameter
+  changes that, cutting the protrusion off or a seam along it does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["failure_causes", "describe_causes", "cause_advice", "THIN_GAP", "ENRICHMENT", "BASE_SAMPLE",
+           "COLLAPSE_SCALE", "MIN_SHARE"]
+
+#: Largest distance across the surface, in local spacings, that counts as "thin".
+THIN_GAP = 1.5
+
+#: How many times the share of all points the flipped triangles' share must be.
+ENRICHMENT = 5.0
+
+#: Points sampled (evenly by index) for the share of all points.
+BASE_SAMPLE = 20000
+
+#: Cosine of the largest angle between a neighbour's offset and the normal, for "across".
+_ACROSS_COS = np.cos(np.deg2rad(45.0))
+
+#: Largest scale factor, relative to the median triangle's, of a collapsed triangle.
+COLLAPSE_SCALE = 1e-3
+
+#: Share of the failing triangles a cause must explain to be named.
+MIN_SHARE = 0.35
+
+
+def failure_causes(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray,
+                   spacing_pt: np.ndarray, faces: np.ndarray, flipped: np.ndarray, zero: np.ndarray) -> dict:
+    """The recognised causes of a failed check, with the figures behind them.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    uv : (N, 2) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64
+        Unit point normals (orientation not used).
+    knn_indices : (N, K) numpy.ndarray of int64
+        Nearest neighbours of each point (the point itself may be among them).
+    spacing_pt : (N,) numpy.ndarray of float64
+        Local spacing per point.
+    faces : (M, 3) numpy.ndarray of int64
+        The self-check's uv triangles.
+    flipped, zero : (M,) numpy.ndarray of bool
+        Flipped triangles, and zero-area ones.
+
+    Returns
+    -------
+    dict
+        JSON-serialisable; a key per recognised cause: ``"thin"`` with ``share`` (of the
+        flipped triangles), ``base_share`` (of all points) and ``gap_spacings`` (median
+        distance across, in local spacings), ``"collapse"`` with ``share`` (of the zero-area triangles) and
+        ``scale`` (their median scale factor relative to the median triangle's).
+    """
+    causes: dict = {}
+    if flipped.any():
+        corners = faces[flipped]
+        gap = np.full(points.shape[0], np.inf)
+        vertices = np.unique(corners)
+        gap[vertices] = _gap_across(points, normals, knn_indices, spacing_pt, vertices)
+        face_gap = gap[corners].min(axis=1)
+        thin = face_gap < THIN_GAP
+        sample = np.arange(0, points.shape[0], max(1, points.shape[0] // BASE_SAMPLE))
+        base = float(np.mean(_gap_across(points, normals, knn_indices, spacing_pt, sample) < THIN_GAP))
+        if thin.mean() >= max(MIN_SHARE, ENRICHMENT * base):
+            causes["thin"] = {"share": round(float(thin.mean()), 3), "base_share": round(base, 4),
+                              "gap_spacings": round(float(np.median(face_gap[thin])), 3)}
+    if zero.any():
+        scale = _scale_factors(points, uv, faces)
+        relative = scale[zero] / max(float(np.median(scale)), np.finfo(float).tiny)
+        shrunk = relative < COLLAPSE_SCALE
+        if shrunk.mean() >= MIN_SHARE:
+            causes["collapse"] = {"share": round(float(shrunk.mean()), 3),
+                                  "scale": float(f"{np.median(relative[shrunk]):.2g}")}
+    return causes
+
+
+def _gap_across(points, normals, knn_indices, spacing_pt, vertices) -> np.ndarray:
+    """Per vertex, the nearest neighbour's offset along the normal, among those across the surface, in spacings (inf: none)."""
+    nb = knn_indices[vertices]
+    d = points[nb] - points[vertices][:, None, :]
+    dist = np.linalg.norm(d, axis=2)
+    along = np.abs(np.einsum("vki,vi->vk", d, normals[vertices]))
+    across = (dist > 0) & (along > _ACROSS_COS * dist)
+    return np.where(across, along, np.inf).min(axis=1) / spacing_pt[vertices]
+
+
+def _scale_factors(points, uv, faces) -> np.ndarray:
+    """Longest uv edge over longest 3D edge, per triangle.
+
+    Edge lengths, not areas: a triangle whose uv corners fall in line has no area but
+    keeps its size, and is not a shrunk one.
+    """
+    def longest(x):
+        c = x[faces]
+        return np.sqrt(np.max([np.sum((c[:, i] - c[:, (i + 1) % 3]) ** 2, axis=1) for i in range(3)], axis=0))
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.nan_to_num(longest(uv) / longest(points), nan=0.0, posinf=0.0)
+
+
+def describe_causes(causes: dict) -> str:
+    """What the causes say, for the check's one-line reason ("" without any)."""
+    parts = []
+    if "thin" in causes:
+        c = causes["thin"]
+        parts.append(f"{100 * c['share']:.0f} % of the flipped triangles lie where the surface comes within "
+                     f"{c['gap_spacings']:.2g} point spacings of itself (a part thinner than the sampling, or bent more "
+                     "sharply than it)")
+    if "collapse" in causes:
+        c = causes["collapse"]
+        parts.append(f"{100 * c['share']:.0f} % of the zero-area triangles are ones the map shrank "
+                     f"{1 / c['scale']:.1e} times in length (a protrusion: a conformal map shrinks it exponentially)")
+    return "; ".join(parts)
+
+
+def cause_advice(causes: dict, failed: list[str]) -> tuple[str, bool]:
+    """Advice for the recognised causes, and whether it replaces a parameter hint.
+
+    Returns
+    -------
+    advice : str
+        "" without a recognised cause.
+    alone : bool
+        True when every failed check is explained by a cause no parameter changes (a
+        collapse, with nothing but degenerate triangles failing).
+    """
+    advice = []
+    if "thin" in causes:
+        advice.append("sample the thin part more densely, or flatten a mesh of the surface (--method scp)")
+    if "collapse" in causes:
+        advice.append("cut the shrunk protrusion off, or cut a seam along it, before flattening")
+    alone = "collapse" in causes and set(failed) == {"degenerate"}
+    return "; ".join(advice), alone
