@@ -12,7 +12,8 @@ before ``ocp``'s mesh refinement.
 Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 ``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/cortex-lh``,
 ``real/bunny10k``), pymeshlab's Stanford bunny cut open by five planes (``bunny-cut-*``:
-rims that zigzag across triangles, 8.4k-15.5k points); every generated surface with ``random`` and
+rims that zigzag across triangles, 8.4k-15.5k points), and its cow, airplane and bone
+cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
@@ -65,6 +66,7 @@ from parambench.datasets_gen.io import load_surface
 from parambench.datasets_gen.plane_cut import cut_by_plane
 from parambench.datasets_gen.real import pymeshlab_samples_dir
 from parambench.datasets_gen.registry import dataset_names, make_surface
+from parambench.datasets_gen.subdivide import loop_subdivided
 from parambench.methods.pointset.boundary import find_boundary
 from parambench.methods.registry import get_method
 from parambench.reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
@@ -94,6 +96,19 @@ CASES = ([(name, 0, "", 0.0) for name in REAL]
 #: keep_above). Their rims zigzag across the triangles the plane crossed (8.4k-15.5k points).
 BUNNY = pymeshlab_samples_dir() / "bunny.obj"
 BUNNY_CUTS = [(1, 0.45, True), (1, 0.3, False), (2, 0.5, True), (2, 0.5, False), (0, 0.4, True)]
+
+
+#: Other meshes that ship with pymeshlab, cut open by a plane and Loop-subdivided
+#: (:func:`parambench.datasets_gen.subdivide.loop_subdivided`) to 10k-22k points: (file,
+#: axis, quantile, keep_above, rounds). The cow's ears stay thinner than its sampling
+#: (0.4-0.9 edge lengths between their sides): ``ocp``'s map folds there and fails its
+#: self-check, which names the thin part.
+PYMESHLAB_CUTS = [("cow.obj", 2, 0.5, True, 2), ("airplane.obj", 1, 0.5, True, 1), ("bone.ply", 0, 0.5, True, 2)]
+
+
+def _pymeshlab_cut_id(file: str, axis: int, quantile: float, keep_above: bool, rounds: int) -> str:
+    stem = file.rsplit(".", 1)[0]
+    return f"{stem}-cut-{'xyz'[axis]}{'above' if keep_above else 'below'}{round(100 * quantile)}-loop{rounds}"
 
 
 def _cut_id(axis: int, quantile: float, keep_above: bool) -> str:
@@ -226,6 +241,18 @@ def test_realdata_bunny_cut_open(benchmark, monkeypatch, axis, quantile, keep_ab
                            name=f"pymeshlab/{_cut_id(axis, quantile, keep_above)}")
     _measure(benchmark, monkeypatch, surface, "realdata-real", _cut_id(axis, quantile, keep_above), surface.name,
              None, 0.0)
+
+
+@pytest.mark.parametrize("case", PYMESHLAB_CUTS, ids=[_pymeshlab_cut_id(*c) for c in PYMESHLAB_CUTS])
+def test_realdata_pymeshlab_cut_open(benchmark, monkeypatch, case):
+    file, axis, quantile, keep_above, rounds = case
+    path = pymeshlab_samples_dir() / file
+    if not path.is_file():
+        pytest.skip(f"pymeshlab's sample {file} is not installed")
+    label = _pymeshlab_cut_id(*case)
+    surface = loop_subdivided(cut_by_plane(load_surface(path), axis, quantile, keep_above=keep_above), rounds,
+                              name=f"pymeshlab/{label}")
+    _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
 
 
 def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float,
