@@ -22,7 +22,7 @@ are recognised, and the self-check's reason names them:
 * **collapse**: most zero-area triangles are ones the map shrank, not ones the points
   made: their scale (longest uv edge over longest 3D edge) is below ``COLLAPSE_SCALE`` of
   the median triangle's. A conformal map shrinks a long protrusion exponentially along it
-  (the same cow cut across its body, with legs, 9.6k points: 607 triangles shrunk 7e4-1e6
+  (the cow's side with its legs, 9.6k points: 607 triangles shrunk 7e4-1e6
   times in length, and ``scp-igl`` on the true mesh has QC 1.43 there); no parameter
   changes that, cutting the protrusion off or a seam along it does.
 """
