@@ -37,7 +37,7 @@ from ..pointset.mesh_refine import first_map_faces, mesh_passes, refine_on_uv_me
 from ..pointset.two_level import coarse_subsample, two_level_sdp_pair
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
 from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
-                                      scale_to_spacing)
+                                      scale_to_spacing, with_shape_cause)
 from ..registry import register
 from ..spectral import ConformalProblem
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
@@ -323,16 +323,22 @@ class Ocp(Method):
                 return fill_point_holes(work, fronts[0].normals, [loops[0], *rest], fronts[0].local_spacing)
 
         start, n_thin = surface, 0
-        if params["holes"] == "auto":
-            start, n_thin = self._thin_holes_filled(surface, params, timer, fronts, ready, thin)
         try:
-            (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
-        except (ConvergenceError, SolverError) as exc:
-            if not first_pair:
+            if params["holes"] == "auto":
+                start, n_thin = self._thin_holes_filled(surface, params, timer, fronts, ready, thin)
+            try:
+                (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
+            except (ConvergenceError, SolverError) as exc:
+                if not first_pair:
+                    raise
+                front, w_tan, lap = first_pair[0]
+                sol, counts, extra = _after_failed_searches(front, w_tan, lap, solver, params, timer, released(exc))
+                work, n_filled = front, 0
+        except SolverError as exc:  # no map came out: say so where the shape explains it
+            named = with_shape_cause(exc, fronts[0] if fronts else None)
+            if named is exc:
                 raise
-            front, w_tan, lap = first_pair[0]
-            sol, counts, extra = _after_failed_searches(front, w_tan, lap, solver, params, timer, released(exc))
-            work, n_filled = front, 0
+            raise named from exc
         del first_pair
         # fronts[0]: loops, spacing and neighbours of the points the user gave
         return sol, counts, extra, work, n_filled, n_thin, fronts[0]

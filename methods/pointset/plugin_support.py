@@ -14,12 +14,13 @@ from parambench.datasets_gen.surface import MethodInput
 
 from ..base import StageTimer
 from ..hints import Hint, hinted
+from .failure_causes import cause_advice, describe_causes, protrusion_shrink
 from .frontend import STAGES, FrontEnd, build_frontend
 from .params import frontend_params, method_defaults
 from .row_chunks import for_each_chunk
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
-           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS"]
+           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
@@ -229,6 +230,41 @@ def require_neighbours(n_points: int, k: Any, param: str) -> None:
 
 #: Points per chunk of :func:`scale_to_spacing`'s edge lengths (on worker threads).
 _SCALE_CHUNK = 65536
+
+
+def with_shape_cause(exc: SolverError, front: FrontEnd | None) -> SolverError:
+    """``exc`` with the protrusion the points show named first among its remedies, if they show one.
+
+    For a solver error that left no map to check: its hints name front-end parameters,
+    which cannot help where the surface has a protrusion a conformal map shrinks
+    exponentially (pymeshlab's cow cut to its side with two leg stumps, 8k points: every
+    k search fails although the three loops are found, and the hints led from
+    ``boundary_angle_deg`` to ``ball_eps_factor`` to ``k_nn``). The test is
+    :func:`~parambench.methods.pointset.failure_causes.protrusion_shrink` on ``front``'s
+    points and outer loop; the parameter hints stay, after the cut advice.
+
+    Parameters
+    ----------
+    exc : SolverError
+    front : FrontEnd or None
+        The front end of the points the user gave (None: ``exc`` is returned).
+
+    Returns
+    -------
+    SolverError
+        ``exc`` itself when no protrusion shows, else a new error of its type.
+    """
+    if front is None or not front.boundary_loops:
+        return exc
+    causes = protrusion_shrink(front.points, front.knn_indices, front.boundary_loops[0])
+    if not causes:
+        return exc
+    stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
+    advice, _ = cause_advice(causes, [])
+    said = describe_causes(causes)
+    named = hinted(type(exc), f"{stem}. {said[:1].upper()}{said[1:]}", Hint(advice), *hints)
+    named.parambench_causes = causes
+    return named
 
 
 def scale_to_spacing(uv: np.ndarray, front: FrontEnd) -> np.ndarray:

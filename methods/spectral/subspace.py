@@ -44,14 +44,27 @@ from .reduction import BoundaryReduction, pencil_k_estimates
 from .threads import single_threaded_blas
 from .turning import loop_turning_numbers
 
-__all__ = ["BoundarySubspace", "boundary_basis", "DEFAULT_MODES"]
+__all__ = ["BoundarySubspace", "boundary_basis", "loop_arc_fraction", "DEFAULT_MODES"]
 
 #: Fourier modes (cos and sin pairs) shared out among the loops by length.
 DEFAULT_MODES = 32
 
 
-def _arc_length(points: np.ndarray | None, loop: np.ndarray) -> np.ndarray:
-    """Normalised arc length in [0, 1) at each vertex of a closed loop."""
+def loop_arc_fraction(points: np.ndarray | None, loop: np.ndarray) -> np.ndarray:
+    """Normalised arc length in [0, 1) at each vertex of a closed loop.
+
+    Parameters
+    ----------
+    points : (V, 3) numpy.ndarray of float64, or None
+        None: the vertices are taken as evenly spaced.
+    loop : (L,) numpy.ndarray of int64
+        Vertex indices in order; the loop closes from the last back to the first.
+
+    Returns
+    -------
+    (L,) numpy.ndarray of float64
+        0 at ``loop[0]``, increasing.
+    """
     if points is None:
         return np.arange(loop.size) / loop.size
     seg = np.linalg.norm(points[np.roll(loop, -1)] - points[loop], axis=1)
@@ -88,7 +101,7 @@ def boundary_basis(loops: Sequence[np.ndarray], points: np.ndarray | None = None
     offsets = np.concatenate([[0], np.cumsum(sizes)])
     cols = []
     for i, loop in enumerate(loops):
-        s = _arc_length(points, loop)
+        s = loop_arc_fraction(points, loop)
         n_j = int(np.clip(round(n_modes * loop.size / total), 4, max(1, loop.size // 3)))
         block = np.zeros((total, 2 * n_j + 1))
         rows = slice(offsets[i], offsets[i + 1])

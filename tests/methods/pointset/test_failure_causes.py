@@ -7,7 +7,14 @@ import pytest
 from scipy.spatial import Delaunay, cKDTree
 
 from parambench.datasets_gen.registry import make_surface
-from parambench.methods.pointset.failure_causes import cause_advice, describe_causes, failure_causes
+from parambench.datasets_gen.errors import ConvergenceError
+from parambench.methods.hints import Hint, hinted
+from parambench.methods.pointset import failure_causes as causes_module
+from parambench.methods.pointset.failure_causes import (cause_advice, describe_causes, failure_causes,
+                                                        harmonic_scale, protrusion_shrink)
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.params import frontend_params
+from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS, with_shape_cause
 from parambench.methods.pointset.selfcheck import check_pointset_map, failure_line
 from parambench.methods.registry import get_method
 
@@ -133,3 +140,61 @@ def test_the_check_itself_carries_the_causes(flap):
     check = check_pointset_map(points, uv, normals, None, knn_indices=knn, spacing=float(spacing.mean()))
     assert not check["passed"] and "flipped" in check["failed"]
     assert "thin" in check["causes"] and "thinner than the sampling" in check["reason"]
+
+
+def _tube(length: float, per_turn: int = 48):
+    """An open cylinder of girth 1 and ``length`` on a grid, its rim z = 0 first (points 0..per_turn-1)."""
+    theta, z = np.meshgrid(np.arange(per_turn) / per_turn * 2 * np.pi, np.arange(int(length * per_turn) + 1) / per_turn)
+    r = 1.0 / (2 * np.pi)
+    points = np.column_stack([r * np.cos(theta.ravel()), r * np.sin(theta.ravel()), z.ravel()])
+    return points, cKDTree(points).query(points, 9)[1], np.arange(per_turn)
+
+
+def test_harmonic_scale_decays_along_a_tube_as_the_first_fourier_mode():
+    """Pinned at one rim, the free rim shrinks like 1 / cosh(pi L) against the middle: e^-pi per unit length."""
+    smallest = {length: harmonic_scale(*_tube(length)).min() for length in (2.0, 3.0)}
+    rate = -np.log(smallest[3.0] / smallest[2.0])
+    assert rate == pytest.approx(np.pi, rel=0.05)
+    assert protrusion_shrink(*_tube(3.0))["protrusion"]["scale"] < causes_module.PROTRUSION_SCALE
+    assert protrusion_shrink(*_tube(1.0)) == {}
+
+
+def test_harmonic_scale_of_a_flat_disc_is_near_one():
+    """A disc's harmonic map with its rim on a circle by arc length is the identity up to scale."""
+    rng = np.random.default_rng(1)
+    g = np.stack(np.meshgrid(np.linspace(-1, 1, 61), np.linspace(-1, 1, 61)), -1).reshape(-1, 2)
+    g = g[np.hypot(*g.T) < 0.97]
+    g = g + rng.uniform(-0.005, 0.005, g.shape)
+    rim_angles = np.arange(180) / 180 * 2 * np.pi
+    flat = np.vstack([np.column_stack([np.cos(rim_angles), np.sin(rim_angles)]), g])
+    points = np.column_stack([flat, np.zeros(len(flat))])
+    knn = cKDTree(points).query(points, 9)[1]
+    scale = harmonic_scale(points, knn, np.arange(180))
+    assert 0.3 < scale.min() and scale.max() < 3.0
+    assert protrusion_shrink(points, knn, np.arange(180)) == {}
+
+
+def _front(points):
+    return build_frontend(points, None, frontend_params(dict(FRONTEND_DEFAULTS)))
+
+
+def test_a_failed_solve_names_the_protrusion_first_and_keeps_its_hints():
+    front = _front(make_surface("protrusions", 2000, sampling="random", seed=0).points)
+    exc = hinted(ConvergenceError, "no regular scp map at any k", Hint("raise k_nn (e.g. 12)", "k_nn", 12))
+    named = with_shape_cause(exc, front)
+    assert type(named) is ConvergenceError and named is not exc
+    message = str(named)
+    assert "protrusion" in message
+    assert message.index("cut the shrunk protrusion off") < message.index("raise k_nn")
+    assert named.parambench_causes["protrusion"]["scale"] < causes_module.PROTRUSION_SCALE
+
+
+def test_a_failed_solve_without_a_protrusion_is_left_alone(monkeypatch):
+    front = _front(make_surface("bump", 2000, seed=0).points)
+    exc = hinted(ConvergenceError, "no regular scp map at any k", Hint("raise k_nn (e.g. 12)", "k_nn", 12))
+    assert with_shape_cause(exc, front) is exc
+    assert with_shape_cause(exc, None) is exc
+    # Past the size limit the factorisation is not paid, and nothing is claimed.
+    monkeypatch.setattr(causes_module, "PROTRUSION_MAX_POINTS", 100)
+    protruding = _front(make_surface("protrusions", 2000, sampling="random", seed=0).points)
+    assert with_shape_cause(exc, protruding) is exc
