@@ -147,7 +147,15 @@ class Ocp(Method):
     solves are tightened and the search settled again (:mod:`parambench.methods.spectral.multilevel`);
     null (default): only where the fine k search did not settle while its refinement
     sat at the solves' floor (a jittered cylinder at 1M points: 4.2e-3 -> 3.4e-5 of the
-    diameter from the direct map). End to end at 1M points
+    diameter from the direct map). ``polish_residual`` (two levels; default null = off):
+    when the fine map's relative residual in the full space (``k L / 2 - M`` and B on
+    every point, a sparse product; ``full_space_residual_before`` in the diagnostics) is
+    above this (0: always), the map is polished there by Davidson steps with a two-grid
+    preconditioner (:mod:`parambench.methods.spectral.full_space_polish`): at 1M points on
+    ``protrusions`` 2.5e-3 of the diameter off the exact eigenvector -> 2.4e-5 (the direct
+    path's map: 5.5e-4) in 20 steps, 123 s instead of 71-86 s. Off by default: the
+    residual does not tell the maps that need it (protrusions 3.8e-8) from those that do
+    not (cap 2.3e-8, whose polish took it from 55 to 85 s). End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
     the time of ``scp-igl`` on the true mesh (see bench/MEASUREMENTS.md).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
@@ -179,7 +187,8 @@ class Ocp(Method):
     name = "ocp"
     description = "optimized conformal parameterization, k line search (points only; Sec. 4.2)"
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
-                "solver": "auto", "fine_solver": "twogrid", "map_error": None, "retry_k_nn": RETRY_K_NN,
+                "solver": "auto", "fine_solver": "twogrid", "map_error": None, "polish_residual": None,
+                "retry_k_nn": RETRY_K_NN,
                 "holes": "auto", "refine": "auto"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
     choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS, "holes": HOLES_MODES,
@@ -192,12 +201,15 @@ class Ocp(Method):
         ------
         InvalidInputError
             ``solver="multilevel"`` and ``k_search`` is not ``"line"``; ``retry_k_nn``
-            not a whole number >= 0; ``map_error`` not positive.
+            not a whole number >= 0; ``map_error`` not positive; ``polish_residual`` negative.
         """
         map_error = params["map_error"]
         if map_error is not None and (isinstance(map_error, bool) or not isinstance(map_error, (int, float))
                                       or not map_error > 0):
             raise InvalidInputError(f"map_error must be a positive number (or null for none), got {map_error!r}.")
+        polish = params["polish_residual"]
+        if polish is not None and (isinstance(polish, bool) or not isinstance(polish, (int, float)) or not polish >= 0):
+            raise InvalidInputError(f"polish_residual must be a number >= 0 (0: always; null: never), got {polish!r}.")
         retry = params["retry_k_nn"]
         if isinstance(retry, bool) or not isinstance(retry, (int, np.integer)) or retry < 0:
             raise InvalidInputError(f"retry_k_nn must be a whole number >= 0 (0: no retry), got {retry!r}.")
@@ -640,7 +652,8 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer,
     """
     if solver == "multilevel":
         try:
-            return _multilevel_solve(front, box, timer, params["fine_solver"], params["map_error"])
+            return _multilevel_solve(front, box, timer, params["fine_solver"], params["map_error"],
+                                     params["polish_residual"])
         except (ConvergenceError, SolverError) as exc:
             if params["solver"] != "auto":
                 stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
@@ -674,7 +687,7 @@ def resolve_solver(option: str, n_points: int, k_search: str) -> str:
 
 
 def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "twogrid",
-                      map_error: float | None = None):
+                      map_error: float | None = None, polish_residual: float | None = None):
     """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics).
 
     Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
@@ -682,7 +695,7 @@ def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "t
     """
     from ..spectral.multilevel import MultilevelSettings, multilevel_scp
 
-    settings = MultilevelSettings(fine_solver=fine_solver, map_error=map_error)
+    settings = MultilevelSettings(fine_solver=fine_solver, map_error=map_error, polish_from=polish_residual)
     with timer("subsample"):
         coarse = coarse_subsample(front, settings)
     sol, info = multilevel_scp(box, front.boundary_loops, front.points, coarse, normals=front.normals,
