@@ -29,6 +29,8 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
+from parambench.datasets_gen.errors import SolverError
+
 from .ordering import nested_dissection
 from .sparse_eigen import SparseFactor
 from .turning import loop_turning_numbers
@@ -76,6 +78,8 @@ def _ritz(basis: np.ndarray, a_small: np.ndarray, b_small: np.ndarray, previous:
     values, vectors = la.eig(a_small, b_small)
     best, best_overlap = None, -1.0
     ref = previous - previous.mean()
+    if not np.linalg.norm(ref) > 0:  # a constant map follows no eigenvector
+        return None
     ref /= np.linalg.norm(ref)
     for i in np.flatnonzero(np.isfinite(values)):
         y = basis @ vectors[:, i]
@@ -108,11 +112,19 @@ def full_space_residual(operator: sp.csr_matrix, boundary: np.ndarray, z: np.nda
     lam : complex
     y : (N,) numpy.ndarray of complex128
         z with the translation that fits the pencil best.
+
+    Raises
+    ------
+    SolverError
+        z is constant (no map to measure).
     """
     basis, _ = np.linalg.qr(np.column_stack([z, np.ones_like(z)]))
     a_small = basis.conj().T @ (operator @ basis)
     b_small = basis[boundary].conj().T @ basis[boundary]
-    lam, y = _ritz(basis, a_small, b_small, z)
+    pair = _ritz(basis, a_small, b_small, z)
+    if pair is None:  # z is a translation: nothing to measure
+        raise SolverError("the map is constant (a collapsed map): there is no residual to measure.")
+    lam, y = pair
     return _relative_residual(operator, boundary, lam, y), lam, y
 
 
@@ -151,7 +163,7 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
     Raises
     ------
     SolverError
-        The coarse operator is singular.
+        The coarse operator is singular, or z is constant.
     """
     res0, lam, y = full_space_residual(operator, boundary, z)
     if not res0 > above:
@@ -184,7 +196,10 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
         a_small = np.block([[a_small, column[:, None]], [row[None, :], np.array([[corner]])]])
         basis = np.column_stack([basis, e])
         b_small = basis[boundary].conj().T @ basis[boundary]
-        lam, y = _ritz(basis, a_small, b_small, y)
+        pair = _ritz(basis, a_small, b_small, y)
+        if pair is None:
+            break
+        lam, y = pair
         steps += 1
         res = _relative_residual(operator, boundary, lam, y)
         if res < best[0] and np.array_equal(loop_turning_numbers(y, loops), turning):

@@ -101,3 +101,11 @@ def test_polish_residual_must_be_a_number_at_least_zero(value):
     surface = make_surface("bump", 500, seed=0)
     with pytest.raises(InvalidInputError, match="polish_residual"):
         get_method("ocp")(MethodInput(surface.points, None, None, "bump"), polish_residual=value)
+
+
+def test_a_constant_map_has_no_residual_to_measure(problem):
+    from parambench.datasets_gen.errors import SolverError
+
+    prob, operator, boundary, prolong, coarse_points, exact = problem
+    with pytest.raises(SolverError, match="constant"):
+        full_space_residual(operator, boundary, np.full(exact.shape, 2.0 + 1.0j))
