@@ -45,6 +45,7 @@ from parambench.datasets_gen.errors import ParambenchError
 
 from ..spectral.sparse_eigen import SparseFactor
 from ..spectral.subspace import loop_arc_fraction
+from .neighbourhoods import KnnGraph, symmetric_adjacency
 
 __all__ = ["failure_causes", "protrusion_shrink", "harmonic_scale", "describe_causes", "cause_advice", "THIN_GAP", "ENRICHMENT",
            "BASE_SAMPLE", "COLLAPSE_SCALE", "MIN_SHARE", "PROTRUSION_SCALE", "PROTRUSION_MAX_POINTS"]
@@ -187,11 +188,10 @@ def harmonic_scale(points: np.ndarray, knn_indices: np.ndarray, outer_loop: np.n
     """
     n = points.shape[0]
     outer = np.asarray(outer_loop, dtype=np.int64)
-    rows = np.repeat(np.arange(n), knn_indices.shape[1])
-    cols = np.asarray(knn_indices).ravel()
-    off = rows != cols
-    adj = sp.csr_matrix((np.ones(int(off.sum())), (rows[off], cols[off])), shape=(n, n))
-    adj = adj.maximum(adj.T)
+    knn = np.asarray(knn_indices, dtype=np.int64)
+    lengths = np.linalg.norm(points[knn] - points[:, None, :], axis=2)
+    adj = symmetric_adjacency(KnnGraph(knn, lengths, float(lengths.mean())))
+    adj.data[:] = 1.0  # uniform weights
     lap = (sp.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj).tocsr()
     free = np.ones(n, dtype=bool)
     free[outer] = False
@@ -199,13 +199,9 @@ def harmonic_scale(points: np.ndarray, knn_indices: np.ndarray, outer_loop: np.n
     uv = np.zeros((n, 2))
     uv[outer] = np.column_stack([np.cos(angle), np.sin(angle)])
     uv[free] = SparseFactor(lap[free][:, free]).solve(-(lap[free][:, ~free] @ uv[~free]))
-    scale = _mean_edge(uv, knn_indices) / np.maximum(_mean_edge(points, knn_indices), np.finfo(float).tiny)
+    uv_lengths = np.linalg.norm(uv[knn] - uv[:, None, :], axis=2)
+    scale = uv_lengths.mean(axis=1) / np.maximum(lengths.mean(axis=1), np.finfo(float).tiny)
     return scale / max(float(np.median(scale)), np.finfo(float).tiny)
-
-
-def _mean_edge(x: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
-    """Per point, the mean distance to its neighbours in the coordinates ``x``."""
-    return np.linalg.norm(x[knn_indices] - x[:, None, :], axis=2).mean(axis=1)
 
 
 def _gap_across(points, normals, knn_indices, spacing_pt, vertices) -> np.ndarray:

@@ -67,10 +67,10 @@ def _scale(operator: sp.csr_matrix) -> float:
     return max(float(np.abs(operator.diagonal()).max()), np.finfo(float).tiny)
 
 
-def _relative_residual(operator: sp.csr_matrix, boundary: np.ndarray, lam: complex, y: np.ndarray) -> float:
-    """``|A y - lambda B y|`` over ``max|diag A|`` and y's norm without its mean (a translation is not the map)."""
+def _residual(operator: sp.csr_matrix, boundary: np.ndarray, lam: complex, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """``r = A y - lambda B y`` and ``|r|`` over ``max|diag A|`` and y's norm without its mean (a translation is not the map)."""
     r = operator @ y - lam * np.where(boundary, y, 0.0)
-    return float(np.linalg.norm(r) / (_scale(operator) * np.linalg.norm(y - y.mean())))
+    return r, float(np.linalg.norm(r) / (_scale(operator) * np.linalg.norm(y - y.mean())))
 
 
 def _ritz(basis: np.ndarray, a_small: np.ndarray, b_small: np.ndarray, previous: np.ndarray):
@@ -125,7 +125,7 @@ def full_space_residual(operator: sp.csr_matrix, boundary: np.ndarray, z: np.nda
     if pair is None:  # z is a translation: nothing to measure
         raise SolverError("the map is constant (a collapsed map): there is no residual to measure.")
     lam, y = pair
-    return _relative_residual(operator, boundary, lam, y), lam, y
+    return _residual(operator, boundary, lam, y)[1], lam, y
 
 
 def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp.csr_matrix, z: np.ndarray,
@@ -179,8 +179,8 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
     op_h = operator.conj().T.tocsr()
     a_small = basis.conj().T @ (operator @ basis)
     steps, since_best = 0, 0
+    r = _residual(operator, boundary, lam, y)[0]
     while steps < rule.max_steps and best[0] > rule.rtol and since_best < rule.window:
-        r = operator @ y - lam * np.where(boundary, y, 0.0)
         e = _jacobi(shifted, diag, -r, np.zeros_like(y), rule)
         e += prolong @ factor.solve(prolong.T @ (-r - shifted @ e))
         e = _jacobi(shifted, diag, -r, e, rule)
@@ -190,9 +190,10 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
         if not norm > 0:
             break
         e /= norm
-        column = basis.conj().T @ (operator @ e)
+        op_e = operator @ e
+        column = basis.conj().T @ op_e
         row = (op_h @ e).conj() @ basis
-        corner = np.vdot(e, operator @ e)
+        corner = np.vdot(e, op_e)
         a_small = np.block([[a_small, column[:, None]], [row[None, :], np.array([[corner]])]])
         basis = np.column_stack([basis, e])
         b_small = basis[boundary].conj().T @ basis[boundary]
@@ -201,7 +202,7 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
             break
         lam, y = pair
         steps += 1
-        res = _relative_residual(operator, boundary, lam, y)
+        r, res = _residual(operator, boundary, lam, y)
         if res < best[0] and np.array_equal(loop_turning_numbers(y, loops), turning):
             best, since_best = (res, y), 0
         else:

@@ -534,8 +534,8 @@ def _polished(fine: ConformalProblem, sol: ConformalSolution, prolong: sp.csr_ma
     z, info = full_space_polish(operator, boundary, prolong, sol.z, fine.loops, coarse_points, above=above)
     if z is sol.z:
         return sol, info
-    turning = np.asarray(sol.turning)
-    return replace(sol, z=z, energy=rayleigh_energy(z, operator, boundary.astype(np.float64)), turning=turning,
+    # The polish keeps only steps whose loops turn as the map's did: sol.turning stands.
+    return replace(sol, z=z, energy=rayleigh_energy(z, operator, boundary.astype(np.float64)),
                    diagnostics={**sol.diagnostics, **info}), info
 
 
