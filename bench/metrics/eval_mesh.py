@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError, TooFewPointsError
 from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, validate_points
+from parambench.methods.pointset.uv_triangulation import delaunay_faces
 
 from ._inputs import check_uv
 from .orientation import collapsed_mask, triangle_signed_areas
@@ -56,12 +57,9 @@ def uv_delaunay_faces(points, uv, max_edge_factor: float = 3.0) -> np.ndarray:
     if pts.shape[0] < KNN_EDGE_K + 1:  # pragma: no cover - validate_points enforces it
         raise TooFewPointsError(f"need at least {KNN_EDGE_K + 1} points.")
     try:
-        tri = Delaunay(uv).simplices.astype(np.int64)
-    except QhullError as exc:
-        raise InvalidInputError(
-            "the uv points cannot be triangulated (all collinear or coincident): the map collapsed; "
-            f"record the run as a failure. Qhull said: {str(exc).splitlines()[0]}"
-        ) from exc
+        tri = delaunay_faces(uv)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{exc} Record the run as a failure.") from None
 
     dist, _ = cKDTree(pts).query(pts, k=KNN_EDGE_K + 1)
     ref_edge = float(dist[:, 1:].mean())  # column 0 is the point itself

@@ -9,7 +9,8 @@ so each region between loops is classified by one point-in-polygon test.
 
 When the constraints cannot be honoured as given (a self-intersecting uv boundary, which
 Triangle resolves by inserting new vertices, or coincident uv points, which it drops) the fallback is
-scipy's unconstrained Delaunay with every triangle classified by its centroid.
+the unconstrained Delaunay triangulation of the distinct points (:func:`delaunay_faces`, also
+Triangle) with every triangle classified by its centroid.
 """
 
 from __future__ import annotations
@@ -19,15 +20,14 @@ from pathlib import Path
 
 import numba
 import numpy as np
-from scipy.spatial import Delaunay, QhullError
 
 from parambench.datasets_gen.errors import InvalidInputError
 
 from ..geometry2d import triangle_signed_areas
 from ..numba_cache import configure_numba_cache
-from .row_chunks import for_each_chunk
+from .row_chunks import for_each_chunk, worker_count
 
-__all__ = ["UvTriangulation", "triangulate_uv"]
+__all__ = ["UvTriangulation", "triangulate_uv", "delaunay_faces", "loop_winding_numbers"]
 
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
@@ -64,41 +64,91 @@ def _loop_segments(loops: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(segs).astype(np.int32) if segs else np.empty((0, 2), np.int32)
 
 
-def _winding(query: np.ndarray, polygon: np.ndarray, max_pairs: int = 4_000_000) -> np.ndarray:
-    """Winding number of a closed polygon around each query point (crossing rule).
+def _winding(query: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Winding number of a closed polygon around each query point (crossing rule)."""
+    return _edges_winding(query, polygon, np.roll(polygon, -1, axis=0))
 
-    An edge from a to b can only count for queries with y in [min(a_y, b_y), max(a_y,
-    b_y)): with the queries sorted by y, those are one slice per edge, so the work is
-    the number of (edge, query) pairs in a band, about twice the queries for a simple
-    loop, not queries x edges (a folded 200k-point map's fallback classification took
-    20 s that way).
+
+def _edges_winding(query: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Total winding number of the directed edges a -> b around each query (crossing rule).
+
+    An edge can only count for queries with y in [min(a_y, b_y), max(a_y, b_y)): with the
+    queries sorted by y, those are one slice per edge, so the work is the number of
+    (edge, query) pairs in a band, about twice the queries for a simple loop. A collapsed
+    or folded map's loops cross the whole layout many times, and the pairs then number
+    edges x queries: at 85k points (a range scan's folded map) the blocked numpy version
+    ran for minutes per call, so the pairs are counted in a compiled loop with no
+    temporaries.
+
+    Parameters
+    ----------
+    query : (Q, 2) numpy.ndarray of float64
+    a, b : (E, 2) numpy.ndarray of float64
+        Edge starts and ends (the loops' points and their successors).
+
+    Returns
+    -------
+    (Q,) numpy.ndarray of int64
     """
-    a, b = polygon, np.roll(polygon, -1, axis=0)
-    out = np.zeros(query.shape[0], dtype=np.int64)
     order = np.argsort(query[:, 1], kind="stable")
-    ys = query[order, 1]
-    start = np.searchsorted(ys, np.minimum(a[:, 1], b[:, 1]), side="left")
-    stop = np.searchsorted(ys, np.maximum(a[:, 1], b[:, 1]), side="left")
-    counts = stop - start
-    ends = np.cumsum(counts)  # pairs up to and including each edge
-    edge = 0
-    while edge < len(polygon):  # blocks of edges with at most max_pairs pairs (at least one edge)
-        before = ends[edge - 1] if edge else 0
-        last = max(edge + 1, int(np.searchsorted(ends, before + max_pairs, side="right")))
-        block, edge = np.arange(edge, last), last
-        n_pairs = int(ends[last - 1] - before)
-        if n_pairs == 0:
-            continue
-        e = np.repeat(block, counts[block])
-        q = order[start[e] + np.arange(n_pairs) - (np.repeat(ends[block] - counts[block], counts[block]) - before)]
-        qx, qy = query[q, 0], query[q, 1]
-        ax, ay, bx, by = a[e, 0], a[e, 1], b[e, 0], b[e, 1]
-        cross = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
-        up = (ay <= qy) & (by > qy) & (cross > 0)
-        down = (ay > qy) & (by <= qy) & (cross < 0)
-        out += np.bincount(q, weights=up.astype(np.int64) - down.astype(np.int64),
-                           minlength=query.shape[0]).astype(np.int64)
+    qx = np.ascontiguousarray(query[order, 0])
+    qy = np.ascontiguousarray(query[order, 1])
+    start = np.searchsorted(qy, np.minimum(a[:, 1], b[:, 1]), side="left")
+    stop = np.searchsorted(qy, np.maximum(a[:, 1], b[:, 1]), side="left")
+    counted = np.zeros(query.shape[0], dtype=np.int64)
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+
+    def rows_of(rows: slice) -> None:  # disjoint slices of the sorted queries: no locking
+        _band_crossings(qx, qy, a, b, start, stop, rows.start, rows.stop, counted)
+
+    for_each_chunk(rows_of, query.shape[0], max(1, -(-query.shape[0] // (4 * worker_count()))))
+    out = np.empty_like(counted)
+    out[order] = counted
     return out
+
+
+@numba.njit(cache=_CACHE, nogil=True)
+def _band_crossings(qx, qy, a, b, start, stop, lo, hi, out):  # pragma: no cover - compiled
+    """Add each edge's signed crossings to the y-sorted queries of its band within [lo, hi)."""
+    for e in range(a.shape[0]):
+        first, last = max(start[e], lo), min(stop[e], hi)
+        if first >= last:
+            continue
+        ax, ay, bx, by = a[e, 0], a[e, 1], b[e, 0], b[e, 1]
+        dx, dy = bx - ax, by - ay
+        for j in range(first, last):
+            y = qy[j]
+            cross = dx * (y - ay) - dy * (qx[j] - ax)
+            if ay <= y < by:
+                if cross > 0:
+                    out[j] += 1
+            elif by <= y < ay:
+                if cross < 0:
+                    out[j] -= 1
+
+
+def loop_winding_numbers(query: np.ndarray, uv: np.ndarray, loops) -> np.ndarray:
+    """Total winding number of closed uv loops around each query point (crossing rule).
+
+    Parameters
+    ----------
+    query : (Q, 2) numpy.ndarray of float64
+    uv : (N, 2) numpy.ndarray of float64
+    loops : sequence of (L_i,) array_like of int
+        Closed polygons as indices into ``uv``; loops under 3 points are ignored.
+
+    Returns
+    -------
+    (Q,) numpy.ndarray of int64
+        The sum over the loops; its parity is the even-odd rule's inside.
+    """
+    loops = [np.asarray(lp, dtype=np.int64) for lp in loops if len(lp) >= 3]
+    if not loops or not query.shape[0]:
+        return np.zeros(query.shape[0], dtype=np.int64)
+    a = np.concatenate([uv[lp] for lp in loops])
+    b = np.concatenate([uv[np.roll(lp, -1)] for lp in loops])
+    return _edges_winding(np.asarray(query, dtype=np.float64), a, b)
 
 
 def _inside(query: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
@@ -107,10 +157,48 @@ def _inside(query: np.ndarray, uv: np.ndarray, loops: list[np.ndarray]) -> np.nd
     Holes turn against the outer loop, so their windings cancel the outer one inside a
     hole, under a global mirror too; a boundary that winds twice still has its inside.
     """
-    total = np.zeros(query.shape[0], dtype=np.int64)
-    for lp in loops:
-        total += _winding(query, uv[lp])
-    return total != 0
+    return loop_winding_numbers(query, uv, loops) != 0
+
+
+def delaunay_faces(uv: np.ndarray) -> np.ndarray:
+    """Delaunay triangles of a uv layout's distinct points (Triangle, exact predicates).
+
+    Coincident rows are one vertex, the first of them; the others are in no face (as
+    Qhull drops them). Triangle rather than ``scipy.spatial.Delaunay``: Qhull merged facets
+    for more than ten minutes on a collapsed map's clusters (a range scan's 85k points,
+    34k of them within 1e-6 of the layout's extent of another; Triangle: 0.14 s), and on
+    a million random points it takes 15 s against Triangle's 1 s.
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+
+    Returns
+    -------
+    (F, 3) numpy.ndarray of int64
+        Rows of ``uv``, in either orientation.
+
+    Raises
+    ------
+    InvalidInputError
+        Fewer than three distinct points, or all of them on one line (a collapsed map).
+    """
+    import triangle
+
+    uv = np.ascontiguousarray(uv, dtype=np.float64)
+    first = np.arange(uv.shape[0])
+    if _has_coincident(uv):
+        _, first = np.unique(uv, axis=0, return_index=True)
+    tris = None
+    if first.size >= 3:
+        try:
+            tris = triangle.triangulate({"vertices": uv[first]}, "Q").get("triangles")
+        except Exception:  # Triangle's C code reports bad input only by failing
+            tris = None
+    if tris is None or not len(tris):
+        raise InvalidInputError("the uv points cannot be triangulated (all collinear or coincident): "
+                                "the map collapsed.")
+    return first[np.asarray(tris, dtype=np.int64)]
 
 
 def _ccw(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -247,11 +335,7 @@ def triangulate_uv(uv: np.ndarray, loops: list | None = None) -> UvTriangulation
         faces, neighbours, crosses = _cdt(uv, segments)
     kind = "cdt" if faces is not None else ("delaunay-fallback" if loops else "delaunay")
     if faces is None:
-        try:
-            faces = Delaunay(uv).simplices.astype(np.int64)
-        except QhullError:
-            raise InvalidInputError("the uv points cannot be triangulated (all collinear or coincident): "
-                                    "the map collapsed.") from None
+        faces = delaunay_faces(uv)
     # Labels before the orientation fix: swapping two corners would misalign Triangle's neighbours.
     labels, first = _regions(faces, neighbours, segments, n) if kind == "cdt" else (None, None)
     faces = _ccw(uv, faces)

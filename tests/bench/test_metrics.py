@@ -396,15 +396,15 @@ def test_uv_delaunay_drops_triangles_spanning_a_hole():
     assert area.sum() == pytest.approx(1 - np.pi * 0.25**2, abs=0.02)
 
 
-def test_uv_delaunay_orients_faces_whatever_qhull_returns(monkeypatch):
+def test_uv_delaunay_orients_faces_whatever_the_triangulator_returns(monkeypatch):
     import parambench.bench.metrics.eval_mesh as eval_mesh
 
-    class Scrambled:  # qhull does not promise an orientation: reverse every other simplex
-        def __init__(self, uv):
-            self.simplices = Delaunay(uv).simplices.copy()
-            self.simplices[::2] = self.simplices[::2, ::-1]
+    def scrambled(uv):  # no orientation is promised: reverse every other triangle
+        faces = Delaunay(uv).simplices.copy()
+        faces[::2] = faces[::2, ::-1]
+        return faces
 
-    monkeypatch.setattr(eval_mesh, "Delaunay", Scrambled)
+    monkeypatch.setattr(eval_mesh, "delaunay_faces", scrambled)
     pts, _ = jittered_grid(n=6)
     uv = pts[:, :2] * np.array([1.0, -1.0])
     faces = uv_delaunay_faces(pts, uv)

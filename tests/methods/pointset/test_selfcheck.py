@@ -7,9 +7,11 @@ import json
 import numpy as np
 import pytest
 from matplotlib.path import Path
+from scipy.spatial import cKDTree
 
 from parambench.methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
-from parambench.methods.pointset.uv_triangulation import triangulate_uv
+from parambench.datasets_gen.errors import InvalidInputError
+from parambench.methods.pointset.uv_triangulation import delaunay_faces, triangulate_uv
 
 
 def _ring(n):
@@ -77,9 +79,8 @@ def _brute_winding(query, polygon):
     return up.sum(axis=1) - down.sum(axis=1)
 
 
-@pytest.mark.parametrize("max_pairs", [4_000_000, 7])  # one block of edges, and many
-def test_banded_winding_matches_every_edge_against_every_query(max_pairs):
-    from parambench.methods.pointset.uv_triangulation import _winding
+def test_banded_winding_matches_every_edge_against_every_query():
+    from parambench.methods.pointset.uv_triangulation import _edges_winding, _winding
 
     rng = np.random.default_rng(0)
     # A loop wound twice (winding 2 inside the small circle) and random self-crossing polygons.
@@ -90,8 +91,12 @@ def test_banded_winding_matches_every_edge_against_every_query(max_pairs):
         q = rng.standard_normal((3000, 2))
         q[:40] = poly[rng.integers(0, len(poly), 40)]  # on vertices
         q[40:80, 1] = poly[rng.integers(0, len(poly), 40), 1]  # level with vertices
-        np.testing.assert_array_equal(_winding(q, poly, max_pairs=max_pairs), _brute_winding(q, poly))
+        np.testing.assert_array_equal(_winding(q, poly), _brute_winding(q, poly))
     assert _winding(np.zeros((1, 2)), polygons[0])[0] == 2
+    # Several polygons' edges at once wind as the sum of each.
+    a = np.concatenate(polygons[1:4])
+    b = np.concatenate([np.roll(p, -1, axis=0) for p in polygons[1:4]])
+    np.testing.assert_array_equal(_edges_winding(q, a, b), sum(_brute_winding(q, p) for p in polygons[1:4]))
 
 
 def test_cdt_regions_classify_like_every_centroid():
@@ -551,3 +556,58 @@ def test_a_flipped_sliver_off_the_loops_fails_a_rim_sliver_does_not(on_the_loop)
     # Where slivers are common (3 % of the triangles), one flipped says nothing.
     common = dict(facts, n_triangles=33, n_slivers=1)
     assert _too_many_inner_slivers(common) is False
+
+
+def _hull_area(uv):
+    from scipy.spatial import ConvexHull
+
+    return ConvexHull(uv).volume  # in 2D, the area
+
+
+def test_delaunay_faces_tile_the_hull_with_each_distinct_point_once():
+    rng = np.random.default_rng(3)
+    uv = rng.random((2000, 2))
+    faces = delaunay_faces(uv)
+    assert faces.shape == (2 * 2000 - 2 - _hull_vertex_count(uv), 3)  # Euler: 2n - 2 - h triangles
+    assert np.abs(_area(uv, faces)).sum() == pytest.approx(_hull_area(uv), rel=1e-12)
+    assert np.array_equal(np.unique(faces), np.arange(2000))
+    # Delaunay: no point strictly inside any face's circumcircle.
+    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
+    d = 2 * ((a[:, 0] - c[:, 0]) * (b[:, 1] - c[:, 1]) - (b[:, 0] - c[:, 0]) * (a[:, 1] - c[:, 1]))
+    sa, sb = ((a - c) ** 2).sum(axis=1), ((b - c) ** 2).sum(axis=1)
+    centre = c + np.c_[sa * (b[:, 1] - c[:, 1]) - sb * (a[:, 1] - c[:, 1]),
+                       sb * (a[:, 0] - c[:, 0]) - sa * (b[:, 0] - c[:, 0])] / d[:, None]
+    radius = np.linalg.norm(a - centre, axis=1)
+    nearest = cKDTree(uv).query(centre)[0]
+    assert (nearest >= radius * (1 - 1e-9)).all()
+
+
+def _hull_vertex_count(uv):
+    from scipy.spatial import ConvexHull
+
+    return len(ConvexHull(uv).vertices)
+
+
+def test_delaunay_faces_of_a_collapsed_map_keep_one_of_each_coincident_group():
+    """A collapsed map: most points in tight clusters, many exactly coincident. Qhull's
+    facet merging ran for over ten minutes on such a layout (a range scan's folded map);
+    the faces must use the first row of each coincident group and tile the hull."""
+    rng = np.random.default_rng(0)
+    centres = rng.random((300, 2))
+    uv = np.repeat(centres, 40, axis=0) + 1e-9 * rng.standard_normal((12000, 2))
+    uv[::3] = np.repeat(centres, 40, axis=0)[::3]  # exact copies of each cluster's centre
+    uv = np.vstack([uv, rng.random((3000, 2))])
+    faces = delaunay_faces(uv)
+    used = np.unique(faces)
+    _, first = np.unique(uv, axis=0, return_index=True)
+    assert np.isin(used, first).all()  # no duplicate row is a vertex
+    assert used.size == first.size  # every distinct point is one
+    assert np.abs(_area(uv, faces)).sum() == pytest.approx(_hull_area(uv), rel=1e-9)
+    assert (np.abs(_area(uv, faces)) > 0).all()
+
+
+@pytest.mark.parametrize("uv", [np.c_[np.arange(5.0), 2 * np.arange(5.0)], np.zeros((6, 2)),
+                                np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]])])
+def test_delaunay_faces_refuse_a_map_with_no_area(uv):
+    with pytest.raises(InvalidInputError, match="collapsed"):
+        delaunay_faces(uv)

@@ -122,3 +122,21 @@ def test_pivoting_across_the_blocks_falls_back_to_interior_solves():
     red = BoundaryReduction(lap, np.array([2]), np.array([0, 1]))
     np.testing.assert_allclose(red.schur, [[53.0]])
     assert red._trailing is None
+
+
+def test_pencil_k_estimates_on_a_numerically_singular_s_keep_the_true_ones_without_a_warning():
+    """A range scan's S/2 had rcond ~1e-18: scipy warned on every k search (four lines on the
+    user's terminal). The estimates come from the pencil without an inverse then."""
+    import warnings
+
+    from parambench.methods.spectral.reduction import pencil_k_estimates
+
+    q, _ = np.linalg.qr(np.random.default_rng(1).standard_normal((6, 6)))
+    s_half = q @ np.diag([1.0, 2.0, 3.0, 1.5, 1.0, 1e-19]) @ q.T
+    m = (q @ np.diag([2.0, 5.0, 7.0, 3.0, 4.0, 0.0]) @ q.T).astype(np.complex128)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        found = pencil_k_estimates(s_half, m)
+    assert np.isfinite(found).all() and (found > 0).all()
+    for mu in (2.0, 2.5, 7.0 / 3.0, 4.0):  # m_i / d_i of the regular directions
+        assert np.abs(found - mu).min() < 1e-8 * mu
