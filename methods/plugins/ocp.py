@@ -42,7 +42,7 @@ from ..registry import register
 from ..spectral import ConformalProblem
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
 from ..spectral.problem import solve_line_then_direct
-from ..spectral.multilevel import FINE_SOLVERS
+from ..spectral.multilevel import FINE_SOLVERS, MultilevelSettings
 
 #: ``solver`` values of ``ocp``: the single-level solve, the two-level one of
 #: :mod:`parambench.methods.spectral.multilevel`, or ``"auto"`` (the default): two-level
@@ -58,6 +58,11 @@ OCP_SOLVERS = ("auto", "direct", "multilevel")
 #: holes / cap multilevel 5.4 / 4.6 / 8.6 s against direct 7.9 / 6.2 / 8.3 s (the cap's
 #: Davidson steps take 62 cycles), so the threshold stays until the cap's steps are cheaper.
 MULTILEVEL_FROM = 200_000
+
+#: ``polish_spread`` default: a two-level map whose local scale varies more than this
+#: many times is polished in the full space (protrusions 356 at 100k points, the other
+#: generated surfaces 1.0-1.7).
+POLISH_SPREAD = MultilevelSettings.polish_spread
 
 
 #: ``refine`` values of ``ocp``: ``"auto"`` refines only a map the point-set energies
@@ -153,9 +158,16 @@ class Ocp(Method):
     above this (0: always), the map is polished there by Davidson steps with a two-grid
     preconditioner (:mod:`parambench.methods.spectral.full_space_polish`): at 1M points on
     ``protrusions`` 2.5e-3 of the diameter off the exact eigenvector -> 2.4e-5 (the direct
-    path's map: 5.5e-4) in 20 steps, 123 s instead of 71-86 s. Off by default: the
-    residual does not tell the maps that need it (protrusions 3.8e-8) from those that do
-    not (cap 2.3e-8, whose polish took it from 55 to 85 s). End to end at 1M points
+    path's map: 5.5e-4) in 20 steps. Off by default: the residual does not tell the maps
+    that need it (protrusions 3.8e-8) from those that do not (cap 2.3e-8, whose polish
+    took it from 55 to 85 s). ``polish_spread`` (two levels; default 20, null = never)
+    tells them apart: the map is polished whatever its residual when its local scale
+    (uv over 3D distance to the nearest points, on the coarse points) varies more than
+    this many times between the 1st and 99th percentile, as a conformal map shrinks a
+    protrusion (``map_scale_spread`` in the diagnostics; at 100k points protrusions 356,
+    every other generated surface 1.0-1.7; at 1M protrusions 361, bump 1.71, cap 1.33).
+    Protrusions at 1M then take 107-110 s instead of 72 s and 3.9 GiB peak instead of
+    3.5, and their map is 1.5e-6 of the diameter from the polished one above. End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
     the time of ``scp-igl`` on the true mesh (see bench/MEASUREMENTS.md).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and
@@ -188,7 +200,7 @@ class Ocp(Method):
     description = "optimized conformal parameterization, k line search (points only; Sec. 4.2)"
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
                 "solver": "auto", "fine_solver": "twogrid", "map_error": None, "polish_residual": None,
-                "retry_k_nn": RETRY_K_NN,
+                "polish_spread": POLISH_SPREAD, "retry_k_nn": RETRY_K_NN,
                 "holes": "auto", "refine": "auto"}
     param_grid = {"k_search": ["line", "direct"], "energy": list(OCP_ENERGIES)}
     choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS, "holes": HOLES_MODES,
@@ -201,7 +213,8 @@ class Ocp(Method):
         ------
         InvalidInputError
             ``solver="multilevel"`` and ``k_search`` is not ``"line"``; ``retry_k_nn``
-            not a whole number >= 0; ``map_error`` not positive; ``polish_residual`` negative.
+            not a whole number >= 0; ``map_error`` not positive; ``polish_residual`` negative;
+            ``polish_spread`` under 1.
         """
         map_error = params["map_error"]
         if map_error is not None and (isinstance(map_error, bool) or not isinstance(map_error, (int, float))
@@ -210,6 +223,9 @@ class Ocp(Method):
         polish = params["polish_residual"]
         if polish is not None and (isinstance(polish, bool) or not isinstance(polish, (int, float)) or not polish >= 0):
             raise InvalidInputError(f"polish_residual must be a number >= 0 (0: always; null: never), got {polish!r}.")
+        spread = params["polish_spread"]
+        if spread is not None and (isinstance(spread, bool) or not isinstance(spread, (int, float)) or not spread >= 1):
+            raise InvalidInputError(f"polish_spread must be a number >= 1 (null: never), got {spread!r}.")
         retry = params["retry_k_nn"]
         if isinstance(retry, bool) or not isinstance(retry, (int, np.integer)) or retry < 0:
             raise InvalidInputError(f"retry_k_nn must be a whole number >= 0 (0: no retry), got {retry!r}.")
@@ -653,7 +669,7 @@ def _solve_front(front, box: list, solver: str, params: dict, timer: StageTimer,
     if solver == "multilevel":
         try:
             return _multilevel_solve(front, box, timer, params["fine_solver"], params["map_error"],
-                                     params["polish_residual"])
+                                     params["polish_residual"], params["polish_spread"])
         except (ConvergenceError, SolverError) as exc:
             if params["solver"] != "auto":
                 stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
@@ -687,7 +703,8 @@ def resolve_solver(option: str, n_points: int, k_search: str) -> str:
 
 
 def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "twogrid",
-                      map_error: float | None = None, polish_residual: float | None = None):
+                      map_error: float | None = None, polish_residual: float | None = None,
+                      polish_spread: float | None = None):
     """The two-level solve of ``solver="multilevel"``: (solution, fine counts, diagnostics).
 
     Stages: ``subsample``, ``coarse`` (prolongation, Galerkin product, coarse search) and
@@ -695,7 +712,8 @@ def _multilevel_solve(front, box: list, timer: StageTimer, fine_solver: str = "t
     """
     from ..spectral.multilevel import MultilevelSettings, multilevel_scp
 
-    settings = MultilevelSettings(fine_solver=fine_solver, map_error=map_error, polish_from=polish_residual)
+    settings = MultilevelSettings(fine_solver=fine_solver, map_error=map_error, polish_from=polish_residual,
+                                  polish_spread=polish_spread)
     with timer("subsample"):
         coarse = coarse_subsample(front, settings)
     sol, info = multilevel_scp(box, front.boundary_loops, front.points, coarse, normals=front.normals,

@@ -14,11 +14,16 @@ preconditioner).
 
 Measured at 1M points, ``protrusions`` jittered, against the exact eigenvector of the same
 problem (one complex sparse factorisation of ``k L / 2 - M``): 2.5e-3 of the diameter ->
-2.4e-5 in 20 steps (the direct path's map: 5.5e-4), 123 s for ``ocp`` instead of 71-86
-s; at 100k 4.7e-4 -> 4.4e-6 in 14 steps. It costs one complex factorisation on the coarse
-points and about a second a step at 1M, so ``ocp`` runs it only when asked
-(``polish_residual``): the full-space residuals of the default maps at 1M (bump 1.0e-8,
-holes 1.3e-9, cap 2.3e-8, protrusions 3.8e-8) do not single out the one that needs it.
+2.4e-5 in 20 steps (the direct path's map: 5.5e-4); at 100k 4.7e-4 -> 4.4e-6 in 14
+steps. It costs one complex factorisation on the coarse points (~1 GB at 1M; the fine
+refinement's coarse preconditioner releases its own first) and about a second a step at
+1M, so ``ocp`` runs it only where it is needed. The full-space residuals of the default
+maps at 1M (bump 1.0e-8, holes 1.3e-9, cap 2.3e-8, protrusions 3.8e-8) do not single
+that map out; the spread of its local scale does (:func:`map_scale_spread`: 361
+against 1.33-1.71). The operator is applied as real Laplacian products and a boundary
+part (:class:`~.operators.SplitConformalOperator`), with no shifted or transposed copy:
+the polish's peak went from 3 GB to 0.3 GB above the solve's. ``ocp`` on protrusions at
+1M: 107-110 s and 3.9 GiB peak polished, 72 s and 3.4 GiB without (2 cores).
 """
 
 from __future__ import annotations
@@ -28,14 +33,16 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import SolverError
 
+from .operators import SplitConformalOperator
 from .ordering import nested_dissection
 from .sparse_eigen import SparseFactor
 from .turning import loop_turning_numbers
 
-__all__ = ["full_space_residual", "full_space_polish", "PolishRule"]
+__all__ = ["full_space_residual", "full_space_polish", "PolishRule", "map_scale_spread"]
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,39 @@ def _ritz(basis: np.ndarray, a_small: np.ndarray, b_small: np.ndarray, previous:
     return best
 
 
+def map_scale_spread(points: np.ndarray, uv: np.ndarray, neighbours: int = 8, tail: float = 0.01) -> float:
+    """How many times the map's local scale varies over the points, tails cut: q(1 - tail) / q(tail).
+
+    A point's scale is its mean uv distance to its ``neighbours`` nearest points over
+    their mean 3D distance. A conformal map shrinks a protrusion exponentially along it,
+    and the eigenvector is then ill-conditioned (the fine level's accuracy floor leaves it
+    far from the exact one: ``protrusions`` at 1M points, 2.5e-3 of the diameter).
+    Measured at 100k points (jittered, ``ocp``): protrusions 356, every other generated
+    surface 1.0-1.7 (the fold's Euclidean neighbours across its gap stay in the cut tails).
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    uv : (N,) numpy.ndarray of complex128, or (N, 2) of float64
+    neighbours : int
+    tail : float
+        Fraction of points cut at each end.
+
+    Returns
+    -------
+    float
+        >= 1; inf where some point's scale is 0 (a collapsed part).
+    """
+    uv = np.asarray(uv)
+    flat = np.column_stack([uv.real, uv.imag]) if np.iscomplexobj(uv) else uv
+    k = min(neighbours + 1, points.shape[0])
+    d3, near = cKDTree(points).query(points, k)
+    d2 = np.linalg.norm(flat[near[:, 1:]] - flat[:, None, :], axis=2).mean(axis=1)
+    scale = d2 / np.maximum(d3[:, 1:].mean(axis=1), np.finfo(float).tiny)
+    low, high = np.quantile(scale, [tail, 1.0 - tail])
+    return float(high / low) if low > 0 else float("inf")
+
+
 def full_space_residual(operator: sp.csr_matrix, boundary: np.ndarray, z: np.ndarray) -> tuple[float, complex, np.ndarray]:
     """The Ritz pair of ``(k L / 2 - M, B)`` on span{z, 1} and its relative residual.
 
@@ -128,14 +168,14 @@ def full_space_residual(operator: sp.csr_matrix, boundary: np.ndarray, z: np.nda
     return _residual(operator, boundary, lam, y)[1], lam, y
 
 
-def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp.csr_matrix, z: np.ndarray,
+def full_space_polish(operator, boundary: np.ndarray, prolong: sp.csr_matrix, z: np.ndarray,
                       loops, coarse_points: np.ndarray | None = None, rule: PolishRule = PolishRule(),
-                      above: float = 0.0) -> tuple[np.ndarray, dict]:
+                      above: float = 0.0, coarse_operator: sp.spmatrix | None = None) -> tuple[np.ndarray, dict]:
     """Davidson steps in the full space with a two-grid preconditioner, from the map z.
 
     Parameters
     ----------
-    operator : (N, N) scipy.sparse.csr_matrix of complex128
+    operator : (N, N) scipy.sparse.csr_matrix of complex128, or SplitConformalOperator
         ``k L / 2 - M`` at the map's k.
     boundary : (N,) numpy.ndarray of bool
         B's diagonal.
@@ -151,6 +191,10 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
     above : float
         Polish only a map whose full-space residual is above this; otherwise z itself is
         returned, untouched.
+    coarse_operator : (M, M) scipy.sparse matrix of complex128, optional
+        ``P^T (k L / 2 - M) P`` where the caller has it (the two-level path's coarse
+        problem: its Galerkin Laplacian, and the fine loops' area matrix, which P carries
+        over unchanged); computed otherwise.
 
     Returns
     -------
@@ -170,19 +214,32 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
         return z, {"full_space_residual_before": res0, "full_space_residual": res0, "full_space_steps": 0}
     turning = loop_turning_numbers(y, loops)
     best = (res0, y)
-    shifted = (operator - lam * sp.diags(boundary.astype(np.float64))).tocsr()
-    coarse_op = (prolong.T @ shifted @ prolong).tocsc()
+    # No shifted or conjugate-transposed copy of the operator: at 1M points each is
+    # ~0.5 GB of complex entries (the polish's peak was 3 GB above the solve's).
+    on_boundary = boundary.astype(np.float64)
+
+    def shifted(x: np.ndarray) -> np.ndarray:
+        return operator @ x - lam0 * (on_boundary * x)
+
+    lam0 = lam
+    b_coarse = prolong[boundary].T @ prolong[boundary]
+    if coarse_operator is None:
+        coarse_operator = _galerkin(operator, prolong)
+    coarse_op = (coarse_operator - lam0 * b_coarse).tocsc()
     perm = None if coarse_points is None else nested_dissection(coarse_points, abs(coarse_op))
     factor = SparseFactor(coarse_op, perm=perm)
-    diag = shifted.diagonal()
-    basis, _ = np.linalg.qr(np.column_stack([y, np.ones_like(y)]))
-    op_h = operator.conj().T.tocsr()
+    diag = operator.diagonal() - lam0 * on_boundary
+    # Columns in one Fortran-ordered block: adding one copies nothing.
+    store = np.empty((y.shape[0], rule.max_steps + 2), dtype=np.complex128, order="F")
+    store[:, :2] = np.linalg.qr(np.column_stack([y, np.ones_like(y)]))[0]
+    width = 2
+    basis = store[:, :width]
     a_small = basis.conj().T @ (operator @ basis)
     steps, since_best = 0, 0
     r = _residual(operator, boundary, lam, y)[0]
     while steps < rule.max_steps and best[0] > rule.rtol and since_best < rule.window:
         e = _jacobi(shifted, diag, -r, np.zeros_like(y), rule)
-        e += prolong @ factor.solve(prolong.T @ (-r - shifted @ e))
+        e += prolong @ factor.solve(prolong.T @ (-r - shifted(e)))
         e = _jacobi(shifted, diag, -r, e, rule)
         for _ in range(2):  # classical Gram-Schmidt, twice
             e -= basis @ (basis.conj().T @ e)
@@ -192,10 +249,12 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
         e /= norm
         op_e = operator @ e
         column = basis.conj().T @ op_e
-        row = (op_h @ e).conj() @ basis
+        row = (operator.T @ e.conj()) @ basis  # e^H A V without a copy of A^H (.T of CSR is a view)
         corner = np.vdot(e, op_e)
         a_small = np.block([[a_small, column[:, None]], [row[None, :], np.array([[corner]])]])
-        basis = np.column_stack([basis, e])
+        store[:, width] = e
+        width += 1
+        basis = store[:, :width]
         b_small = basis[boundary].conj().T @ basis[boundary]
         pair = _ritz(basis, a_small, b_small, y)
         if pair is None:
@@ -210,7 +269,15 @@ def full_space_polish(operator: sp.csr_matrix, boundary: np.ndarray, prolong: sp
     return best[1], {"full_space_residual_before": res0, "full_space_residual": best[0], "full_space_steps": steps}
 
 
-def _jacobi(matrix: sp.csr_matrix, diag: np.ndarray, rhs: np.ndarray, x: np.ndarray, rule: PolishRule) -> np.ndarray:
+def _galerkin(operator, prolong: sp.csr_matrix) -> sp.csr_matrix:
+    """``P^T A P``."""
+    if isinstance(operator, SplitConformalOperator):
+        lap_c = prolong.T @ (operator.laplacian @ prolong)
+        return ((0.5 * operator.k) * lap_c - prolong.T @ (operator.area @ prolong)).tocsr()
+    return (prolong.T @ (operator @ prolong)).tocsr()
+
+
+def _jacobi(matvec, diag: np.ndarray, rhs: np.ndarray, x: np.ndarray, rule: PolishRule) -> np.ndarray:
     for _ in range(rule.sweeps):
-        x = x + rule.omega * (rhs - matrix @ x) / diag
+        x = x + rule.omega * (rhs - matvec(x)) / diag
     return x

@@ -90,8 +90,8 @@ from ..hints import error_note
 from ..numba_cache import configure_numba_cache
 from ..pointset.reorder import spatial_order
 from .ordering import submatrix, symmetric_permutation
-from .full_space_polish import full_space_polish
-from .operators import rayleigh_energy
+from .full_space_polish import full_space_polish, map_scale_spread
+from .operators import SplitConformalOperator, rayleigh_energy
 from .problem import ConformalProblem, ConformalSolution
 from .sparse_eigen import SparseFactor
 from .threads import single_threaded_blas
@@ -165,10 +165,15 @@ class MultilevelSettings:
         two-grid solves are not tightened; None: never tightened.
     polish_from : float or None
         Full-space relative residual of the fine map above which it is polished in the
-        full space (:mod:`.full_space_polish`); None (default): never. Not on by default:
-        at 1M points the residual of protrusions' map (3.8e-8, 2.5e-3 of the diameter off
+        full space (:mod:`.full_space_polish`); None (default): not by its residual. At
+        1M points the residual of protrusions' map (3.8e-8, 2.5e-3 of the diameter off
         the exact one) is not far above cap's (2.3e-8, a map that needs no polish, which
         would take 30 s more).
+    polish_spread : float or None
+        The fine map is polished whatever its residual when its local scale varies more
+        than this many times (:func:`~.full_space_polish.map_scale_spread`, on the coarse
+        points); None: never. At 100k points protrusions' spread is 356 and every other
+        generated surface's 1.0-1.7.
     unsettled_map_error : float or None
         The same for a fine k search that did not settle although its refinement
         reached the two-grid solves' floor (their error moves k_opt from round to round);
@@ -192,6 +197,7 @@ class MultilevelSettings:
     map_error: float | None = None
     unsettled_map_error: float | None = 0.02
     polish_from: float | None = None
+    polish_spread: float | None = 20.0
 
 
 def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.ndarray | None = None,
@@ -507,8 +513,16 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
             sol = fine.solve("scp", "line")
             counts = {key: counts.get(key, 0) + value for key, value in fine.counts.items()}
         polish = {}
-        if settings.polish_from is not None:
-            sol, polish = _polished(fine, sol, prolong, points[coarse], settings.polish_from)
+        above = settings.polish_from
+        if settings.polish_spread is not None:
+            spread = map_scale_spread(points[coarse], sol.z[coarse])
+            polish["map_scale_spread"] = spread
+            if spread > settings.polish_spread:
+                above = 0.0
+        if above is not None:
+            precondition.release()  # the polish factorises its own coarse operator: one alive at a time
+            sol, found = _polished(fine, sol, prolong, coarse_problem, above)
+            polish.update(found)
     info = {**polish, "coarse_points": int(coarse.size), "coarse_k_opt": None if coarse_k is None else float(coarse_k),
             "coarse_regular": bool(coarse_info["regular"]),
             "coarse_triangular_solves": int(coarse_problem.counts["triangular_solves"]),
@@ -526,12 +540,13 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
 COARSE_SHIFT = 1e-4
 
 
-def _polished(fine: ConformalProblem, sol: ConformalSolution, prolong: sp.csr_matrix, coarse_points: np.ndarray,
+def _polished(fine: ConformalProblem, sol: ConformalSolution, prolong: sp.csr_matrix, coarse: ConformalProblem,
               above: float) -> tuple[ConformalSolution, dict]:
     """``sol`` polished in the full space where its residual is above ``above`` (:mod:`.full_space_polish`)."""
-    operator = fine.operator(sol.k).tocsr()
+    operator = SplitConformalOperator(fine.laplacian, fine.area, sol.k)
     boundary = np.asarray(fine.b.diagonal()) > 0
-    z, info = full_space_polish(operator, boundary, prolong, sol.z, fine.loops, coarse_points, above=above)
+    z, info = full_space_polish(operator, boundary, prolong, sol.z, fine.loops, coarse.points, above=above,
+                                coarse_operator=coarse.operator(sol.k))
     if z is sol.z:
         return sol, info
     # The polish keeps only steps whose loops turn as the map's did: sol.turning stands.
@@ -563,35 +578,47 @@ def coarse_scp_preconditioner(lap_c: sp.csr_matrix, coarse_loops: Sequence[np.nd
     that order against 74 s in SuperLU's minimum degree (both with another job on the
     cores; 27 s for the latter alone), the solves 0.57 s against 0.75 s.
     """
-    from .operators import area_matrix
-    from .ordering import nested_dissection
+    return CoarseBoundaryPreconditioner(lap_c, coarse_loops, points)
 
-    n_c = lap_c.shape[0]
-    rows = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in coarse_loops])
-    indicator = np.zeros(n_c)
-    indicator[rows] = 1.0
-    area_c = area_matrix(coarse_loops, n_c)
-    diag_max = float(np.abs(lap_c.diagonal()).max())
-    cache: dict = {}
 
-    def precondition(k: float, lam: complex, r: np.ndarray, z: np.ndarray) -> np.ndarray:
-        if cache.get("k") != k:
-            shift = COARSE_SHIFT * 0.5 * abs(k) * diag_max
-            op = ((0.5 * k) * lap_c - area_c + shift * sp.diags(indicator)).tocsc().astype(np.complex128)
-            perm = cache.get("perm")
-            if perm is None and points is not None:
-                perm = nested_dissection(points, lap_c)
-            cache.clear()  # one factorisation alive at a time
-            cache.update(k=k, factor=SparseFactor(op, perm=perm), perm=perm)
-        rhs = np.zeros((n_c, 2), dtype=np.complex128)
-        rhs[rows, 0] = r
-        rhs[rows, 1] = z
+class CoarseBoundaryPreconditioner:
+    """The callable :func:`coarse_scp_preconditioner` returns; :meth:`release` frees its factorisation."""
+
+    def __init__(self, lap_c: sp.csr_matrix, coarse_loops: Sequence[np.ndarray], points: np.ndarray | None = None):
+        from .operators import area_matrix
+
+        self._lap_c = lap_c
+        self._points = points
+        n_c = lap_c.shape[0]
+        self._rows = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in coarse_loops])
+        self._indicator = np.zeros(n_c)
+        self._indicator[self._rows] = 1.0
+        self._area_c = area_matrix(coarse_loops, n_c)
+        self._diag_max = float(np.abs(lap_c.diagonal()).max())
+        self._perm = None
+        self._cache: dict = {}
+
+    def __call__(self, k: float, lam: complex, r: np.ndarray, z: np.ndarray) -> np.ndarray:
+        from .ordering import nested_dissection
+
+        if self._cache.get("k") != k:
+            shift = COARSE_SHIFT * 0.5 * abs(k) * self._diag_max
+            op = ((0.5 * k) * self._lap_c - self._area_c + shift * sp.diags(self._indicator)).tocsc().astype(np.complex128)
+            if self._perm is None and self._points is not None:
+                self._perm = nested_dissection(self._points, self._lap_c)
+            self._cache.clear()  # one factorisation alive at a time
+            self._cache.update(k=k, factor=SparseFactor(op, perm=self._perm))
+        rhs = np.zeros((self._lap_c.shape[0], 2), dtype=np.complex128)
+        rhs[self._rows, 0] = r
+        rhs[self._rows, 1] = z
         with single_threaded_blas():
-            sol = cache["factor"].solve(rhs)[rows]
+            sol = self._cache["factor"].solve(rhs)[self._rows]
         t_r, t_z = sol[:, 0], sol[:, 1]
         return t_r - t_z * (np.vdot(z, t_r) / np.vdot(z, t_z))
 
-    return precondition
+    def release(self) -> None:
+        """Drop the factorisation (at 1M points about 1 GB; the next call factorises again)."""
+        self._cache.clear()
 
 
 def two_grid_factory(prolong: sp.csr_matrix, coarse_reduction, settings: MultilevelSettings, made: list):

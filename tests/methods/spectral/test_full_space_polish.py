@@ -81,8 +81,8 @@ def test_ocp_polish_residual_brings_the_two_level_map_to_the_direct_one():
     given = MethodInput(surface.points, None, None, "protrusions")
     ocp = get_method("ocp")
     direct = ocp(given, solver="direct")
-    plain = ocp(given, solver="multilevel")
-    polished = ocp(given, solver="multilevel", polish_residual=0.0)
+    plain = ocp(given, solver="multilevel", polish_spread=None)
+    polished = ocp(given, solver="multilevel", polish_residual=0.0, polish_spread=None)
 
     def dist(result):
         return _distance(result.uv[:, 0] + 1j * result.uv[:, 1], direct.uv[:, 0] + 1j * direct.uv[:, 1])
@@ -94,6 +94,39 @@ def test_ocp_polish_residual_brings_the_two_level_map_to_the_direct_one():
     # The direct map carries its own refinement's error: measured 1.3e-4 -> 7.9e-5 of its extent.
     assert dist(polished) < 0.8 * dist(plain)
     assert polished.diagnostics["selfcheck"]["passed"]
+
+
+def test_scale_spread_of_the_exponential_map_is_e_to_the_strip_length():
+    """exp is conformal with scale e^x: on a strip 0 <= x <= 3 sampled uniformly in x, the
+    1st and 99th percentiles of the scale are e^0.03 and e^2.97."""
+    from parambench.methods.spectral.full_space_polish import map_scale_spread
+
+    rng = np.random.default_rng(0)
+    xy = rng.random((40000, 2)) * [3.0, 1.0]
+    points = np.c_[xy, np.zeros(len(xy))]
+    assert map_scale_spread(points, np.exp(xy[:, 0] + 1j * xy[:, 1])) == pytest.approx(np.exp(2.94), rel=0.03)
+    assert map_scale_spread(points, 5.0 * (xy[:, 0] + 1j * xy[:, 1])) == pytest.approx(1.0, abs=1e-9)
+    collapsed = np.where(xy[:, 0] < 0.1, 0.0, xy[:, 0] + 1j * xy[:, 1])
+    assert map_scale_spread(points, collapsed) == np.inf
+
+
+def test_ocp_polishes_by_default_only_a_map_whose_scale_spans_orders_of_magnitude():
+    ocp = get_method("ocp")
+    spreads = {}
+    for name in ("protrusions", "bump"):
+        surface = make_surface(name, 20000, sampling="jittered", seed=0)
+        result = ocp(MethodInput(surface.points, None, None, name), solver="multilevel")
+        spreads[name] = result.diagnostics["map_scale_spread"]
+        assert ("full_space_steps" in result.diagnostics) == (name == "protrusions")
+        assert result.diagnostics["selfcheck"]["passed"]
+    assert spreads["protrusions"] > 100 and spreads["bump"] < 2  # measured: 356 and 1.7 at 100k points
+
+
+@pytest.mark.parametrize("value", [0.5, True, "big"])
+def test_polish_spread_must_be_a_number_at_least_one(value):
+    surface = make_surface("bump", 500, seed=0)
+    with pytest.raises(InvalidInputError, match="polish_spread"):
+        get_method("ocp")(MethodInput(surface.points, None, None, "bump"), polish_spread=value)
 
 
 @pytest.mark.parametrize("value", [-1.0, True, "always"])
@@ -109,3 +142,44 @@ def test_a_constant_map_has_no_residual_to_measure(problem):
     prob, operator, boundary, prolong, coarse_points, exact = problem
     with pytest.raises(SolverError, match="constant"):
         full_space_residual(operator, boundary, np.full(exact.shape, 2.0 + 1.0j))
+
+
+def test_the_split_operator_applies_the_same_matrix_and_polishes_the_same(problem):
+    from parambench.methods.spectral.operators import SplitConformalOperator
+
+    prob, operator, boundary, prolong, coarse_points, exact = problem
+    k = prob.solve("scp", "line").k  # the k the fixture's operator was built at
+    split = SplitConformalOperator(prob.laplacian, prob.area, k)
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((len(exact), 3)) + 1j * rng.standard_normal((len(exact), 3))
+    scale = abs(operator).max()
+    np.testing.assert_allclose(split @ x, operator @ x, rtol=0, atol=1e-12 * scale * np.abs(x).sum(axis=0).max())
+    np.testing.assert_allclose(split.T @ x[:, 0], operator.T @ x[:, 0], rtol=0, atol=1e-12 * scale * np.abs(x).sum())
+    np.testing.assert_allclose(split.diagonal(), operator.diagonal(), rtol=1e-14)
+    start = _spoiled(exact, prob.points)
+    a, _ = full_space_polish(operator, boundary, prolong, start, prob.loops, coarse_points)
+    b, _ = full_space_polish(split, boundary, prolong, start, prob.loops, coarse_points)
+    assert _distance(b, a) < 1e-9
+
+
+def test_the_coarse_problem_operator_is_the_galerkin_product_of_the_fine_one():
+    """The two-level polish takes P^T A P from the coarse problem: its Laplacian is P^T L P
+    and the loops' area matrix passes through P unchanged (every loop point is a coarse point)."""
+    from parambench.methods.spectral.multilevel import galerkin_operator
+    from parambench.methods.spectral.operators import area_matrix, conformal_operator
+
+    surface = make_surface("holes", 6000, sampling="jittered", seed=0)
+    front = run_frontend(MethodInput(surface.points, None, None, "holes"), dict(FRONTEND_DEFAULTS), StageTimer())
+    lap = ocp_laplacian(front)
+    coarse = coarse_subsample(front, MultilevelSettings())
+    prolong = interpolation_matrix(front.points, coarse, front.normals)
+    pos = np.full(front.n_points, -1)
+    pos[coarse] = np.arange(coarse.size)
+    loops = front.boundary_loops
+    assert all((pos[lp] >= 0).all() for lp in loops)
+    k = 1.3
+    fine_op = conformal_operator(lap, area_matrix(loops, front.n_points), k)
+    coarse_op = conformal_operator(galerkin_operator(lap, prolong), area_matrix([pos[lp] for lp in loops], coarse.size),
+                                   k)
+    diff = abs(prolong.T @ fine_op @ prolong - coarse_op).max()
+    assert diff < 1e-12 * abs(coarse_op).max()
