@@ -96,5 +96,7 @@ def test_multilevel_matches_direct(benchmark, dataset, size):
         info.update(time_ratio_vs_direct=holder["seconds"] / direct_seconds,
                     twogrid_cycles=multilevel.diagnostics.get("twogrid_cycles"),
                     twogrid_fell_back=multilevel.diagnostics.get("twogrid_fell_back"),
-                    coarse_points=multilevel.diagnostics.get("coarse_points"))
+                    coarse_points=multilevel.diagnostics.get("coarse_points"),
+                    map_scale_spread=multilevel.diagnostics.get("map_scale_spread"),
+                    full_space_steps=multilevel.diagnostics.get("full_space_steps", 0))
     benchmark.extra_info.update(info)
