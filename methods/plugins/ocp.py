@@ -60,8 +60,8 @@ OCP_SOLVERS = ("auto", "direct", "multilevel")
 MULTILEVEL_FROM = 200_000
 
 #: ``polish_spread`` default: a two-level map whose local scale varies more than this
-#: many times is polished in the full space (protrusions 356 at 100k points, the other
-#: generated surfaces 1.0-1.7).
+#: many times is polished in the full space (protrusions 329 at 100k points, the other
+#: generated surfaces 1.0-1.7; two-level maps, on the coarse points).
 POLISH_SPREAD = MultilevelSettings.polish_spread
 
 
@@ -162,11 +162,11 @@ class Ocp(Method):
     that need it (protrusions 3.8e-8) from those that do not (cap 2.3e-8, whose polish
     took it from 55 to 85 s). ``polish_spread`` (two levels; default 20, null = never)
     tells them apart: the map is polished whatever its residual when its local scale
-    (uv over 3D distance to the nearest points, on the coarse points) varies more than
+    (uv over 3D distance to its neighbours in the Laplacian, at the coarse points) varies more than
     this many times between the 1st and 99th percentile, as a conformal map shrinks a
-    protrusion (``map_scale_spread`` in the diagnostics; at 100k points protrusions 356,
+    protrusion (``map_scale_spread`` in the diagnostics; at 100k points protrusions 329,
     every other generated surface 1.0-1.7; at 1M protrusions 361, bump 1.71, cap 1.33).
-    Protrusions at 1M then take 107-110 s instead of 72 s and 3.9 GiB peak instead of
+    Protrusions at 1M then take 108-110 s instead of 72 s and 3.9 GiB peak instead of
     3.5, and their map is 1.5e-6 of the diameter from the polished one above. End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
     the time of ``scp-igl`` on the true mesh (see bench/MEASUREMENTS.md).

@@ -100,20 +100,29 @@ def _ritz(basis: np.ndarray, a_small: np.ndarray, b_small: np.ndarray, previous:
     return best
 
 
-def map_scale_spread(points: np.ndarray, uv: np.ndarray, neighbours: int = 8, tail: float = 0.01) -> float:
+def map_scale_spread(points: np.ndarray, uv: np.ndarray, graph: sp.spmatrix | None = None,
+                     at: np.ndarray | None = None, neighbours: int = 8, tail: float = 0.01) -> float:
     """How many times the map's local scale varies over the points, tails cut: q(1 - tail) / q(tail).
 
-    A point's scale is its mean uv distance to its ``neighbours`` nearest points over
-    their mean 3D distance. A conformal map shrinks a protrusion exponentially along it,
-    and the eigenvector is then ill-conditioned (the fine level's accuracy floor leaves it
-    far from the exact one: ``protrusions`` at 1M points, 2.5e-3 of the diameter).
-    Measured at 100k points (jittered, ``ocp``): protrusions 356, every other generated
-    surface 1.0-1.7 (the fold's Euclidean neighbours across its gap stay in the cut tails).
+    A point's scale is its mean uv distance to its neighbours over their mean 3D
+    distance. A conformal map shrinks a protrusion exponentially along it, and the
+    eigenvector is then ill-conditioned (the fine level's accuracy floor leaves it far
+    from the exact one: ``protrusions`` at 1M points, 2.5e-3 of the diameter). Measured
+    at 100k points (jittered, two levels, the Laplacian's neighbours): protrusions 329, every
+    other generated surface 1.0-1.7. Euclidean neighbours of a sparse subset bridge
+    narrow gaps (the fold's coarse points at 100k: 109), so the two-level path measures
+    its coarse points against their neighbours in the fine Laplacian, which keep to the
+    surface.
 
     Parameters
     ----------
     points : (N, 3) numpy.ndarray of float64
     uv : (N,) numpy.ndarray of complex128, or (N, 2) of float64
+    graph : (N, N) scipy.sparse matrix, optional
+        Its off-diagonal entries are the neighbours (a Laplacian). None: the
+        ``neighbours`` nearest points in 3D.
+    at : (M,) numpy.ndarray of int64, optional
+        The points measured (default: all).
     neighbours : int
     tail : float
         Fraction of points cut at each end.
@@ -124,11 +133,25 @@ def map_scale_spread(points: np.ndarray, uv: np.ndarray, neighbours: int = 8, ta
         >= 1; inf where some point's scale is 0 (a collapsed part).
     """
     uv = np.asarray(uv)
-    flat = np.column_stack([uv.real, uv.imag]) if np.iscomplexobj(uv) else uv
-    k = min(neighbours + 1, points.shape[0])
-    d3, near = cKDTree(points).query(points, k)
-    d2 = np.linalg.norm(flat[near[:, 1:]] - flat[:, None, :], axis=2).mean(axis=1)
-    scale = d2 / np.maximum(d3[:, 1:].mean(axis=1), np.finfo(float).tiny)
+    flat = np.column_stack([uv.real, uv.imag]) if np.iscomplexobj(uv) else np.asarray(uv, dtype=np.float64)
+    at = np.arange(points.shape[0]) if at is None else np.asarray(at, dtype=np.int64)
+    if graph is None:
+        k = min(neighbours + 1, points.shape[0])
+        d3, near = cKDTree(points).query(points[at], k)
+        d3, near = d3[:, 1:], near[:, 1:]
+        scale = (np.linalg.norm(flat[near] - flat[at, None, :], axis=2).mean(axis=1)
+                 / np.maximum(d3.mean(axis=1), np.finfo(float).tiny))
+    else:
+        rows = sp.csr_matrix(graph)[at]
+        owner = np.repeat(np.arange(at.size), np.diff(rows.indptr))
+        source, target = at[owner], rows.indices
+        off = source != target
+        d3 = np.linalg.norm(points[source[off]] - points[target[off]], axis=1)
+        d2 = np.linalg.norm(flat[source[off]] - flat[target[off]], axis=1)
+        sum3 = np.bincount(owner[off], weights=d3, minlength=at.size)
+        sum2 = np.bincount(owner[off], weights=d2, minlength=at.size)
+        has = sum3 > 0
+        scale = sum2[has] / sum3[has]
     low, high = np.quantile(scale, [tail, 1.0 - tail])
     return float(high / low) if low > 0 else float("inf")
 
@@ -189,8 +212,8 @@ def full_space_polish(operator, boundary: np.ndarray, prolong: sp.csr_matrix, z:
         For the coarse factorisation's nested-dissection order.
     rule : PolishRule
     above : float
-        Polish only a map whose full-space residual is above this; otherwise z itself is
-        returned, untouched.
+        Polish only a map whose full-space residual is above this (and above
+        ``rule.rtol``); otherwise z itself is returned, untouched.
     coarse_operator : (M, M) scipy.sparse matrix of complex128, optional
         ``P^T (k L / 2 - M) P`` where the caller has it (the two-level path's coarse
         problem: its Galerkin Laplacian, and the fine loops' area matrix, which P carries
@@ -210,7 +233,7 @@ def full_space_polish(operator, boundary: np.ndarray, prolong: sp.csr_matrix, z:
         The coarse operator is singular, or z is constant.
     """
     res0, lam, y = full_space_residual(operator, boundary, z)
-    if not res0 > above:
+    if not res0 > max(above, rule.rtol):  # nothing to do: no factorisation either
         return z, {"full_space_residual_before": res0, "full_space_residual": res0, "full_space_steps": 0}
     turning = loop_turning_numbers(y, loops)
     best = (res0, y)

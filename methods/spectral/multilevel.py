@@ -171,9 +171,9 @@ class MultilevelSettings:
         would take 30 s more).
     polish_spread : float or None
         The fine map is polished whatever its residual when its local scale varies more
-        than this many times (:func:`~.full_space_polish.map_scale_spread`, on the coarse
-        points); None: never. At 100k points protrusions' spread is 356 and every other
-        generated surface's 1.0-1.7.
+        than this many times (:func:`~.full_space_polish.map_scale_spread`, at the coarse
+        points against their neighbours in the fine Laplacian); None: never. At 100k
+        points protrusions' spread is 329 and every other generated surface's 1.0-1.7.
     unsettled_map_error : float or None
         The same for a fine k search that did not settle although its refinement
         reached the two-grid solves' floor (their error moves k_opt from round to round);
@@ -515,7 +515,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
         polish = {}
         above = settings.polish_from
         if settings.polish_spread is not None:
-            spread = map_scale_spread(points[coarse], sol.z[coarse])
+            spread = map_scale_spread(points, sol.z, lap, at=coarse)
             polish["map_scale_spread"] = spread
             if spread > settings.polish_spread:
                 above = 0.0
