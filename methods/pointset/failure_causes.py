@@ -77,6 +77,12 @@ PROTRUSION_SCALE = 1e-3
 #: Laplacian once, which from the two-level path's sizes on costs what a solve does.
 PROTRUSION_MAX_POINTS = 200_000
 
+#: Harmonic-map scale under which a point is on a part joined to the rest at a single
+#: point (the map is constant there, to rounding): pymeshlab's range scan ``face000``,
+#: four groups of 12-45 points at 6e-16 to 6e-10, where a true protrusion (the cow's leg
+#: stumps) reaches 1.2e-4.
+HANGING_SCALE = 1e-8
+
 
 def failure_causes(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray,
                    spacing_pt: np.ndarray, faces: np.ndarray, flipped: np.ndarray, zero: np.ndarray) -> dict:
@@ -144,7 +150,9 @@ def protrusion_shrink(points: np.ndarray, knn_indices: np.ndarray, outer_loop: n
     dict
         ``{"protrusion": {"scale": ..., "share": ...}}`` when the smallest scale of
         :func:`harmonic_scale` is below :data:`PROTRUSION_SCALE` (``share``: of the points
-        shrunk 100 times or more), else empty; empty too above
+        shrunk 100 times or more), ``{"hanging": {"points": ...}}`` for the points whose
+        scale is under :data:`HANGING_SCALE` (parts that hang on the rest by single
+        points, left out of the protrusion's figures), else empty; empty too above
         :data:`PROTRUSION_MAX_POINTS` points, for fewer than 3 loop points, or when the
         graph's interior block is singular (a piece not connected to the loop).
     """
@@ -154,10 +162,16 @@ def protrusion_shrink(points: np.ndarray, knn_indices: np.ndarray, outer_loop: n
         scale = harmonic_scale(points, knn_indices, outer_loop)
     except ParambenchError:
         return {}
-    smallest = float(scale.min())
-    if not smallest < PROTRUSION_SCALE:
-        return {}
-    return {"protrusion": {"scale": float(f"{smallest:.2g}"), "share": round(float(np.mean(scale < 1e-2)), 3)}}
+    # A harmonic map is constant on a part joined to the rest at one point: its scale is
+    # rounding, not an exponential decay (a range scan's loose flaps: 1e-16).
+    hanging = scale < HANGING_SCALE
+    causes = {}
+    if hanging.any():
+        causes["hanging"] = {"points": int(hanging.sum())}
+    rest = scale[~hanging]
+    if rest.size and rest.min() < PROTRUSION_SCALE:
+        causes["protrusion"] = {"scale": float(f"{rest.min():.2g}"), "share": round(float(np.mean(rest < 1e-2)), 3)}
+    return causes
 
 
 def harmonic_scale(points: np.ndarray, knn_indices: np.ndarray, outer_loop: np.ndarray) -> np.ndarray:
@@ -240,6 +254,9 @@ def describe_causes(causes: dict) -> str:
         c = causes["collapse"]
         parts.append(f"{100 * c['share']:.0f} % of the zero-area triangles are ones the map shrank "
                      f"{1 / c['scale']:.1e} times in length (a protrusion: a conformal map shrinks it exponentially)")
+    if "hanging" in causes:
+        parts.append(f"{causes['hanging']['points']} points hang on the rest by single points (the harmonic map "
+                     "of the points is constant on them: loose flaps or strands)")
     if "protrusion" in causes:
         c = causes["protrusion"]
         parts.append(f"the surface has a protrusion: a harmonic map of the points shrinks parts of it "
@@ -262,6 +279,8 @@ def cause_advice(causes: dict, failed: list[str]) -> tuple[str, bool]:
     advice = []
     if "thin" in causes:
         advice.append("sample the thin part more densely, or flatten a mesh of the surface (--method scp)")
+    if "hanging" in causes:
+        advice.append("remove the parts that hang on by single points (a scan's loose flaps and strands)")
     if "collapse" in causes or "protrusion" in causes:
         advice.append("cut the shrunk protrusion off, or cut a seam along it, before flattening")
     alone = "collapse" in causes and set(failed) == {"degenerate"}

@@ -198,3 +198,27 @@ def test_a_failed_solve_without_a_protrusion_is_left_alone(monkeypatch):
     monkeypatch.setattr(causes_module, "PROTRUSION_MAX_POINTS", 100)
     protruding = _front(make_surface("protrusions", 2000, sampling="random", seed=0).points)
     assert with_shape_cause(exc, protruding) is exc
+
+
+def test_parts_hanging_by_a_single_point_are_named_apart_from_a_protrusion():
+    """A flat disc with a small cluster whose neighbours reach the disc through one point
+    only: the harmonic map is constant on the cluster (scale ~1e-16, as on a range scan's
+    loose flaps), which is no protrusion; the disc alone stays free of causes."""
+    rng = np.random.default_rng(1)
+    g = np.stack(np.meshgrid(np.linspace(-1, 1, 41), np.linspace(-1, 1, 41)), -1).reshape(-1, 2)
+    g = g[np.hypot(*g.T) < 0.97] + rng.uniform(-0.005, 0.005, (np.sum(np.hypot(*g.T) < 0.97), 2))
+    rim_angles = np.arange(120) / 120 * 2 * np.pi
+    flat = np.vstack([np.column_stack([np.cos(rim_angles), np.sin(rim_angles)]), g])
+    disc = np.column_stack([flat, np.zeros(len(flat))])
+    knn_disc = cKDTree(disc).query(disc, 9)[1]
+    anchor = len(disc) // 2
+    flap = disc[anchor] + np.column_stack([np.zeros(12), np.zeros(12), 0.02 * np.arange(1, 13)])
+    points = np.vstack([disc, flap])
+    ids = len(disc) + np.arange(12)
+    flap_knn = np.array([np.r_[i, [anchor], ids[ids != i][:7]] for i in ids])  # the flap sees the disc at one point
+    knn = np.vstack([knn_disc, flap_knn])
+    causes = protrusion_shrink(points, knn, np.arange(120))
+    assert causes == {"hanging": {"points": 12}}
+    assert "12 points hang on the rest by single points" in describe_causes(causes)
+    assert "remove the parts that hang on by single points" in cause_advice(causes, [])[0]
+    assert protrusion_shrink(disc, knn_disc, np.arange(120)) == {}
