@@ -516,7 +516,7 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
         above = settings.polish_from
         if settings.polish_spread is not None:
             spread = map_scale_spread(points, sol.z, lap, at=coarse)
-            polish["map_scale_spread"] = spread
+            polish["map_scale_spread"] = spread if np.isfinite(spread) else None  # None: part of the map collapsed
             if spread > settings.polish_spread:
                 above = 0.0
         if above is not None:
