@@ -78,9 +78,9 @@ PROTRUSION_SCALE = 1e-3
 PROTRUSION_MAX_POINTS = 200_000
 
 #: Harmonic-map scale under which a point is on a part joined to the rest at a single
-#: point (the map is constant there, to rounding): pymeshlab's range scan ``face000``,
-#: four groups of 12-45 points at 6e-16 to 6e-10, where a true protrusion (the cow's leg
-#: stumps) reaches 1.2e-4.
+#: point (the map is constant there, to rounding): pymeshlab's range scan ``face000``
+#: has 49 points under it, in groups whose smallest scales are 6e-16 to 6e-10, where a
+#: true protrusion (the cow's leg stumps) reaches 1.2e-4.
 HANGING_SCALE = 1e-8
 
 

@@ -64,11 +64,6 @@ def _loop_segments(loops: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(segs).astype(np.int32) if segs else np.empty((0, 2), np.int32)
 
 
-def _winding(query: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Winding number of a closed polygon around each query point (crossing rule)."""
-    return _edges_winding(query, polygon, np.roll(polygon, -1, axis=0))
-
-
 def _edges_winding(query: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Total winding number of the directed edges a -> b around each query (crossing rule).
 
@@ -76,9 +71,9 @@ def _edges_winding(query: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarra
     queries sorted by y, those are one slice per edge, so the work is the number of
     (edge, query) pairs in a band, about twice the queries for a simple loop. A collapsed
     or folded map's loops cross the whole layout many times, and the pairs then number
-    edges x queries: at 85k points (a range scan's folded map) the blocked numpy version
-    ran for minutes per call, so the pairs are counted in a compiled loop with no
-    temporaries.
+    up to edges x queries, so they are counted in a compiled loop with no temporaries
+    (170k queries against 3.5k edges scattered over the layout: 1.1-1.4 s, against
+    8.2-9.2 s for the blocked numpy version it replaced).
 
     Parameters
     ----------

@@ -23,7 +23,7 @@ that map out; the spread of its local scale does (:func:`map_scale_spread`: 361
 against 1.33-1.71). The operator is applied as real Laplacian products and a boundary
 part (:class:`~.operators.SplitConformalOperator`), with no shifted or transposed copy:
 the polish's peak went from 3 GB to 0.3 GB above the solve's. ``ocp`` on protrusions at
-1M: 107-110 s and 3.9 GiB peak polished, 72 s and 3.4 GiB without (2 cores).
+1M: 108-110 s and 3.8-3.9 GiB peak polished, 72 s and 3.4 GiB without (2 cores).
 """
 
 from __future__ import annotations
@@ -240,11 +240,11 @@ def full_space_polish(operator, boundary: np.ndarray, prolong: sp.csr_matrix, z:
     # No shifted or conjugate-transposed copy of the operator: at 1M points each is
     # ~0.5 GB of complex entries (the polish's peak was 3 GB above the solve's).
     on_boundary = boundary.astype(np.float64)
+    lam0 = lam  # the shift stays at the first Ritz value: the coarse factorisation is made once
 
     def shifted(x: np.ndarray) -> np.ndarray:
         return operator @ x - lam0 * (on_boundary * x)
 
-    lam0 = lam
     b_coarse = prolong[boundary].T @ prolong[boundary]
     if coarse_operator is None:
         coarse_operator = _galerkin(operator, prolong)

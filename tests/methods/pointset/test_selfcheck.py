@@ -80,7 +80,10 @@ def _brute_winding(query, polygon):
 
 
 def test_banded_winding_matches_every_edge_against_every_query():
-    from parambench.methods.pointset.uv_triangulation import _edges_winding, _winding
+    from parambench.methods.pointset.uv_triangulation import _edges_winding, loop_winding_numbers
+
+    def _winding(q, poly):
+        return loop_winding_numbers(q, poly, [np.arange(len(poly))])
 
     rng = np.random.default_rng(0)
     # A loop wound twice (winding 2 inside the small circle) and random self-crossing polygons.
