@@ -39,7 +39,7 @@ BOUNDARY_COLUMNS = (
     "new_loops", "new_recall", "new_precision", "new_error", "frontend_seconds",
     "ocp_qc_mean", "ocp_foldovers", "ocp_error", "scp_igl_qc_mean", "scp_igl_foldovers", "scp_igl_seconds",
     "qc_ratio_vs_scp_igl", "time_ratio_vs_scp_igl", "selfcheck_passed", "selfcheck_failed",
-    "rim_ceiling_recall", "rim_ceiling_precision",
+    "rim_ceiling_recall", "rim_ceiling_precision", "noise_misplaced",
     "ocp_seconds", "old_boundary_ok", "new_boundary_ok", "ocp_ok",
 )
 
@@ -128,6 +128,14 @@ def _ceiling_title(recall, precision) -> str:
             f"precision {format_number(precision, 'ratio')} on this yardstick")
 
 
+def _misplaced_title(misplaced) -> str:
+    """Tooltip of the foldover cell where the noise put points nearer another part of the surface, else ""."""
+    if not misplaced > 0:  # NaN (no noise, or not measured) or 0
+        return ""
+    return (f"the noise carried {format_number(misplaced, 'count')} point(s) nearer another part of the surface "
+            "than their own: no point-only method can place them, so 0 foldovers is out of reach here")
+
+
 def _loops(found, true_loops) -> Cell:
     return _measure(found, "count", None if math.isnan(found) else found == true_loops)
 
@@ -178,7 +186,8 @@ def boundary_benchmark_table(stats: pd.DataFrame) -> Table | None:
         line.append(Cell(format_number(r.scp_igl_qc_mean, "ratio")))
         line.append(_measure(r.qc_ratio_vs_scp_igl, "ratio",
                              None if math.isnan(r.qc_ratio_vs_scp_igl) else r.qc_ratio_vs_scp_igl <= QC_RATIO_TARGET))
-        line.append(_measure(r.ocp_foldovers, "count", None if math.isnan(r.ocp_foldovers) else r.ocp_foldovers == 0))
+        line.append(_measure(r.ocp_foldovers, "count", None if math.isnan(r.ocp_foldovers) else r.ocp_foldovers == 0,
+                             _misplaced_title(r.noise_misplaced)))
         line.append(Cell(format_number(r.scp_igl_foldovers, "count")))
         line.append(Cell(format_number(r.time_ratio_vs_scp_igl, "time")))
         line.append(_selfcheck(r.selfcheck_passed, r.selfcheck_failed))
@@ -227,6 +236,12 @@ def boundary_benchmark_section(stats: pd.DataFrame | None) -> Section | None:
                     f"{judged['rim_ceiling_recall'].min():.3f}-{judged['rim_ceiling_recall'].max():.3f}: random "
                     f"points leave stretches of rim with no point within 3 spacings); hover a scattered row's "
                     f"recall for its ceiling.")
+    crossed = rows[rows["noise_misplaced"] > 0]
+    if not crossed.empty:
+        counts = ", ".join(f"{case} {int(k)}" for case, k in zip(crossed["case"], crossed["noise_misplaced"]))
+        summary += (f" On {len(crossed)} noisy case(s) the noise carried points nearer another part of the surface "
+                    f"than their own ({counts}): no point-only method can place those, so 0 foldovers on the "
+                    "ground-truth mesh is out of reach there; hover the foldover count.")
     return Section("Boundary detector and ocp on real data", [Note(summary), table], intro=(
         "Real meshes given as bare points, random and graded samplings, normal noise, and real meshes "
         "scattered with random points, none on the rim, as a scan leaves them (cases named *-scattered-*) "

@@ -36,6 +36,9 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
   (checked on every case of this file at 2k and 20k points, retries on wider balls
   included) until the put-back of stepped-over points and the per-point bridge reach,
   which both columns now use, were added; no frozen copy is kept;
+- ``noise_misplaced`` (noisy cases): points the noise carried nearer another part of the
+  surface than their own (:func:`parambench.bench.metrics.noise_reach.misplaced_by_noise`);
+  where it is above 0, no point-only method can avoid foldovers on the ground-truth mesh;
 - ``frontend_seconds``: the front end alone (the old detector's extra call excluded);
 - ``ocp_qc_mean`` and ``ocp_foldovers`` on the ground-truth mesh, the same for
   ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
@@ -60,6 +63,7 @@ from scipy.spatial import cKDTree
 import parambench.methods.pointset.frontend as frontend_module
 from parambench.bench.benchmarks.timing import best_of
 from parambench.bench.metrics import evaluate
+from parambench.bench.metrics.noise_reach import misplaced_by_noise
 from parambench.bench.metrics.rim import rim_recall_precision
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
@@ -229,8 +233,12 @@ def test_realdata_boundary_and_ocp(benchmark, monkeypatch, dataset, size, sampli
     else:
         surface = make_surface(dataset, size, sampling=sampling, seed=0, noise=noise)
         group = f"realdata-noise{noise:g}" if noise else f"realdata-{size // 1000}k"
+    ceiling = {}
+    if noise:
+        clean = make_surface(dataset, size, sampling=sampling, seed=0, noise=0.0)
+        ceiling["noise_misplaced"] = int(misplaced_by_noise(surface, clean).sum())
     _measure(benchmark, monkeypatch, surface, group, _case_id(dataset, size, sampling, noise), dataset,
-             sampling or None, noise, truth)
+             sampling or None, noise, truth, ceiling)
 
 
 @pytest.mark.parametrize("axis,quantile,keep_above", BUNNY_CUTS, ids=[_cut_id(*c) for c in BUNNY_CUTS])
@@ -256,16 +264,17 @@ def test_realdata_pymeshlab_cut_open(benchmark, monkeypatch, case):
 
 
 def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float,
-             truth=None):
+             truth=None, ceiling: dict | None = None):
     """One case: both detectors on the bare points, ocp timed, scp-igl on the mesh; all in extra_info.
 
-    ``truth`` scores a detected boundary mask (default: against the boundary vertices).
+    ``truth`` scores a detected boundary mask (default: against the boundary vertices);
+    ``ceiling`` holds facts of the case itself (``noise_misplaced``), copied into extra_info.
     """
     benchmark.group = group
     given = surface.method_input(False)  # bare positions: no normals, faces or ground truth
     info = {CASE_KEY: label, "dataset": dataset, "sampling": sampling,
             "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops),
-            "boundary_truth": "vertices" if truth is None else "rim"}
+            "boundary_truth": "vertices" if truth is None else "rim", **(ceiling or {})}
     info.update(_detectors(given.points, _vertex_truth(surface) if truth is None else truth, monkeypatch))
     if truth is not None:
         # What the ground truth's own boundary (the reference triangulation's loops) scores

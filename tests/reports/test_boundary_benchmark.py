@@ -14,7 +14,7 @@ from parambench.reports.html import render_table
 
 
 def _case(label, *, true_loops=1, old=(1, 1.0, 1.0), new=(1, 1.0, 1.0), ocp_qc=1.01, scp_qc=1.0, folds=0,
-          error=None, passed=True, failed=(), ceiling=None):
+          error=None, passed=True, failed=(), ceiling=None, misplaced=None):
     info = {CASE_KEY: label, "dataset": label.split("-")[0], "sampling": "random", "noise": 0.0,
             "n_points": 2000, "true_loops": true_loops, "frontend_seconds": 0.05,
             "old_loops": old[0], "old_recall": old[1], "old_precision": old[2], "old_error": None,
@@ -22,6 +22,8 @@ def _case(label, *, true_loops=1, old=(1, 1.0, 1.0), new=(1, 1.0, 1.0), ocp_qc=1
             "scp_igl_qc_mean": scp_qc, "scp_igl_foldovers": 0, "scp_igl_seconds": 0.1, "ocp_error": error}
     if ceiling is not None:
         info.update(rim_ceiling_recall=ceiling[0], rim_ceiling_precision=ceiling[1])
+    if misplaced is not None:
+        info.update(noise=0.5, noise_misplaced=misplaced)
     if error is None:
         info.update(ocp_qc_mean=ocp_qc, ocp_foldovers=folds, qc_ratio_vs_scp_igl=ocp_qc / scp_qc,
                     time_ratio_vs_scp_igl=5.0, selfcheck_passed=passed, selfcheck_failed=list(failed))
@@ -52,6 +54,9 @@ def stats(tmp_path, mesh_tools):
         _case("cap-graded-2k", old=(0, 0.0, None), new=(1, 0.98, 0.91)),
         # scattered: the detector misses recall, as does the ground truth's own boundary
         _case("lilium-scattered-5k", old=(1, 0.95, 0.95), new=(1, 0.96, 0.97), ceiling=(0.955, 0.98)),
+        # noisy: the noise moved 23 points past the middle of the fold's gap; another noisy case has none
+        _case("fold-random-2k-noise0.5", folds=40, passed=False, failed=["flipped"], misplaced=23),
+        _case("bump-jittered-2k-noise0.5", misplaced=0),
     ]
     other = mesh_tools["write_benchmark_json"](tmp_path / "other.json")  # a benchmark file of another kind
     return load_benchmarks([_write(tmp_path / "realdata.json", cases, seconds=0.25), other])
@@ -71,9 +76,13 @@ def test_targets_by_hand():
 
 def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
     rows = boundary_benchmark_rows(stats)
-    assert sorted(rows["case"]) == ["bump-random-2k", "cap-graded-2k", "lilium-scattered-5k", "plane-random-2k",
+    assert sorted(rows["case"]) == ["bump-jittered-2k-noise0.5", "bump-random-2k", "cap-graded-2k",
+                                    "fold-random-2k-noise0.5", "lilium-scattered-5k", "plane-random-2k",
                                     "real-bunny10k"]
-    rows = rows[rows["case"] != "lilium-scattered-5k"]
+    assert rows.set_index("case")["noise_misplaced"].fillna(-1).to_dict() == {
+        "bump-jittered-2k-noise0.5": 0, "fold-random-2k-noise0.5": 23, "plane-random-2k": -1, "bump-random-2k": -1,
+        "real-bunny10k": -1, "cap-graded-2k": -1, "lilium-scattered-5k": -1}
+    rows = rows[~rows["case"].isin(["lilium-scattered-5k", "fold-random-2k-noise0.5", "bump-jittered-2k-noise0.5"])]
     by_case = rows.set_index("case")
     assert by_case.loc["plane-random-2k", "ocp_seconds"] == pytest.approx(0.25)
     assert by_case.loc["bump-random-2k", "old_loops"] == 2 and by_case.loc["bump-random-2k", "new_loops"] == 1
@@ -92,7 +101,7 @@ def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
 
 def test_table_marks_misses(stats):
     table = boundary_benchmark_table(stats)
-    assert table is not None and len(table.rows) == 5
+    assert table is not None and len(table.rows) == 7
     col = {name: i for i, name in enumerate(table.columns)}
     rows = {row[0].text: row for row in table.rows}
     bump = rows["bump-random-2k"]
@@ -109,19 +118,25 @@ def test_table_marks_misses(stats):
     assert not any("failed" in cell.classes for cell in plane)
     assert plane[col["Self-check"]].text == "passed"
     html = render_table(table)
-    assert html.count("<tr>") == 6 and "cap-graded-2k" in html
+    assert html.count("<tr>") == 8 and "cap-graded-2k" in html
     scattered = rows["lilium-scattered-5k"]
     assert "failed" in scattered[col["Recall new"]].classes
     assert "own boundary scores recall 0.955, precision 0.98" in scattered[col["Recall new"]].title
     assert plane[col["Recall new"]].title == ""
+    fold = rows["fold-random-2k-noise0.5"][col["ocp folds"]]
+    assert "failed" in fold.classes and "carried 23 point(s) nearer another part" in fold.title
+    assert rows["bump-jittered-2k-noise0.5"][col["ocp folds"]].title == ""
+    assert bump[col["ocp folds"]].title == ""
 
 
 def test_section_summary_counts(stats):
     section = boundary_benchmark_section(stats)
     summary = section.blocks[0].text
-    assert "5 case(s)" in summary
-    assert "old detector 1 of 5, new 3 of 5" in summary
-    assert "ocp 3 of 5; 1 refused, 1 failed their self-check" in summary
+    assert "7 case(s)" in summary
+    assert "old detector 3 of 7, new 5 of 7" in summary
+    assert "ocp 4 of 7; 1 refused, 2 failed their self-check" in summary
+    assert "On 1 noisy case(s) the noise carried points nearer another part of the surface than their own " \
+           "(fold-random-2k-noise0.5 23)" in summary
     assert "meets the recall and precision target on 0 of 1 (recall 0.955-0.955" in summary
 
 
