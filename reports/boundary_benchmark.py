@@ -39,7 +39,7 @@ BOUNDARY_COLUMNS = (
     "new_loops", "new_recall", "new_precision", "new_error", "frontend_seconds",
     "ocp_qc_mean", "ocp_foldovers", "ocp_error", "scp_igl_qc_mean", "scp_igl_foldovers", "scp_igl_seconds",
     "qc_ratio_vs_scp_igl", "time_ratio_vs_scp_igl", "selfcheck_passed", "selfcheck_failed",
-    "rim_ceiling_recall", "rim_ceiling_precision", "noise_misplaced",
+    "rim_ceiling_recall", "rim_ceiling_precision", "noise_misplaced", "touching_points",
     "ocp_seconds", "old_boundary_ok", "new_boundary_ok", "ocp_ok",
 )
 
@@ -128,12 +128,17 @@ def _ceiling_title(recall, precision) -> str:
             f"precision {format_number(precision, 'ratio')} on this yardstick")
 
 
-def _misplaced_title(misplaced) -> str:
-    """Tooltip of the foldover cell where the noise put points nearer another part of the surface, else ""."""
-    if not misplaced > 0:  # NaN (no noise, or not measured) or 0
-        return ""
-    return (f"the noise carried {format_number(misplaced, 'count')} point(s) nearer another part of the surface "
-            "than their own: no point-only method can place them, so 0 foldovers is out of reach here")
+def _contact_title(misplaced, touching) -> str:
+    """Tooltip of the foldover cell where the surface comes nearer itself than its sampling resolves, else ""."""
+    notes = []
+    if misplaced > 0:  # NaN (no noise, or not measured) compares False
+        notes.append(f"the noise carried {format_number(misplaced, 'count')} point(s) nearer another part of the "
+                     "surface than their own: no point-only method can place them, so 0 foldovers is out of reach "
+                     "here")
+    if touching > 0:
+        notes.append(f"the surface touches itself: {format_number(touching, 'count')} point(s) have a point of "
+                     "another part within half their edge length, so their neighbourhoods mix the two parts")
+    return "; ".join(notes)
 
 
 def _loops(found, true_loops) -> Cell:
@@ -187,7 +192,7 @@ def boundary_benchmark_table(stats: pd.DataFrame) -> Table | None:
         line.append(_measure(r.qc_ratio_vs_scp_igl, "ratio",
                              None if math.isnan(r.qc_ratio_vs_scp_igl) else r.qc_ratio_vs_scp_igl <= QC_RATIO_TARGET))
         line.append(_measure(r.ocp_foldovers, "count", None if math.isnan(r.ocp_foldovers) else r.ocp_foldovers == 0,
-                             _misplaced_title(r.noise_misplaced)))
+                             _contact_title(r.noise_misplaced, r.touching_points)))
         line.append(Cell(format_number(r.scp_igl_foldovers, "count")))
         line.append(Cell(format_number(r.time_ratio_vs_scp_igl, "time")))
         line.append(_selfcheck(r.selfcheck_passed, r.selfcheck_failed))
@@ -242,6 +247,11 @@ def boundary_benchmark_section(stats: pd.DataFrame | None) -> Section | None:
         summary += (f" On {len(crossed)} noisy case(s) the noise carried points nearer another part of the surface "
                     f"than their own ({counts}): no point-only method can place those, so 0 foldovers on the "
                     "ground-truth mesh is out of reach there; hover the foldover count.")
+    touching = rows[rows["touching_points"] > 0]
+    if not touching.empty:
+        counts = ", ".join(f"{case} {int(k)}" for case, k in zip(touching["case"], touching["touching_points"]))
+        summary += (f" On {len(touching)} case(s) the surface touches itself ({counts} point(s) with a point of "
+                    "another part within half their edge length): only the normals can tell those parts apart.")
     return Section("Boundary detector and ocp on real data", [Note(summary), table], intro=(
         "Real meshes given as bare points, random and graded samplings, normal noise, and real meshes "
         "scattered with random points, none on the rim, as a scan leaves them (cases named *-scattered-*) "

@@ -37,8 +37,11 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
   included) until the put-back of stepped-over points and the per-point bridge reach,
   which both columns now use, were added; no frozen copy is kept;
 - ``noise_misplaced`` (noisy cases): points the noise carried nearer another part of the
-  surface than their own (:func:`parambench.bench.metrics.noise_reach.misplaced_by_noise`);
+  surface than their own (:func:`parambench.bench.metrics.surface_contact.misplaced_by_noise`);
   where it is above 0, no point-only method can avoid foldovers on the ground-truth mesh;
+- ``touching_points``: mesh vertices with a vertex of another part of the surface within half
+  their edge length (:func:`parambench.bench.metrics.surface_contact.touching_points`: lips
+  that touch);
 - ``frontend_seconds``: the front end alone (the old detector's extra call excluded);
 - ``ocp_qc_mean`` and ``ocp_foldovers`` on the ground-truth mesh, the same for
   ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
@@ -63,7 +66,7 @@ from scipy.spatial import cKDTree
 import parambench.methods.pointset.frontend as frontend_module
 from parambench.bench.benchmarks.timing import best_of
 from parambench.bench.metrics import evaluate
-from parambench.bench.metrics.noise_reach import misplaced_by_noise
+from parambench.bench.metrics.surface_contact import misplaced_by_noise, touching_points
 from parambench.bench.metrics.rim import rim_recall_precision
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
@@ -274,7 +277,8 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
     given = surface.method_input(False)  # bare positions: no normals, faces or ground truth
     info = {CASE_KEY: label, "dataset": dataset, "sampling": sampling,
             "noise": noise, "n_points": surface.n_points, "true_loops": len(surface.boundary_loops),
-            "boundary_truth": "vertices" if truth is None else "rim", **(ceiling or {})}
+            "boundary_truth": "vertices" if truth is None else "rim", **(ceiling or {}),
+            "touching_points": int(touching_points(surface).sum())}
     info.update(_detectors(given.points, _vertex_truth(surface) if truth is None else truth, monkeypatch))
     if truth is not None:
         # What the ground truth's own boundary (the reference triangulation's loops) scores

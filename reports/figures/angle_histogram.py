@@ -11,6 +11,9 @@ from ._common import Picture, figure_to_picture, new_figure
 
 __all__ = ["parse_angle_hist", "angle_histogram_figure"]
 
+#: Most curves whose legend fits inside the axes without hiding them.
+_LEGEND_INSIDE_MAX = 6
+
 
 def parse_angle_hist(value) -> np.ndarray | None:
     """A row's ``angle_hist`` (JSON list of counts, or a list) as an int array.
@@ -78,7 +81,9 @@ def angle_histogram_figure(histograms: Sequence[tuple[str, object]], edges: np.n
         curves.append((label, counts))
     if not curves:
         return None
-    fig = new_figure(6.4, 3.2)
+    # Past a few curves a legend inside the axes hides them: it goes beside them instead.
+    outside = len(curves) > _LEGEND_INSIDE_MAX
+    fig = new_figure(9.6 if outside else 6.4, 3.2 if len(curves) <= 14 else 3.2 + 0.13 * (len(curves) - 14))
     ax = fig.subplots()
     for label, counts in curves:
         share = counts / counts.sum()
@@ -89,7 +94,10 @@ def angle_histogram_figure(histograms: Sequence[tuple[str, object]], edges: np.n
     ax.set_ylim(bottom=max(1e-6, 0.5 / max(int(c.sum()) for _, c in curves)))
     ax.set_xlabel("angle in uv − angle in 3D (degrees)")
     ax.set_ylabel("share of corners (log)")
-    ax.legend(fontsize=7, frameon=True, framealpha=0.85, loc="upper right")
+    if outside:
+        fig.legend(fontsize=7, frameon=False, loc="outside right upper")
+    else:
+        ax.legend(fontsize=7, frameon=True, framealpha=0.85, loc="upper right")
     caption = (f"Change of every triangle corner's angle under the map on {title}: 0 is conformal. "
                f"Bins of {edges[1] - edges[0]:g}° from {edges[0]:g}° to {edges[-1]:g}°; larger changes are "
                "counted in the end bins. The legend gives the share of corners within ±1°.")

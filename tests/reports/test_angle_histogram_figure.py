@@ -41,6 +41,24 @@ def test_figure_from_stored_rows():
     assert "grid" in pic.title and "within ±1°" in pic.caption
 
 
+def test_a_long_legend_goes_beside_the_axes(monkeypatch):
+    import parambench.reports.figures.angle_histogram as module
+
+    drawn = []
+    real = module.figure_to_picture
+    monkeypatch.setattr(module, "figure_to_picture", lambda fig, *a, **k: drawn.append(fig) or real(fig, *a, **k))
+    pts, faces = _grid()
+    hists = [(f"method {i}", evaluate(pts, faces, pts[:, :2] * [1.0 + 0.1 * i, 1.0])["angle_hist"]) for i in range(12)]
+    few = angle_histogram_figure(hists[:3], ANGLE_HIST_EDGES_DEG, "grid")
+    many = angle_histogram_figure(hists, ANGLE_HIST_EDGES_DEG, "grid")
+    inside, beside = drawn
+    assert not inside.legends and inside.axes[0].get_legend() is not None  # three fit inside
+    axes_box = beside.axes[0].get_window_extent()
+    legend_box = beside.legends[0].get_window_extent()
+    assert legend_box.x0 >= axes_box.x1 and beside.axes[0].get_legend() is None
+    assert many.width_px > 1.3 * few.width_px
+
+
 def test_nothing_to_draw_and_bad_lengths():
     assert angle_histogram_figure([("a", None), ("b", "[]"), ("c", float("nan"))], ANGLE_HIST_EDGES_DEG, "x") is None
     with pytest.raises(ValueError, match="bins"):

@@ -14,12 +14,13 @@ from parambench.reports.html import render_table
 
 
 def _case(label, *, true_loops=1, old=(1, 1.0, 1.0), new=(1, 1.0, 1.0), ocp_qc=1.01, scp_qc=1.0, folds=0,
-          error=None, passed=True, failed=(), ceiling=None, misplaced=None):
+          error=None, passed=True, failed=(), ceiling=None, misplaced=None, touching=0):
     info = {CASE_KEY: label, "dataset": label.split("-")[0], "sampling": "random", "noise": 0.0,
             "n_points": 2000, "true_loops": true_loops, "frontend_seconds": 0.05,
             "old_loops": old[0], "old_recall": old[1], "old_precision": old[2], "old_error": None,
             "new_loops": new[0], "new_recall": new[1], "new_precision": new[2], "new_error": None,
-            "scp_igl_qc_mean": scp_qc, "scp_igl_foldovers": 0, "scp_igl_seconds": 0.1, "ocp_error": error}
+            "scp_igl_qc_mean": scp_qc, "scp_igl_foldovers": 0, "scp_igl_seconds": 0.1, "ocp_error": error,
+            "touching_points": touching}
     if ceiling is not None:
         info.update(rim_ceiling_recall=ceiling[0], rim_ceiling_precision=ceiling[1])
     if misplaced is not None:
@@ -48,7 +49,7 @@ def stats(tmp_path, mesh_tools):
         # old detector: a spurious void ring (2 loops), new one right; ocp 4 % worse with 3 folds
         _case("bump-random-2k", old=(2, 1.0, 0.8), ocp_qc=1.04, folds=3, passed=False, failed=["flipped"]),
         # both detectors miss 3 of 5 loops; ocp refuses
-        _case("real-bunny10k", true_loops=5, old=(2, 0.24, 0.96), new=(2, 0.24, 0.96),
+        _case("real-bunny10k", true_loops=5, touching=7, old=(2, 0.24, 0.96), new=(2, 0.24, 0.96),
               error="ConvergenceError: no t = 1 crossing found"),
         # the old front end found nothing at all
         _case("cap-graded-2k", old=(0, 0.0, None), new=(1, 0.98, 0.91)),
@@ -126,6 +127,7 @@ def test_table_marks_misses(stats):
     fold = rows["fold-random-2k-noise0.5"][col["ocp folds"]]
     assert "failed" in fold.classes and "carried 23 point(s) nearer another part" in fold.title
     assert rows["bump-jittered-2k-noise0.5"][col["ocp folds"]].title == ""
+    assert "touches itself: 7 point(s)" in rows["real-bunny10k"][col["ocp folds"]].title
     assert bump[col["ocp folds"]].title == ""
 
 
@@ -137,6 +139,7 @@ def test_section_summary_counts(stats):
     assert "ocp 4 of 7; 1 refused, 2 failed their self-check" in summary
     assert "On 1 noisy case(s) the noise carried points nearer another part of the surface than their own " \
            "(fold-random-2k-noise0.5 23)" in summary
+    assert "On 1 case(s) the surface touches itself (real-bunny10k 7 point(s)" in summary
     assert "meets the recall and precision target on 0 of 1 (recall 0.955-0.955" in summary
 
 

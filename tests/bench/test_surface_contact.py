@@ -1,4 +1,4 @@
-"""Points the noise carries nearer another part of the surface (the ceiling of noisy narrow-gap cases)."""
+"""Where a surface comes nearer itself than its sampling resolves: noise past a gap's middle, touching parts."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from parambench.bench.metrics.noise_reach import misplaced_by_noise
+from parambench.bench.metrics.surface_contact import misplaced_by_noise, touching_points
 from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.surface import Surface
 
@@ -23,9 +23,9 @@ def _sheet(z: float) -> tuple[np.ndarray, np.ndarray]:
     return points, np.vstack([np.c_[a, b, c], np.c_[a, c, d]])
 
 
-def _two_sheets() -> Surface:
+def _two_sheets(gap: float = GAP) -> Surface:
     lower, faces = _sheet(0.0)
-    upper, _ = _sheet(GAP)
+    upper, _ = _sheet(gap)
     return Surface(points=np.vstack([lower, upper]), faces=np.vstack([faces, faces + len(lower)]))
 
 
@@ -61,6 +61,27 @@ def test_the_noisy_fold_loses_the_share_its_gap_and_noise_predict():
         assert norm.cdf(-2.5) * 0.5 < share < norm.cdf(-2.0) * 1.5
 
 
+def test_sheets_nearer_than_half_their_edge_length_touch_and_farther_ones_do_not():
+    # Edge lengths: 0.1 along the grid, 0.141 on the diagonals; a vertex's mean lies
+    # between 0.1 (two corners have no diagonal) and (4 x 0.1 + 2 x 0.141) / 6 = 0.114.
+    assert touching_points(_two_sheets(0.045)).all()  # 0.045 < 0.5 x 0.1
+    assert not touching_points(_two_sheets(0.06)).any()  # 0.06 > 0.5 x 0.114
+    assert not touching_points(_two_sheets(0.045), touch=0.35).any()  # 0.045 > 0.35 x 0.114
+    # One sheet bent back on itself is one part where its layers join and two elsewhere:
+    # only vertices beyond 3 edge lengths of the bend along the sheet count.
+    single = _two_sheets(0.045)
+    seam = Surface(points=single.points, faces=np.vstack([single.faces, [[0, 121, 1]]]))  # one face bridges them
+    touching = touching_points(seam)
+    corner = np.linalg.norm(seam.points[:, :2], axis=1)
+    assert not touching[corner < 0.1].any() and touching[corner > 0.5].all()
+
+
+def test_generated_gaps_of_two_spacings_do_not_touch_and_the_camel_s_lips_do():
+    for name in ("fold", "slit"):
+        assert not touching_points(make_surface(name, 2000, sampling="random", seed=0)).any()
+    assert touching_points(make_surface("real/camelhead", seed=0)).sum() > 50
+
+
 def test_mismatched_surfaces_are_refused():
     clean = _two_sheets()
     with pytest.raises(ValueError, match="not one sampling"):
@@ -69,3 +90,7 @@ def test_mismatched_surfaces_are_refused():
         misplaced_by_noise(clean, Surface(points=clean.points))
     with pytest.raises(ValueError, match="positive"):
         misplaced_by_noise(clean, clean, far=0.0)
+    with pytest.raises(ValueError, match="faces"):
+        touching_points(Surface(points=clean.points))
+    with pytest.raises(ValueError, match="touch=0"):
+        touching_points(clean, touch=0.0)
