@@ -1,4 +1,4 @@
-"""A failed self-check names the cause the geometry shows: a part thinner than the sampling, or a collapse."""
+"""A failed self-check names the cause the geometry shows: a thin part, a collapse, stray points off the surface."""
 
 from __future__ import annotations
 
@@ -116,6 +116,50 @@ def test_advice_replaces_the_parameter_hint_only_for_a_collapse_alone():
     check = {"reason": "8 flipped triangle(s)", "failed": ["flipped"],
              "causes": {"thin": {"share": 0.6, "base_share": 0.01, "gap_spacings": 0.4}}}
     assert failure_line(check, {"k_nn": 8}, "ocp").endswith("(--method scp); try --param k_nn=12")
+
+
+def test_flips_at_points_lifted_off_the_surface_are_stray_and_a_thin_flap_is_not(flap):
+    rng = np.random.default_rng(4)
+    points = _sheet(40, rng)
+    lifted = rng.choice(len(points), 12, replace=False)
+    points[lifted, 2] += 2.0 / 40  # 2 spacings off the plane in which all their neighbours lie
+    normals = np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    knn, spacing = _inputs(points, normals)
+    faces = Delaunay(points[:, :2]).simplices
+    zero = np.zeros(len(faces), dtype=bool)
+    at_lifted = np.isin(faces, lifted).any(axis=1)
+    causes = failure_causes(points, points[:, :2], normals, knn, spacing, faces, at_lifted, zero)
+    assert set(causes) == {"stray"}
+    assert causes["stray"]["points"] == 12 and causes["stray"]["share"] == 1.0
+    assert 1.3 < causes["stray"]["offset_spacings"] < 1.7  # 2 grid steps over the mean 8-NN distance, ~1.35 steps
+    assert "12 stray point(s) in all" in describe_causes(causes)
+    advice, alone = cause_advice(causes, ["flipped"])
+    assert alone and "remove the stray points" in advice
+    # The same number of flips elsewhere on the plane: no cause.
+    elsewhere = np.zeros(len(faces), dtype=bool)
+    elsewhere[np.flatnonzero(~at_lifted)[: at_lifted.sum()]] = True
+    assert failure_causes(points, points[:, :2], normals, knn, spacing, faces, elsewhere, zero) == {}
+    # A flap of two sheets 0.3 spacings apart: each point lies in the planes of its own
+    # sheet's neighbours, so it is thin, not stray.
+    points, normals, faces, n_plane = flap
+    knn, spacing = _inputs(points, normals)
+    on_flap = (faces >= n_plane).all(axis=1)
+    assert "stray" not in failure_causes(points, points[:, :2], normals, knn, spacing, faces, on_flap,
+                                         np.zeros(len(faces), dtype=bool))
+
+
+def test_ocp_on_a_cloud_with_outliers_says_to_remove_them():
+    """bump 3k with 4 points at random in its bounding box: the map folds there, and the check says why."""
+    surf = make_surface("bump", 3000, sampling="jittered", seed=0)
+    rng = np.random.default_rng(0)
+    low, high = surf.points.min(axis=0), surf.points.max(axis=0)
+    points = np.vstack([surf.points, low + (high - low) * rng.random((4, 3))])
+    from parambench.methods.base import MethodInput
+    result = get_method("ocp")(MethodInput(points, None, None, "bump with outliers"), retry_k_nn=0, refine="none")
+    check = result.diagnostics["selfcheck"]
+    assert not check["passed"] and "stray" in check["causes"]
+    assert 1 <= check["causes"]["stray"]["points"] <= 4
+    assert "remove the stray points" in failure_line(check, {"k_nn": 8}, "ocp")
 
 
 def test_a_real_failed_map_names_its_thin_fingertips():
