@@ -126,8 +126,9 @@ def _default_method(surface) -> str:
 EXIT_SELFCHECK = 3
 
 REPAIR_HELP = ("keep the largest connected piece (of the faces, or of the k_nn-neighbour graph for points) and "
-               "repair duplicate faces, non-manifold edges and vertices (pymeshlab); says on stderr what it dropped; "
-               "the output then holds the repaired vertices, not the input's")
+               "repair duplicate faces, non-manifold edges and vertices (pymeshlab); for points also drop stray points "
+               "off the surface (a scan's outliers); says on stderr what it dropped; the output then holds the repaired "
+               "vertices, not the input's")
 
 
 def _selfcheck_summary(check: dict | None) -> str:
@@ -192,14 +193,33 @@ def _energy_summary(diag: dict) -> str:
 
 
 def _repaired(surface, repair: bool, k_nn: Any):
-    """``surface`` itself, or with ``--repair`` its largest piece repaired (one line on stderr)."""
+    """``surface`` itself, or with ``--repair`` its largest piece repaired, a point set's stray points dropped (one line on stderr)."""
     if not repair:
         return surface
     from parambench.datasets_gen.repair import repair_summary, repair_surface
 
-    surface, facts = repair_surface(surface, k_nn=k_nn if isinstance(k_nn, int) and k_nn > 0 else 8)
-    print(f"parambench: note: {repair_summary(facts)}; the output holds these vertices", file=sys.stderr)
+    k = k_nn if isinstance(k_nn, int) and k_nn > 0 else 8
+    surface, facts = repair_surface(surface, k_nn=k)
+    note = repair_summary(facts)
+    if surface.faces is None and surface.n_points > k + 1:
+        surface, n_stray = _without_stray_points(surface, k)
+        note += f"; dropped {n_stray} stray point(s) off the surface" if n_stray else ""
+    print(f"parambench: note: {note}; the output holds these vertices", file=sys.stderr)
     return surface
+
+
+def _without_stray_points(surface, k_nn: int):
+    """A point set without its stray points (a scan's outliers), and how many there were."""
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods.pointset.stray_points import find_stray_points
+
+    stray = find_stray_points(surface.points, k_nn)
+    if not stray.any():
+        return surface, 0
+    keep = ~stray
+    normals = None if surface.normals is None else surface.normals[keep]
+    params = {**surface.params, "stray_points_dropped": int(stray.sum())}
+    return Surface(points=surface.points[keep], normals=normals, name=surface.name, params=params), int(stray.sum())
 
 
 @contextmanager
@@ -235,8 +255,9 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
                + _holes_summary(result.diagnostics) + _energy_summary(result.diagnostics))
     if failed and not args.force:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
+        repair = "--repair drops the stray points; " if "stray" in check.get("causes", {}) and not args.repair else ""
         print(f"parambench: error: {failure_line(check, result.params, method.name)} "
-              "(--force writes the map anyway)", file=sys.stderr)
+              f"({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
     faces = surface.faces
     if faces is None and out.suffix.lower() != ".csv":

@@ -26,17 +26,11 @@ are recognised, and the self-check's reason names them:
   times in length, and ``scp-igl`` on the true mesh has QC 1.43 there); no parameter
   changes that, cutting the protrusion off or a seam along it does.
 
-* **stray**: the flipped or zero-area triangles have a corner off the surface: far from
-  the tangent planes of its neighbours (offset above ``STRAY_OFFSET`` of their spacing,
-  and above ``STRAY_NOISE_FACTOR`` times the median point's offset, the noise),
-  at least ``MIN_SHARE`` of them and ``ENRICHMENT`` times the share of all points
-  (offsets: the second-smallest over the neighbours, so a thin part's points, in the planes
-  of the neighbours on their own side, are not counted). A
-  scan's outliers: a point off the surface joins the triangles around it to the surface
-  below it. No parameter of the method helps; removing the points does. Measured on
-  ``bump`` 10k (jittered, clean; the median point 0.001 spacings off its neighbours'
-  planes, the largest 0.07) with stray points added: 5 points at random in its bounding
-  box, 100 there, and 50 points lifted 1.9 spacings off the surface (offsets 1.1-1.9) all
+* **stray**: the flipped or zero-area triangles have a corner off the surface
+  (:mod:`.stray_points`), at least ``MIN_SHARE`` of them and ``ENRICHMENT`` times the
+  share of all points: a scan's outliers. No parameter of the method helps; removing the
+  points does (the command line's ``--repair`` does it). ``bump`` 10k with 5 points at
+  random in its bounding box, 100 there, or 50 points lifted 1.9 spacings off the surface
   failed the self-check with a ``k_nn`` hint before.
 
 Where no map came out at all (every k search of ``ocp`` failed), :func:`protrusion_shrink`
@@ -59,21 +53,13 @@ from parambench.datasets_gen.errors import ParambenchError
 from ..spectral.sparse_eigen import SparseFactor
 from ..spectral.subspace import loop_arc_fraction
 from .neighbourhoods import KnnGraph, symmetric_adjacency
-from .row_chunks import for_each_chunk
+from .stray_points import offsets_off_surface, stray_mask
 
 __all__ = ["failure_causes", "protrusion_shrink", "harmonic_scale", "describe_causes", "cause_advice", "THIN_GAP", "ENRICHMENT",
-           "BASE_SAMPLE", "COLLAPSE_SCALE", "MIN_SHARE", "PROTRUSION_SCALE", "PROTRUSION_MAX_POINTS", "STRAY_OFFSET",
-           "STRAY_NOISE_FACTOR"]
+           "BASE_SAMPLE", "COLLAPSE_SCALE", "MIN_SHARE", "PROTRUSION_SCALE", "PROTRUSION_MAX_POINTS"]
 
 #: Largest distance across the surface, in local spacings, that counts as "thin".
 THIN_GAP = 1.5
-
-#: Smallest offset from its neighbours' tangent planes, in their spacings, of a stray
-#: point: a point a spacing off a clean surface is off it.
-STRAY_OFFSET = 1.0
-
-#: ... and at least this many times the median point's offset, which grows with the noise.
-STRAY_NOISE_FACTOR = 4.0
 
 #: How many times the share of all points the flipped triangles' share must be.
 ENRICHMENT = 5.0
@@ -137,12 +123,13 @@ def failure_causes(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, knn_
         median offset).
     """
     causes: dict = {}
-    stray, stray_points = _stray_cause(points, normals, knn_indices, spacing_pt, faces[flipped | zero])
+    stray, at_stray = _stray_cause(points, normals, knn_indices, spacing_pt, faces[flipped | zero])
+    n_flipped = int(flipped.sum())
     if stray:
         causes["stray"] = stray
         # A point above the surface also looks like the surface coming back near itself:
         # the triangles at stray points are the stray cause's, not a thin part's.
-        flipped = flipped & ~stray_points[faces].any(axis=1)
+        flipped = flipped & ~at_stray[faces].any(axis=1)
     if flipped.any():
         corners = faces[flipped]
         gap = np.full(points.shape[0], np.inf)
@@ -150,10 +137,11 @@ def failure_causes(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, knn_
         gap[vertices] = _gap_across(points, normals, knn_indices, spacing_pt, vertices)
         face_gap = gap[corners].min(axis=1)
         thin = face_gap < THIN_GAP
+        share = float(thin.sum()) / n_flipped  # of every flipped triangle, those at stray points included
         sample = np.arange(0, points.shape[0], max(1, points.shape[0] // BASE_SAMPLE))
         base = float(np.mean(_gap_across(points, normals, knn_indices, spacing_pt, sample) < THIN_GAP))
-        if thin.mean() >= max(MIN_SHARE, ENRICHMENT * base):
-            causes["thin"] = {"share": round(float(thin.mean()), 3), "base_share": round(base, 4),
+        if share >= max(MIN_SHARE, ENRICHMENT * base):
+            causes["thin"] = {"share": round(share, 3), "base_share": round(base, 4),
                               "gap_spacings": round(float(np.median(face_gap[thin])), 3)}
     if zero.any():
         scale = _scale_factors(points, uv, faces)
@@ -249,42 +237,17 @@ def harmonic_scale(points: np.ndarray, knn_indices: np.ndarray, outer_loop: np.n
     return scale / max(float(np.median(scale)), np.finfo(float).tiny)
 
 
-def _stray_cause(points, normals, knn_indices, spacing_pt, bad_faces) -> tuple[dict, np.ndarray]:
+def _stray_cause(points, normals, knn_indices, spacing_pt, bad_faces) -> tuple[dict, np.ndarray | None]:
     """The "stray" cause's figures and the stray points, or ({}, None) when the failing triangles' corners are not enriched in them."""
     if not len(bad_faces):
         return {}, None
-    offset = np.empty(points.shape[0])
-
-    def rows_of(rows: slice) -> None:  # bounded temporaries: (rows, K, 3) at a time
-        offset[rows] = _off_surface(points, normals, knn_indices, spacing_pt, np.arange(rows.start, rows.stop))
-
-    for_each_chunk(rows_of, points.shape[0], _STRAY_CHUNK)
-    stray = offset > max(STRAY_OFFSET, STRAY_NOISE_FACTOR * float(np.nanmedian(offset)))
+    offset = offsets_off_surface(points, normals, knn_indices, spacing_pt)
+    stray = stray_mask(offset)
     face_share = float(stray[bad_faces].any(axis=1).mean())
     if face_share < max(MIN_SHARE, ENRICHMENT * float(stray.mean())):
         return {}, None
     return {"share": round(face_share, 3), "base_share": round(float(stray.mean()), 4), "points": int(stray.sum()),
             "offset_spacings": round(float(np.median(offset[stray])), 2)}, stray
-
-
-#: Rows per chunk of the stray points' offsets.
-_STRAY_CHUNK = 65536
-
-
-def _off_surface(points, normals, knn_indices, spacing_pt, vertices) -> np.ndarray:
-    """Per vertex, its second-smallest offset from its neighbours' tangent planes, in their median spacing.
-
-    A stray point is off every neighbour's plane; a point of a thin part (an ear) lies in
-    the planes of the neighbours on its own side, whatever those across the gap say; the
-    second-smallest lets one neighbour be a fellow stray. The vertex's own normal and
-    spacing are not used: a stray point's own are skewed by the surface below it.
-    """
-    nb = knn_indices[vertices]
-    d = points[vertices][:, None, :] - points[nb]
-    along = np.abs(np.einsum("vki,vki->vk", d, normals[nb]))
-    along = np.where(nb == vertices[:, None], np.inf, along)  # the vertex itself, where listed
-    second = np.partition(along, 1, axis=1)[:, 1]
-    return second / np.median(spacing_pt[nb], axis=1)
 
 
 def _gap_across(points, normals, knn_indices, spacing_pt, vertices) -> np.ndarray:

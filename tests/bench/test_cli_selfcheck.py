@@ -186,3 +186,27 @@ def test_inspect_says_when_coverage_cannot_be_judged(tmp_path, capsys):
     cov = json.loads(out.read_text())["selfcheck"]["coverage"]
     assert not cov["applicable"] and cov["passed"] and cov["n_scattered"] > 0.02 * 2000
     assert "loop coverage not judged" in capsys.readouterr().out
+
+
+def test_outliers_are_named_and_repair_drops_them(tmp_path, capsys):
+    from parambench.datasets_gen.registry import make_surface
+
+    from scipy.spatial import cKDTree
+
+    surface = make_surface("bump", 3000, sampling="jittered", seed=0)
+    rng = np.random.default_rng(0)
+    spacing = cKDTree(surface.points).query(surface.points, 9)[0][:, 1:].mean()
+    # 4 points 3 spacings above the surface points nearest them, as a scanner's spurious returns
+    outliers = surface.points[rng.choice(len(surface.points), 4, replace=False)].copy()
+    outliers[:, 2] += 3 * spacing
+    src = tmp_path / "scan.xyz"
+    np.savetxt(src, np.vstack([surface.points, outliers]), fmt="%.17g")
+    out = tmp_path / "scan.obj"
+    assert main(["flatten", str(src), "-o", str(out)]) == EXIT_SELFCHECK
+    err = capsys.readouterr().err
+    assert "stray point(s) in all" in err and "--repair drops the stray points" in err and not out.exists()
+    assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "dropped 4 stray point(s) off the surface" in err
+    kept = np.array([line.split()[1:] for line in out.read_text().splitlines() if line.startswith("v ")], float)
+    assert len(kept) == len(surface.points) and np.allclose(np.sort(kept, axis=0), np.sort(surface.points, axis=0))
