@@ -327,6 +327,10 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode
     inv = np.empty_like(order)
     inv[order] = np.arange(n, dtype=np.int64)
     p = pts[order]
+    if neighbours in ("surface", "pruned") and not unique_checked:
+        # Their plane tests divide by edge lengths: a copy must be refused before them.
+        require_unique_points(pts)
+        unique_checked = True
     if neighbours == "surface":
         graph, nbr_diag = surface_knn_graph(p, k_nn)
     elif neighbours == "pruned":
