@@ -28,7 +28,7 @@ from .laplacian import graph_laplacian
 from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
-from .normals import check_user_normals, noise_adaptive_normals, orient_normals
+from .normals import NOISY_MAX_K, NOISY_TARGET_DEG, check_user_normals, noise_adaptive_normals, orient_normals
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
 from .params import FrontEndParams
@@ -393,7 +393,8 @@ def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode:
 
 
 def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spacing: float, *,
-                  smooth: bool = True, smoothing: str = "linear") -> tuple[np.ndarray, np.ndarray, dict]:
+                  smooth: bool = True, smoothing: str = "linear", noisy: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Stage ``normals``: oriented unit normals, the (smoothed) normals of the DEM frames, fit facts.
 
     Parameters
@@ -410,6 +411,10 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
         Smooth the frame normals (``smooth_normals``).
     smoothing : {"linear", "average"}
         How (the DEM variant's rule, :func:`parambench.methods.pointset.normals.smooth_normals`).
+    noisy : bool
+        Refit towards :data:`~parambench.methods.pointset.normals.NOISY_TARGET_DEG` on up to
+        :data:`~parambench.methods.pointset.normals.NOISY_MAX_K` neighbours (noisy samplings
+        with close pairs).
 
     Returns
     -------
@@ -427,7 +432,9 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
         Given normals are inconsistently oriented or not normal to the points.
     """
     # PCA on the kNN, refitted on more points where the fit residual says noise.
-    fitted, normal_fit = noise_adaptive_normals(points, graph.indices)
+    fitted, normal_fit = (noise_adaptive_normals(points, graph.indices, target_deg=NOISY_TARGET_DEG,
+                                                 max_k=NOISY_MAX_K)
+                          if noisy else noise_adaptive_normals(points, graph.indices))
     if given is not None:
         oriented = given
         check_user_normals(points, oriented, fitted, graph.indices)
@@ -740,10 +747,10 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         nb = knn_stage(pts, k_nn, "euclidean" if screened else params.neighbours, params.spacing)
     order, inv = nb.order, nb.inv
 
-    def fit_normals(nb: Neighbourhoods):
+    def fit_normals(nb: Neighbourhoods, noisy: bool = False):
         with timer("normals"):
             return normals_stage(nb.points, None if given is None else given[order], nb.graph, nb.spacing,
-                                 smooth=params.smooth_normals, smoothing=variant["smoothing"])
+                                 smooth=params.smooth_normals, smoothing=variant["smoothing"], noisy=noisy)
 
     oriented, frame_normals, normal_fit = fit_normals(nb)
     if screened:
@@ -755,10 +762,14 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         if nb.neighbour_diagnostics["pruned"]:
             oriented, frame_normals, normal_fit = fit_normals(nb)
 
-    def dem_to_boundary(nb: Neighbourhoods, frame_normals: np.ndarray, normal_fit: dict | None):
+    def dem_to_boundary(nb: Neighbourhoods, normals: tuple):
+        oriented, frame_normals, normal_fit = normals
         close_pairs = (close_pair_share(nb.points, frame_normals, nb.graph.indices, nb.h_local)
                        if params.dem == "auto" and noisy_fits(normal_fit) else None)
         chosen = replace(params, dem=resolved_dem(params, normal_fit, close_pairs))
+        if chosen.dem == "projected" and params.dem == "auto" and given is None:
+            normals = fit_normals(nb, noisy=True)  # see normals.NOISY_TARGET_DEG
+            oriented, frame_normals, normal_fit = normals
         with timer("dem"):
             balls = dem_stage(nb.points, frame_normals, nb.adjacency, nb.spacing, nb.h_local, ball_k=chosen.ball_k,
                               ball_eps_factor=float(chosen.ball_eps_factor), dem=chosen.dem,
@@ -767,7 +778,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
             w, r_x = weights_stage(nb.points, balls, chosen.weights, chosen.reg_eps)
         with timer("boundary"):
             bnd, retried = boundary_stage(nb, frame_normals, balls, chosen)
-        return balls, w, r_x, bnd, retried, chosen.dem
+        return balls, w, r_x, bnd, retried, chosen.dem, normals
 
     uncut = None
     if params.neighbours == "auto" and params.slot_cuts:
@@ -778,7 +789,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
             oriented, frame_normals, normal_fit = fit_normals(cut_nb)
         nb = cut_nb
     try:
-        balls, w, r_x, bnd, retried, dem_used = dem_to_boundary(nb, frame_normals, normal_fit)
+        balls, w, r_x, bnd, retried, dem_used, normals = dem_to_boundary(nb, (oriented, frame_normals, normal_fit))
+        oriented, frame_normals, normal_fit = normals
         confirmed = uncut is None or slots_on_loops(nb.slot_ends, nb.graph, bnd.mask)
     except NoBoundaryError:
         if uncut is None:
@@ -790,7 +802,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         slots = dict(nb.neighbour_diagnostics["slots"], reverted=True)
         nb, oriented, frame_normals, normal_fit = uncut
         nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, slots=slots))
-        balls, w, r_x, bnd, retried, dem_used = dem_to_boundary(nb, frame_normals, normal_fit)
+        balls, w, r_x, bnd, retried, dem_used, normals = dem_to_boundary(nb, (oriented, frame_normals, normal_fit))
+        oriented, frame_normals, normal_fit = normals
     del uncut
 
     with timer("boundary"):

@@ -29,6 +29,8 @@ __all__ = [
     "pca_normals",
     "pca_fit",
     "noise_adaptive_normals",
+    "NOISY_TARGET_DEG",
+    "NOISY_MAX_K",
     "NOISE_TARGET_DEG",
     "orient_normals",
     "consistent_signs",
@@ -126,6 +128,18 @@ NOISE_TARGET_DEG = 4.0
 
 #: Largest neighbourhood (points besides the centre) of the refit.
 NOISE_MAX_K = 64
+
+#: The refit's target and largest neighbourhood on samplings the front end finds noisy and
+#: full of close pairs (where it projects the balls' coordinates instead of the upwind
+#: DEM): there two points a small fraction of a spacing apart along the surface but up to
+#: a spacing apart along the normal keep their order in the map only if the normal is
+#: right to a degree or two. Measured with ``ocp`` on 2k random samplings at normal noise
+#: 0.5 spacings, foldovers on the true mesh at (4 degrees, 64) -> (2, 160): bump 11 -> 9,
+#: holes 10 -> 0, saddle 9 -> 2, slit 22 -> 0. Applied to every sampling instead, the
+#: clean ones' maps got worse (protrusions random 20k 0 -> 4 foldovers, camelhead 200 ->
+#: 333), so it stays with the noisy, close-paired ones.
+NOISY_TARGET_DEG = 2.0
+NOISY_MAX_K = 160
 
 #: A refit is kept only where its residual variance is at most this multiple of the median
 #: (neighbourhood-averaged) K-fit residual variance among its members: noise has about

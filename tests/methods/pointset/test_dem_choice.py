@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from parambench.bench.metrics import evaluate
@@ -83,3 +84,26 @@ def test_noisy_random_sampling_folds_less_with_the_projection():
         folds = {dem: evaluate(surface.points, surface.faces, get_method("ocp")(given, dem=dem).uv)["foldovers"]
                  for dem in ("upwind", "auto")}
         assert folds["auto"] <= most < folds["upwind"], (name, folds)
+
+
+def test_noisy_close_paired_samplings_refit_their_normals_harder():
+    """Where the balls are projected, the normals aim at 2 degrees on up to 160 neighbours
+    (normals.NOISY_TARGET_DEG): the order of close pairs along the surface depends on it."""
+    plane = make_surface("plane", 3000, sampling="random", seed=0, noise=0.5)
+    front = build_frontend(plane.points)
+    assert front.diagnostics["dem"] == "projected"
+    tilt = np.degrees(np.arccos(np.clip(np.abs(front.normals[:, 2]), 0.0, 1.0)))
+    assert np.median(tilt) < 3.0 and front.diagnostics["normal_fit"]["refit_k"]["max"] > 64  # 4.3 with the usual refit
+    # Clean or jittered samplings keep the usual refit (their upwind DEM): the same normals
+    # as a front end asked for the upwind DEM outright.
+    for sampling, noise in (("random", 0.0), ("jittered", 0.5)):
+        points = make_surface("bump", 2000, sampling=sampling, seed=0, noise=noise).points
+        assert np.array_equal(build_frontend(points).normals, build_frontend(points, dem="upwind").normals)
+
+
+def test_noisy_random_holes_fold_nothing():
+    """holes, 2k random points at noise 0.5: 10 foldovers on the true mesh with the usual refit, 0 now."""
+    surface = make_surface("holes", 2000, sampling="random", seed=0, noise=0.5)
+    result = get_method("ocp")(surface.method_input(False))
+    assert evaluate(surface.points, surface.faces, result.uv)["foldovers"] == 0
+    assert result.diagnostics["selfcheck"]["passed"]
