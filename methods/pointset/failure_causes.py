@@ -4,8 +4,9 @@ A parameter hint ("try --param k_nn=16") helps where the neighbourhoods were too
 for the sampling. It cannot help where the points do not resolve the surface, or where
 the map itself is right but useless, and there each hint leads to the next one (a cow cut
 open and loop-subdivided to 22k points as bare points: ``k_nn=16`` then suggested
-``boundary_angle_deg=100``, ``ball_eps_factor=3.5`` suggested ``k_nn=16``). Two such causes
-are recognised, and the self-check's reason names them:
+``boundary_angle_deg=100``, ``ball_eps_factor=3.5`` suggested ``k_nn=16``), or where the
+points themselves are at fault. Three such causes are recognised, and the self-check's
+reason names them:
 
 * **thin**: the flipped triangles have a corner with a neighbour across the surface (off
   its tangent plane, within 45 degrees of its normal, nearer than ``THIN_GAP`` local
@@ -315,7 +316,8 @@ def cause_advice(causes: dict, failed: list[str]) -> tuple[str, bool]:
         "" without a recognised cause.
     alone : bool
         True when every failed check is explained by a cause no parameter changes (a
-        collapse, with nothing but degenerate triangles failing).
+        collapse, with nothing but degenerate triangles failing; stray points at half the
+        failing triangles or more, with nothing but flipped and degenerate ones failing).
     """
     advice = []
     if "thin" in causes:
