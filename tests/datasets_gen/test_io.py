@@ -222,6 +222,32 @@ def test_xyz_commas_comments_blank_lines_and_extra_columns(tmp_path):
     assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None])
 
 
+def test_text_pts_with_a_point_count_and_intensity_and_colour_columns(tmp_path):
+    """Leica's PTS: the count on the first line, then x y z intensity r g b."""
+    rows = "\n".join(f"{p[0]} {p[1]} {p[2]} {-1000 + 7 * i} {i} {200 - i} 17" for i, p in enumerate(POINTS))
+    s = load_surface(_write(tmp_path / "scan.pts", f"{len(POINTS)}\n{rows}\n"))
+    assert np.array_equal(s.points, POINTS) and s.normals is None
+    with pytest.raises(InputFileError, match=f"line 1: a point count of {len(POINTS) + 1} but {len(POINTS)} rows"):
+        load_surface(_write(tmp_path / "bad.pts", f"{len(POINTS) + 1}\n{rows}\n"))
+    # the same columns without the count (a text export): intensities and colours are no normals either
+    s = load_surface(_write(tmp_path / "scan.xyz", rows + "\n"))
+    assert np.array_equal(s.points, POINTS) and s.normals is None
+
+
+@pytest.mark.parametrize("colour", ["int", "float"])
+def test_colour_columns_are_not_read_as_normals(tmp_path, colour):
+    rgb = np.random.default_rng(0).integers(0, 256, (len(POINTS), 3))
+    rgb = rgb if colour == "int" else rgb / 255.0
+    rows = [", ".join(map(str, np.concatenate([p, c]))) for p, c in zip(POINTS, rgb)]
+    # CloudCompare's ASCII export: a "//" header naming the columns
+    s = load_surface(_write(tmp_path / "cc.xyz", "//X,Y,Z,R,G,B\n" + "\n".join(rows) + "\n"))
+    assert np.array_equal(s.points, POINTS) and s.normals is None
+    # colours first, normals after them: the normals are found
+    rows = [" ".join(map(str, np.concatenate([p, c, n]))) for p, c, n in zip(POINTS, rgb, NORMALS)]
+    s = load_surface(_write(tmp_path / "ccn.xyz", "\n".join(rows) + "\n"))
+    assert np.allclose(s.normals, NORMALS / np.linalg.norm(NORMALS, axis=1)[:, None])
+
+
 def test_binary_expe_pts_round_trip(tmp_path):
     head = "[Expe/PointSet/Binary/0.1]\nproperty position 12\nproperty radius 4\nproperty normal 12\n" \
            f"property color 4\nnofpoints {len(POINTS)}\ndata\n"
