@@ -15,8 +15,8 @@ within about a spacing of the surface, where they are noise); 50 points lifted 1
 steps, 47 found (offsets 1.06-1.9: the 3 under ``STRAY_OFFSET`` do not fold the map); no
 false one. Without strays added: none on any clean random or graded sampling of the
 generated surfaces at 2k and 20k, nor on the scattered real meshes, pymeshlab's bunny, cow
-and chameleon; one point on 8 of the 2k samplings at normal noise of 0.5 and 1 spacing
-(jittered and random at 0.5, random at 1: the noise's tail); 2 of ``real/camelhead``'s 11,381 points (1.54 and 1.86 spacings, where its
+and chameleon; one point on 8 of the 33 noisy 2k samplings tried (all random: 2 at normal
+noise of 0.5 spacings, 6 at 1; the noise's tail); 2 of ``real/camelhead``'s 11,381 points (1.54 and 1.86 spacings, where its
 sampling density jumps); 12 of the 85,849 points of pymeshlab's range scan ``face000``.
 """
 
