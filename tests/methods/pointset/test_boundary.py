@@ -10,7 +10,8 @@ from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.geometry2d import signed_area_2d
 from parambench.methods.pointset.boundary import (angular_gaps, bridge_successors, cycles, empty_radius_inside,
-                                                  find_boundary, no_boundary_error, put_back_passed_over, successors)
+                                                  find_boundary, loop_zigzag, no_boundary_error, put_back_passed_over,
+                                                  successors)
 from parambench.methods.pointset.frontend import build_frontend
 from parambench.methods.pointset.normals import tangent_frames
 
@@ -337,6 +338,86 @@ def test_put_back_a_notch_on_a_single_step():
     expected = expected[~np.isin(expected, [43, 47])]
     assert n == 38
     np.testing.assert_array_equal(loops[0], expected)
+
+
+def test_loop_zigzag_is_the_sagitta_and_ignores_offsets_along_the_normal():
+    """On a regular 40-gon each point lies 1 - cos(2 pi / 40) off its neighbours' chord;
+    lifting every other point along the normal (noise along it) changes nothing; on a rim
+    whose every other point sits 0.05 inside, each edge gets the mean of its tip's and its
+    notch's distances (four times the 40-gon's). Points on no loop get NaN."""
+    t = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    circle = np.c_[np.cos(t), np.sin(t), np.zeros(40)]
+    points = np.vstack([circle, [[0.0, 0.0, 0.0]]])
+    normals = np.tile([0.0, 0.0, 1.0], (41, 1))
+    loop = [np.arange(40)]
+    zig = loop_zigzag(points, normals, loop)
+    np.testing.assert_allclose(zig[:40], 1.0 - np.cos(2.0 * np.pi / 40), rtol=1e-12)
+    assert np.isnan(zig[40])
+    lifted = points.copy()
+    lifted[:40:2, 2] = 0.3
+    np.testing.assert_allclose(loop_zigzag(lifted, normals, loop), zig, rtol=1e-12, equal_nan=True)
+    notched = points.copy()
+    notched[1:40:2, :2] *= 0.95
+    step = 2.0 * np.pi / 40
+    tip, notch = 1.0 - 0.95 * np.cos(step), np.cos(step) - 0.95  # off their neighbours' chords
+    np.testing.assert_allclose(loop_zigzag(notched, normals, loop)[:40], 0.5 * (tip + notch), rtol=1e-12)
+
+
+def test_loop_zigzag_is_off_where_the_steps_are_irregular():
+    """A rim of scattered points is no mesh's zigzag: on a loop whose steps alternate
+    between 1 and 2.5 units of angle (spread 0.43 of their mean, over the 0.32 limit),
+    every value is 0; with steps alternating 1 and 1.5 (spread 0.2) the rule is on."""
+    for ratio, on in ((2.5, False), (1.5, True)):
+        steps = np.tile([1.0, ratio], 20)
+        t = 2.0 * np.pi * np.concatenate([[0.0], np.cumsum(steps)[:-1]]) / steps.sum()
+        points = np.c_[np.cos(t), np.sin(t), np.zeros(40)]
+        zig = loop_zigzag(points, np.tile([0.0, 0.0, 1.0], (40, 1)), [np.arange(40)])
+        assert np.all(zig > 0) if on else np.all(zig == 0)
+
+
+def _polygon_and_notch(inset: float, tip10_radius: float = 1.0):
+    """A 40-gon loop (zigzag 0.0123) with tip 10 at ``tip10_radius``, and a point ``inset``
+    inside the chord of tips 9 and 10, at its middle; ball = everything, gaps 95 degrees."""
+    t = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    tips = np.c_[np.cos(t), np.sin(t), np.zeros(40)]
+    tips[10] *= tip10_radius
+    middle = 0.5 * (tips[9] + tips[10])
+    points = np.vstack([tips, middle - inset * middle / np.linalg.norm(middle)])
+    outward = points / np.linalg.norm(points, axis=1, keepdims=True)
+    return points, outward, np.tile(np.arange(41), (41, 1)), np.full(41, np.deg2rad(95.0))
+
+
+@pytest.mark.parametrize("inset,expected", [(0.04, 1), (0.07, 0)])
+def test_put_back_a_notch_as_deep_as_the_rims_zigzag(inset, expected):
+    """A point between tips 9 and 10 with a gap of 95 degrees (under the notch rule's 100)
+    and a detour under 1.4 goes back when it lies 0.04 inside the chord (3.3 times the
+    loop's zigzag), not at 0.07 (5.7 times): the first interior row behind a smooth
+    boundary lies deeper than the boundary's sagitta. Without normals the rule is off."""
+    points, outward, balls, gap = _polygon_and_notch(inset)
+    normals = np.tile([0.0, 0.0, 1.0], (41, 1))
+    loop = [np.arange(40)]
+    zigzag = loop_zigzag(points, normals, loop)
+    loops, n = put_back_passed_over(points, loop, balls, gap, outward, normals=normals, zigzag=zigzag)
+    assert n == expected
+    if expected:
+        np.testing.assert_array_equal(loops[0], np.insert(np.arange(40), 10, 40))
+    assert put_back_passed_over(points, loop, balls, gap, outward)[1] == 0
+
+
+def test_put_back_measures_notches_from_the_walked_rim():
+    """Tip 10 was put back in an earlier round (no zigzag of its own) and lies at radius
+    0.85. A point 0.02 in from the middle of the chord from tip 9 to it (1.1 times the
+    zigzag off that chord) lies 7.2 times the zigzag inside the chord of the walk's own
+    points 9 and 11, so it stays out:
+    rules on put-back points' chords would reach deeper each round. With tip 10 walked,
+    it goes back."""
+    points, outward, balls, gap = _polygon_and_notch(0.02, tip10_radius=0.85)
+    normals = np.tile([0.0, 0.0, 1.0], (41, 1))
+    loop = [np.arange(40)]
+    zigzag = loop_zigzag(points, normals, loop)
+    assert put_back_passed_over(points, loop, balls, gap, outward, normals=normals, zigzag=zigzag)[1] == 1
+    zigzag[10] = np.nan
+    assert put_back_passed_over(points, loop, balls, gap, outward, normals=normals, zigzag=zigzag)[1] == 0
 
 
 def test_bridge_reach_per_point():
