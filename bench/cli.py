@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Sequence
 
-from parambench.datasets_gen.errors import InputFileError, InvalidInputError, ParambenchError
+from parambench.datasets_gen.errors import REPAIR_ACTION, InputFileError, InvalidInputError, ParambenchError
 
 __all__ = ["main", "parse_param_values"]
 
@@ -204,8 +204,35 @@ def _repaired(surface, repair: bool, k_nn: Any):
     if surface.faces is None and surface.n_points > k + 1:
         surface, n_stray = _without_stray_points(surface, k)
         note += f"; dropped {n_stray} stray point(s) off the surface" if n_stray else ""
+        surface, normals_note = _with_usable_normals(surface, k)
+        note += normals_note
     print(f"parambench: note: {note}; the output holds these vertices", file=sys.stderr)
     return surface
+
+
+def _with_usable_normals(surface, k_nn: int):
+    """A point set's given normals with the misoriented ones flipped, or dropped when far off the surface; and a note."""
+    from dataclasses import replace
+
+    from parambench.methods.pointset.neighbourhoods import knn_graph
+    from parambench.methods.pointset.normals import (MIN_NORMAL_ALIGNMENT, misoriented_normals, normal_alignment,
+                                                     pca_normals)
+
+    if surface.normals is None:
+        return surface, ""
+    # The graph the front end checks the normals on is near this one: its duplicates are
+    # merged, and its gap-aware edges differ only across narrow gaps.
+    indices = knn_graph(surface.points, k_nn).indices
+    align = normal_alignment(surface.normals, pca_normals(surface.points, indices))
+    if align < MIN_NORMAL_ALIGNMENT:
+        return (replace(surface, normals=None),
+                f"; dropped the given normals (median |cos| to the fitted ones {align:.2f}): estimated instead")
+    odd = misoriented_normals(surface.points, surface.normals, indices)
+    if not odd.any():
+        return surface, ""
+    normals = surface.normals.copy()
+    normals[odd] *= -1.0
+    return replace(surface, normals=normals), f"; flipped {int(odd.sum())} given normal(s) to agree with their neighbours"
 
 
 def _without_stray_points(surface, k_nn: int):
@@ -229,7 +256,8 @@ def _offer_repair(repair: bool):
         yield
     except ParambenchError as exc:
         if getattr(exc, "repairable", False) and not repair:
-            exc.args = (f"{str(exc).rstrip('.')}; or pass --repair to keep the largest piece and repair it.",)
+            action = getattr(exc, "repair_action", REPAIR_ACTION)
+            exc.args = (f"{str(exc).rstrip('.')}; or pass --repair to {action}.",)
         raise
 
 

@@ -14,6 +14,7 @@ import traceback
 
 __all__ = [
     "repairable",
+    "REPAIR_ACTION",
     "released",
     "ParambenchError",
     "InputFileError",
@@ -106,11 +107,21 @@ class ResultsInUseError(ParambenchError):
     """A results folder is locked by another running sweep."""
 
 
-def repairable(exc: ParambenchError) -> ParambenchError:
-    """Mark an error that :func:`parambench.datasets_gen.repair.repair_surface` removes
-    (several pieces, unreferenced vertices, non-manifold edges or vertices, duplicate
-    faces), so that the command line can offer ``--repair``; returns ``exc``."""
+#: What ``--repair`` does, as the command line offers it, unless an error says otherwise.
+REPAIR_ACTION = "keep the largest piece and repair it"
+
+
+def repairable(exc: ParambenchError, action: str = REPAIR_ACTION) -> ParambenchError:
+    """Mark an error that the command line's ``--repair`` removes, so that it can offer it; returns ``exc``.
+
+    :func:`parambench.datasets_gen.repair.repair_surface` removes several pieces,
+    unreferenced vertices, non-manifold edges or vertices and duplicate faces (the
+    default ``action``); the command line also flips misoriented given normals of a point
+    set and drops given normals far off the surface. ``action`` (``exc.repair_action``)
+    completes "pass --repair to ...".
+    """
     exc.repairable = True
+    exc.repair_action = action
     return exc
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import minimum_spanning_tree
 
-from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInputError
+from parambench.datasets_gen.errors import InconsistentNormalsError, InvalidInputError, repairable
 
 from ..numba_cache import configure_numba_cache
 from .local_fits import linear_smooth_rows, pca_rows
@@ -37,6 +37,9 @@ __all__ = [
     "smooth_normals",
     "SMOOTHING_KINDS",
     "check_user_normals",
+    "misoriented_normals",
+    "normal_alignment",
+    "MIN_NORMAL_ALIGNMENT",
     "tangent_frames",
 ]
 
@@ -659,6 +662,34 @@ def smooth_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
     return avg / norm
 
 
+def misoriented_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
+    """The given normals that point to the other side of the surface than the rest.
+
+    Parameters
+    ----------
+    points, normals : (N, 3) numpy.ndarray of float64
+    knn_indices : (N, K) numpy.ndarray of int64
+        A connected neighbourhood graph (rows of distinct points).
+
+    Returns
+    -------
+    (N,) numpy.ndarray of bool
+        The smaller of the two groups :func:`consistent_signs` splits the normals into
+        (none when they agree).
+    """
+    flipped = consistent_signs(points, normals, knn_indices) < 0
+    return flipped if flipped.sum() <= normals.shape[0] - flipped.sum() else ~flipped
+
+
+def normal_alignment(normals: np.ndarray, fitted: np.ndarray) -> float:
+    """Median ``|n . n_fit|`` of given normals against fitted ones (1: perpendicular to the points)."""
+    return float(np.median(np.abs(np.einsum("ij,ij->i", normals, fitted))))
+
+
+#: Given normals whose median ``|cos|`` to the fitted ones is below this are refused.
+MIN_NORMAL_ALIGNMENT = 0.5
+
+
 def check_user_normals(points: np.ndarray, normals: np.ndarray, fitted: np.ndarray, knn_indices: np.ndarray) -> None:
     """Raise when user-supplied normals are inconsistently oriented or off the surface.
 
@@ -666,7 +697,6 @@ def check_user_normals(points: np.ndarray, normals: np.ndarray, fitted: np.ndarr
     ----------
     points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
-        The user's unit normals.
     fitted : (N, 3) numpy.ndarray of float64
         PCA normals of the same points (any signs).
     knn_indices : (N, K) numpy.ndarray of int64
@@ -674,28 +704,26 @@ def check_user_normals(points: np.ndarray, normals: np.ndarray, fitted: np.ndarr
     Raises
     ------
     InconsistentNormalsError
-        Some normals point to the other side of the surface than the rest (a
-        consistent field needs no sign change under MST propagation), or the normals are
-        mostly far from perpendicular to the point set (median ``|n . n_pca| < 0.5``,
-        i.e. more than 60 degrees off).
+        The normals are mostly far from perpendicular to the point set (median
+        ``|n . n_pca|`` below :data:`MIN_NORMAL_ALIGNMENT`, i.e. more than 60 degrees off;
+        tested first), or some point to the other side of the surface than the rest (a
+        consistent field needs no sign change under MST propagation). Marked repairable:
+        the command line's ``--repair`` drops the first kind and flips the second.
     """
-    n = normals.shape[0]
-    signs = consistent_signs(points, normals, knn_indices)
-    flipped = int((signs < 0).sum())
-    minority = min(flipped, n - flipped)
-    if minority > 0:
-        odd = np.flatnonzero(signs < 0) if flipped <= n - flipped else np.flatnonzero(signs > 0)
-        raise InconsistentNormalsError(
-            f"{minority} of {n} given normals point to the other side of the surface than their "
+    # Off the surface first: a field of tangents has no orientation worth mending.
+    align = normal_alignment(normals, fitted)
+    if align < MIN_NORMAL_ALIGNMENT:
+        raise repairable(InconsistentNormalsError(
+            f"the given normals are far from perpendicular to the point set (median |cos| to the fitted "
+            f"normals {align:.2f}); fix them, or omit normals to let parambench estimate them."
+        ), "estimate normals instead")
+    odd = np.flatnonzero(misoriented_normals(points, normals, knn_indices))
+    if odd.size:
+        raise repairable(InconsistentNormalsError(
+            f"{odd.size} of {normals.shape[0]} given normals point to the other side of the surface than their "
             f"neighbours (first: point {int(odd[0])}); fix their orientation, or omit normals to let "
             "parambench estimate them."
-        )
-    align = np.abs(np.einsum("ij,ij->i", normals, fitted))
-    if np.median(align) < 0.5:
-        raise InconsistentNormalsError(
-            f"the given normals are far from perpendicular to the point set (median |cos| to the fitted "
-            f"normals {np.median(align):.2f}); fix them, or omit normals to let parambench estimate them."
-        )
+        ), "flip them")
 
 
 def tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
