@@ -210,3 +210,18 @@ def test_outliers_are_named_and_repair_drops_them(tmp_path, capsys):
     assert "dropped 4 stray point(s) off the surface" in err
     kept = np.array([line.split()[1:] for line in out.read_text().splitlines() if line.startswith("v ")], float)
     assert len(kept) == len(surface.points) and np.allclose(np.sort(kept, axis=0), np.sort(surface.points, axis=0))
+
+
+def test_coverage_not_judged_on_irregular_samplings_says_so(bump_xyz, tmp_path, capsys):
+    """Random points leave voids that look like holes, so the loop-coverage count is not judged there:
+    the summary line says so beside the count; on a jittered sampling it is judged and says nothing more."""
+    from parambench.datasets_gen.registry import make_surface
+
+    src = tmp_path / "random.xyz"
+    np.savetxt(src, make_surface("bump", 3000, sampling="random", seed=3).points, fmt="%.17g")
+    assert main(["flatten", str(src), "-o", str(tmp_path / "random.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "boundary candidates off the loops (not judged: on an irregular sampling" in out
+    assert main(["flatten", str(bump_xyz[0]), "-o", str(tmp_path / "jittered.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "boundary candidates off the loops" in out and "not judged" not in out
