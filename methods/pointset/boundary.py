@@ -569,9 +569,10 @@ def put_back_passed_over(points: np.ndarray, loops: list[np.ndarray], ball_indic
     11 edges around it (the walk made a double step), or, on any step, when the detour
     is at most ``notch_detour`` and the gap at least ``notch_gap_deg`` on a loop of at
     least ``notch_min_loop`` points (a notch of a zigzag rim, which the walk steps over
-    one at a time) or, given ``normals`` and ``zigzag``, the point stands off the chord
-    ab on a's tangent plane at most ``zigzag_inset`` times ``zigzag[a]`` (a notch as deep
-    as the rim's own zigzag); the candidate with the smallest
+    one at a time) or, given ``normals`` and ``zigzag``, its gap is at least
+    ``zigzag_gap_deg`` and it stands off the chord of the walk's own points around the
+    edge (on the first one's tangent plane) at most ``zigzag_inset`` times that point's
+    ``zigzag`` (a notch as deep as the rim's own zigzag); the candidate with the smallest
     detour is inserted between a and b. A point claimed by several edges goes to the edge
     where its detour is smallest. One round: at most one point per edge
     (:func:`find_boundary` runs up to five).
@@ -600,10 +601,13 @@ def put_back_passed_over(points: np.ndarray, loops: list[np.ndarray], ball_indic
     normals : (N, 3) numpy.ndarray of float64, optional
         Unit normals; with ``zigzag``, turns the zigzag rule on.
     zigzag : (N,) numpy.ndarray of float64, optional
-        Per loop point, the loop's zigzag on the edge it starts (:func:`loop_zigzag`),
-        length units.
+        Per loop point the walk found, the loop's zigzag on the edge it starts
+        (:func:`loop_zigzag` of the walk's loops), length units; NaN at points put back
+        since (their chords are skipped).
     zigzag_inset : float
-        Deepest in-plane distance from the chord, in units of ``zigzag[a]``.
+        Deepest in-plane distance from the chord, in units of the zigzag.
+    zigzag_gap_deg : float
+        Smallest gap (degrees) of a point the zigzag rule puts back.
 
     Returns
     -------

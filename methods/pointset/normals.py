@@ -697,6 +697,7 @@ def check_user_normals(points: np.ndarray, normals: np.ndarray, fitted: np.ndarr
     ----------
     points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
+        The user's unit normals.
     fitted : (N, 3) numpy.ndarray of float64
         PCA normals of the same points (any signs).
     knn_indices : (N, K) numpy.ndarray of int64
