@@ -118,6 +118,19 @@ def test_advice_replaces_the_parameter_hint_only_for_a_collapse_alone():
     assert failure_line(check, {"k_nn": 8}, "ocp").endswith("(--method scp); try --param k_nn=12")
 
 
+@pytest.mark.parametrize("share,failed,hinted", [(0.75, ["flipped"], False), (1.0, ["flipped", "degenerate"], False),
+                                                 (0.74, ["flipped"], True), (1.0, ["flipped", "coverage"], True)])
+def test_a_part_thinner_than_the_sampling_gets_no_parameter_hint(share, failed, hinted):
+    """Three quarters of the flipped triangles at a thin part, and nothing but folds failing:
+    no parameter separates the part's sides (the cow: k_nn=16 folds more), so the line
+    stops at the advice; a missed loop (coverage) or fewer thin flips keep the hint."""
+    check = {"reason": "8 flipped triangle(s)", "failed": failed,
+             "causes": {"thin": {"share": share, "base_share": 0.01, "gap_spacings": 0.5}}}
+    line = failure_line(check, {"k_nn": 8}, "ocp")
+    assert ("--param" in line) == hinted
+    assert line.endswith("(--method scp)") != hinted
+
+
 def test_flips_at_points_lifted_off_the_surface_are_stray_and_a_thin_flap_is_not(flap):
     rng = np.random.default_rng(4)
     points = _sheet(40, rng)
