@@ -432,14 +432,13 @@ def normals_stage(points: np.ndarray, given: np.ndarray | None, graph: Any, spac
         Given normals are inconsistently oriented or not normal to the points.
     """
     # PCA on the kNN, refitted on more points where the fit residual says noise.
-    fitted, normal_fit = (noise_adaptive_normals(points, graph.indices, target_deg=NOISY_TARGET_DEG,
-                                                 max_k=NOISY_MAX_K)
-                          if noisy else noise_adaptive_normals(points, graph.indices))
+    refit = {"target_deg": NOISY_TARGET_DEG, "max_k": NOISY_MAX_K} if noisy else {}
+    fitted, normal_fit, fit_error = noise_adaptive_normals(points, graph.indices, return_error=True, **refit)
     if given is not None:
         oriented = given
         check_user_normals(points, oriented, fitted, graph.indices)
     else:
-        oriented = orient_normals(points, fitted, graph.indices)
+        oriented = orient_normals(points, fitted, graph.indices, fit_error)
     frame_normals = (neighbourhood_smoothed(points, oriented, graph.indices, graph.distances, spacing,
                                             method=smoothing)
                      if smooth else oriented)

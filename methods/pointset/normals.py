@@ -58,6 +58,10 @@ _SMOOTH_RIDGE = 1e-9
 #: Weight of the off-tangent-plane term of the orientation tree's edge weights.
 _OFF_PLANE_WEIGHT = 3.0
 
+#: Weight, per radian of predicted fit error at either end, added to an orientation tree
+#: edge (see :func:`consistent_signs`).
+_FIT_ERROR_WEIGHT = 1.0
+
 #: Below this ``|sum of normals| / N`` the global sign falls back to "away from the centroid".
 _CANCEL_TOL = 0.05
 
@@ -160,7 +164,8 @@ _REFIT_CHUNK = 50_000
 
 
 def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, target_deg: float = NOISE_TARGET_DEG,
-                           max_k: int = NOISE_MAX_K) -> tuple[np.ndarray, dict]:
+                           max_k: int = NOISE_MAX_K, return_error: bool = False
+                           ) -> tuple[np.ndarray, dict] | tuple[np.ndarray, dict, np.ndarray]:
     """PCA normals, refitted on larger neighbourhoods where the fit residual says noise.
 
     Each point's normal is first fitted on its K nearest neighbours (as
@@ -192,6 +197,8 @@ def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, targe
         Predicted rms error (degrees) below which a normal is kept.
     max_k : int
         Largest refit neighbourhood (neighbours besides the point).
+    return_error : bool
+        Also return each normal's predicted error (for :func:`orient_normals`).
 
     Returns
     -------
@@ -201,6 +208,12 @@ def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, targe
         JSON-serialisable: ``predicted_error_deg`` {median, p95} of the K-fits,
         ``n_refit`` (points whose normal was refitted), ``refit_k`` {median, max} over
         those, ``target_deg``.
+    error : (N,) numpy.ndarray of float64
+        Only with ``return_error``: the predicted rms error (radians) of each point's
+        K-neighbour fit, refitted or not (a point whose small fit was poor stays a risky
+        link for :func:`consistent_signs` even where a larger fit was kept: on the fractal
+        terrain of height 0.5, seed 7, the refits' errors left 1855 points misoriented,
+        the small fits' 100).
     """
     n, k = knn_indices.shape
     normals, lam, error = pca_fit(points, knn_indices)
@@ -222,7 +235,7 @@ def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, targe
     small_error = np.maximum(error, error_mean)[want]
     big_k = min(int(max_k), n - 1)
     if want.size == 0 or big_k <= k:
-        return normals, info
+        return (normals, info, error) if return_error else (normals, info)
     from scipy.spatial import cKDTree
 
     size = np.clip(np.ceil((k + 1) * error_mean[want] / target), k + 1, big_k + 1).astype(np.int64) - 1
@@ -257,7 +270,7 @@ def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, targe
     info["n_refit"] = int(keep.sum())
     if keep.any():
         info["refit_k"] = {"median": float(np.median(size[keep])), "max": int(size[keep].max())}
-    return normals, info
+    return (normals, info, error) if return_error else (normals, info)
 
 
 def _masked_median(values: np.ndarray, valid: np.ndarray, chunk: int = 100_000) -> np.ndarray:
@@ -277,7 +290,8 @@ def pca_fit_rows(points: np.ndarray, rows: np.ndarray, nbh_indices: np.ndarray, 
     return pca_fit(local, nbh_indices + rows.shape[0], valid)
 
 
-def consistent_signs(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
+def consistent_signs(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray,
+                     fit_error: np.ndarray | None = None) -> np.ndarray:
     """Signs (+1/-1) making normals agree along a minimum spanning tree of the kNN graph.
 
     Edge weights are ``1 - |n_i . n_j| + 3 (|n_i . e| + |n_j . e|)``, e the unit edge
@@ -287,6 +301,12 @@ def consistent_signs(points: np.ndarray, normals: np.ndarray, knn_indices: np.nd
     have anti-parallel normals, |n_i . n_j| ~ 1, and plain Hoppe weights would prefer
     it). Measured on the real meshes: the mesh vertex normals of camelhead disagreed with
     the propagation at 466 of 11381 points with plain Hoppe weights, at none with these.
+    With ``fit_error``, each edge also costs ``_FIT_ERROR_WEIGHT`` times its ends' predicted
+    fit errors: a sign passed on through a normal that may lie in the tangent plane is a
+    coin toss for everything behind it, so such points become the tree's leaves. Measured
+    on pymeshlab's fractal terrains (height 0.3-0.5, knife-edge ridges under the sampling
+    scale): 1755 of 16641 and 1990 of 16641 points oriented against the mesh without it,
+    8 and 100 with it; the same orientation on every case where it was right before.
     Each point's sign is the product of the edge flips on its tree path to the root,
     computed by one breadth-first pass over the tree (compiled). Each row of
     ``knn_indices`` must list distinct points.
@@ -298,6 +318,9 @@ def consistent_signs(points: np.ndarray, normals: np.ndarray, knn_indices: np.nd
         Unit normals, arbitrary signs.
     knn_indices : (N, K) numpy.ndarray of int64
         A connected neighbourhood graph.
+    fit_error : (N,) numpy.ndarray of float64, optional
+        Predicted rms error (radians) of each normal's fit
+        (:func:`noise_adaptive_normals` with ``return_error``).
 
     Returns
     -------
@@ -312,6 +335,8 @@ def consistent_signs(points: np.ndarray, normals: np.ndarray, knn_indices: np.nd
     indices = np.empty(n * k, dtype=np.int64)
     weights = np.empty(n * k)
     _tree_weights(points, normals, knn, _OFF_PLANE_WEIGHT, indices, weights)
+    if fit_error is not None:
+        weights += _FIT_ERROR_WEIGHT * (np.repeat(fit_error, k) + fit_error[indices])
     tree_ptr, tree_idx = spanning_forest(indices, weights, k)
     return _tree_flips(normals, tree_ptr, tree_idx)
 
@@ -576,7 +601,8 @@ def _global_sign(points: np.ndarray, normals: np.ndarray) -> float:
     return 1.0 if outward >= 0 else -1.0
 
 
-def orient_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
+def orient_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray,
+                   fit_error: np.ndarray | None = None) -> np.ndarray:
     """Consistently oriented normals with the module's global sign rule.
 
     Parameters
@@ -585,12 +611,14 @@ def orient_normals(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndar
     normals : (N, 3) numpy.ndarray of float64
         Unit normals, arbitrary signs (e.g. from :func:`pca_normals`).
     knn_indices : (N, K) numpy.ndarray of int64
+    fit_error : (N,) numpy.ndarray of float64, optional
+        Predicted fit error of each normal (radians), see :func:`consistent_signs`.
 
     Returns
     -------
     (N, 3) numpy.ndarray of float64
     """
-    oriented = normals * consistent_signs(points, normals, knn_indices)[:, None]
+    oriented = normals * consistent_signs(points, normals, knn_indices, fit_error)[:, None]
     return oriented * _global_sign(points, oriented)
 
 

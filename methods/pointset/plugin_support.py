@@ -124,8 +124,8 @@ def _estimated_inputs(surface: MethodInput, result) -> _CheckInputs:
     graph = knn_graph(surface.points, FRONTEND_DEFAULTS["k_nn"])
     normals = surface.normals
     if normals is None:  # as the front end's: refitted where the residual says noise
-        fitted = noise_adaptive_normals(surface.points, graph.indices)[0]
-        normals = orient_normals(surface.points, fitted, graph.indices)
+        fitted, _, fit_error = noise_adaptive_normals(surface.points, graph.indices, return_error=True)
+        normals = orient_normals(surface.points, fitted, graph.indices, fit_error)
     loops = result.diagnostics.get("boundary_loops") or []
     return _CheckInputs(normals=normals, knn_indices=graph.indices, spacing=graph.mean_spacing,
                         loops=[np.asarray(lp) for lp in loops], candidates=None)
