@@ -13,7 +13,8 @@ Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 ``real/bump-domain``, ``real/meg-helmet``, ``real/spot-top``, ``real/cortex-lh``,
 ``real/bunny10k``), pymeshlab's Stanford bunny cut open by five planes (``bunny-cut-*``:
 rims that zigzag across triangles, 8.4k-15.5k points), and its cow, airplane and bone
-cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`); every generated surface with ``random`` and
+cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`), its fractal terrains
+(``terrain-*``, :data:`PYMESHLAB_TERRAINS`); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
@@ -70,10 +71,12 @@ from parambench.bench.metrics.surface_contact import misplaced_by_noise, touchin
 from parambench.bench.metrics.rim import rim_recall_precision
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
+from parambench.datasets_gen.mesh_loops import mesh_boundary
 from parambench.datasets_gen.plane_cut import cut_by_plane
 from parambench.datasets_gen.real import pymeshlab_samples_dir
 from parambench.datasets_gen.registry import dataset_names, make_surface
 from parambench.datasets_gen.subdivide import loop_subdivided
+from parambench.datasets_gen.surface import Surface
 from parambench.methods.pointset.boundary import find_boundary
 from parambench.methods.registry import get_method
 from parambench.reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
@@ -111,6 +114,30 @@ BUNNY_CUTS = [(1, 0.45, True), (1, 0.3, False), (2, 0.5, True), (2, 0.5, False),
 #: (0.4-0.9 edge lengths between their sides): ``ocp``'s map folds there and fails its
 #: self-check, which names the thin part.
 PYMESHLAB_CUTS = [("cow.obj", 2, 0.5, True, 2), ("airplane.obj", 1, 0.5, True, 1), ("bone.ply", 0, 0.5, True, 2)]
+
+
+#: pymeshlab's ridged fractal terrains (``create_fractal_terrain``: a 129 x 129 height
+#: field, 16,641 points, one rim): (steps, maxheight, seed). At height 0.2 its ridges are
+#: resolved by the sampling; at 0.3 knife-edge ridges fall under it, the kNN plane fits
+#: there lie almost in the surface, and ``ocp`` folds where they are.
+PYMESHLAB_TERRAINS = [(7, 0.2, 3), (7, 0.3, 1)]
+
+
+def _terrain_id(steps: int, height: float, seed: int) -> str:
+    return f"terrain-h{height:g}-s{seed}"
+
+
+def _pymeshlab_terrain(steps: int, height: float, seed: int) -> Surface:
+    """pymeshlab's fractal terrain as a Surface (its mesh and rim are the ground truth)."""
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.create_fractal_terrain(steps=steps, maxheight=height, seed=seed)
+    points = np.asarray(ms.current_mesh().vertex_matrix(), dtype=np.float64)
+    faces = np.asarray(ms.current_mesh().face_matrix(), dtype=np.int64)
+    loops, mask = mesh_boundary(faces, len(points))
+    return Surface(points=points, faces=faces, name=f"pymeshlab/{_terrain_id(steps, height, seed)}",
+                   boundary_loops=loops, boundary_mask=mask)
 
 
 def _pymeshlab_cut_id(file: str, axis: int, quantile: float, keep_above: bool, rounds: int) -> str:
@@ -264,6 +291,12 @@ def test_realdata_pymeshlab_cut_open(benchmark, monkeypatch, case):
     surface = loop_subdivided(cut_by_plane(load_surface(path), axis, quantile, keep_above=keep_above), rounds,
                               name=f"pymeshlab/{label}")
     _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
+
+
+@pytest.mark.parametrize("case", PYMESHLAB_TERRAINS, ids=[_terrain_id(*c) for c in PYMESHLAB_TERRAINS])
+def test_realdata_pymeshlab_terrain(benchmark, monkeypatch, case):
+    surface = _pymeshlab_terrain(*case)
+    _measure(benchmark, monkeypatch, surface, "realdata-real", _terrain_id(*case), surface.name, None, 0.0)
 
 
 def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float,
