@@ -25,7 +25,8 @@ from .errors import InputFileError
 from .io import load_surface
 from .surface import Surface
 
-__all__ = ["REAL_DATASETS", "RealDataset", "PACKAGE_DATA_DIR", "real_data_dir", "pymeshlab_samples_dir", "load_real"]
+__all__ = ["REAL_DATASETS", "RealDataset", "PACKAGE_DATA_DIR", "real_data_dir", "pymeshlab_samples_dir",
+           "pymeshlab_terrain", "load_real"]
 
 ENV_VAR = "PARAMBENCH_REAL_DATA"
 
@@ -56,6 +57,41 @@ def pymeshlab_samples_dir() -> Path:
     import pymeshlab
 
     return Path(pymeshlab.__file__).resolve().parent / "tests" / "sample_meshes"
+
+
+def pymeshlab_terrain(steps: int = 7, height: float = 0.3, seed: int = 1) -> Surface:
+    """pymeshlab's ridged fractal terrain (``create_fractal_terrain``) as a Surface.
+
+    A height field made by another tool: a ``2**steps + 1`` square grid of points, one rim;
+    its mesh and rim are the ground truth. From height 0.3 (at 7 steps) knife-edge ridges
+    fall under the sampling scale.
+
+    Parameters
+    ----------
+    steps : int
+        Grid refinement steps (7: 129 x 129 = 16,641 points).
+    height : float
+        ``maxheight``, in [0, 1].
+    seed : int
+        pymeshlab's seed: the same terrain for the same seed.
+
+    Returns
+    -------
+    Surface
+        Named ``pymeshlab/terrain-h{height}-s{seed}``, with faces and boundary loops.
+    """
+    import pymeshlab
+
+    from .mesh_loops import mesh_boundary
+
+    ms = pymeshlab.MeshSet()
+    ms.create_fractal_terrain(steps=int(steps), maxheight=float(height), seed=float(seed))
+    points = np.asarray(ms.current_mesh().vertex_matrix(), dtype=np.float64)
+    faces = np.asarray(ms.current_mesh().face_matrix(), dtype=np.int64)
+    loops, mask = mesh_boundary(faces, len(points))
+    return Surface(points=points, faces=faces, name=f"pymeshlab/terrain-h{height:g}-s{seed}",
+                   params={"steps": int(steps), "height": float(height), "seed": int(seed)},
+                   boundary_loops=loops, boundary_mask=mask)
 
 
 @dataclass(frozen=True)

@@ -71,12 +71,10 @@ from parambench.bench.metrics.surface_contact import misplaced_by_noise, touchin
 from parambench.bench.metrics.rim import rim_recall_precision
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
-from parambench.datasets_gen.mesh_loops import mesh_boundary
 from parambench.datasets_gen.plane_cut import cut_by_plane
-from parambench.datasets_gen.real import pymeshlab_samples_dir
+from parambench.datasets_gen.real import pymeshlab_samples_dir, pymeshlab_terrain
 from parambench.datasets_gen.registry import dataset_names, make_surface
 from parambench.datasets_gen.subdivide import loop_subdivided
-from parambench.datasets_gen.surface import Surface
 from parambench.methods.pointset.boundary import find_boundary
 from parambench.methods.registry import get_method
 from parambench.reports.boundary_benchmark import CASE_KEY  # the key the report section looks for
@@ -121,23 +119,6 @@ PYMESHLAB_CUTS = [("cow.obj", 2, 0.5, True, 2), ("airplane.obj", 1, 0.5, True, 1
 #: resolved by the sampling; at 0.3 knife-edge ridges fall under it, the kNN plane fits
 #: there lie almost in the surface, and ``ocp`` folds where they are.
 PYMESHLAB_TERRAINS = [(7, 0.2, 3), (7, 0.3, 1)]
-
-
-def _terrain_id(steps: int, height: float, seed: int) -> str:
-    return f"terrain-h{height:g}-s{seed}"
-
-
-def _pymeshlab_terrain(steps: int, height: float, seed: int) -> Surface:
-    """pymeshlab's fractal terrain as a Surface (its mesh and rim are the ground truth)."""
-    import pymeshlab
-
-    ms = pymeshlab.MeshSet()
-    ms.create_fractal_terrain(steps=steps, maxheight=height, seed=seed)
-    points = np.asarray(ms.current_mesh().vertex_matrix(), dtype=np.float64)
-    faces = np.asarray(ms.current_mesh().face_matrix(), dtype=np.int64)
-    loops, mask = mesh_boundary(faces, len(points))
-    return Surface(points=points, faces=faces, name=f"pymeshlab/{_terrain_id(steps, height, seed)}",
-                   boundary_loops=loops, boundary_mask=mask)
 
 
 def _pymeshlab_cut_id(file: str, axis: int, quantile: float, keep_above: bool, rounds: int) -> str:
@@ -293,10 +274,11 @@ def test_realdata_pymeshlab_cut_open(benchmark, monkeypatch, case):
     _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
 
 
-@pytest.mark.parametrize("case", PYMESHLAB_TERRAINS, ids=[_terrain_id(*c) for c in PYMESHLAB_TERRAINS])
+@pytest.mark.parametrize("case", PYMESHLAB_TERRAINS, ids=[f"terrain-h{h:g}-s{s}" for _, h, s in PYMESHLAB_TERRAINS])
 def test_realdata_pymeshlab_terrain(benchmark, monkeypatch, case):
-    surface = _pymeshlab_terrain(*case)
-    _measure(benchmark, monkeypatch, surface, "realdata-real", _terrain_id(*case), surface.name, None, 0.0)
+    surface = pymeshlab_terrain(*case)
+    label = surface.name.split("/", 1)[1]
+    _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
 
 
 def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float,

@@ -223,15 +223,13 @@ def test_orientation_tree_goes_around_poorly_fitted_normals(steps, height, seed)
     has knife-edge ridges under the sampling scale, where the kNN plane fits lie almost in the
     surface. Passing signs through them misoriented 306 of 4225 and 1755 of 16641 points;
     with the fits' predicted errors on the tree's edges they stay leaves."""
-    import pymeshlab
-
     from parambench.bench.frontend_isolation import vertex_normals
+    from parambench.datasets_gen.real import pymeshlab_terrain
     from parambench.methods.pointset.normals import noise_adaptive_normals
 
-    ms = pymeshlab.MeshSet()
-    ms.create_fractal_terrain(steps=steps, seed=seed, maxheight=height)
-    points = ms.current_mesh().vertex_matrix().astype(np.float64)
-    truth = vertex_normals(points, ms.current_mesh().face_matrix().astype(np.int64))
+    terrain = pymeshlab_terrain(steps, height, seed)
+    points = terrain.points
+    truth = vertex_normals(points, terrain.faces)
     assert np.all(truth[:, 2] > 0)  # a height field: one side is up
     graph = knn_graph(points, 8)
     fitted, _, fit_error = noise_adaptive_normals(points, graph.indices, return_error=True)
