@@ -25,6 +25,7 @@ from .boundary import find_boundary, no_boundary_error
 from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
+from .lattice import is_lattice
 from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
@@ -713,7 +714,9 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         facts), ``ball_size`` {min, mean, max}, ``n_truncated_balls``,
         ``negative_weights`` (:func:`~parambench.methods.pointset.tangent_weights.negative_weight_stats`,
         interior vs. angle-criterion boundary points), ``reconstruction_error`` {mean,
-        max, unit: "l^2"} (R_x divided by l^2), ``boundary`` (loop extraction facts).
+        max, unit: "l^2"} (R_x divided by l^2), ``boundary`` (loop extraction facts),
+        ``dem`` (the DEM used), ``lattice`` (whether the points are a lattice: a raster, a
+        range image, a grid sampling; :func:`~parambench.methods.pointset.lattice.is_lattice`).
 
     Raises
     ------
@@ -813,6 +816,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     diagnostics = stage_diagnostics(nb, balls, w, r_x, bnd, retried, k_nn=k_nn, normals_given=given is not None,
                                     neighbours=params.neighbours, normal_fit=normal_fit)
     diagnostics["dem"] = dem_used
+    diagnostics["lattice"] = is_lattice(nb.points, nb.graph, frame_normals)
 
     # Kept inline (not a stage function) so each big array is released as soon as its
     # input-order copy exists: at 1M points the balls and weights are ~1 GB.

@@ -1,0 +1,86 @@
+"""Lattice point sets (rasters, range images, grid samplings): :mod:`parambench.methods.pointset.lattice`,
+and ``ocp`` refining their maps on the uv mesh."""
+
+import numpy as np
+import pytest
+
+from parambench.bench.metrics.alignment import exact_map_error
+from parambench.datasets_gen.elevation import matplotlib_dem, raster_surface
+from parambench.datasets_gen.registry import make_surface
+from parambench.methods.pointset.frontend import build_frontend
+from parambench.methods.pointset.lattice import is_lattice, lattice_share
+from parambench.methods.pointset.neighbourhoods import knn_graph
+from parambench.methods.registry import get_method
+
+
+def _steep_raster(amp: float = 6.0, n: int = 41):
+    y, x = np.mgrid[0:n, 0:n].astype(float)
+    z = amp * np.sin(x / 6.0) * np.cos(y / 8.0)
+    zx = amp * np.cos(x / 6.0) * np.cos(y / 8.0) / 6.0
+    zy = -amp * np.sin(x / 6.0) * np.sin(y / 8.0) / 8.0
+    normals = np.column_stack([-zx.ravel(), -zy.ravel(), np.ones(zx.size)])
+    points = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def test_mirrors_are_matched_in_the_tangent_plane():
+    """On slopes up to 45 degrees the mirror 2 i - j misses the lattice point by the heights'
+    second difference along the normal: every interior point still counts as lattice."""
+    points, normals = _steep_raster()
+    graph = knn_graph(points)
+    share = lattice_share(points, graph, normals)
+    interior = (points[:, 0] > 1) & (points[:, 0] < 39) & (points[:, 1] > 1) & (points[:, 1] < 39)
+    assert share[interior].min() == 1.0
+    corners = (points[:, 0] % 40 == 0) & (points[:, 1] % 40 == 0)
+    assert share[corners].max() < 0.5  # a corner's neighbours have no mirrors
+    assert is_lattice(points, graph, normals)
+
+
+@pytest.mark.parametrize("name,sampling,expected", [
+    ("bump", "grid", True), ("holes", "grid", True),
+    ("bump", "jittered", False), ("bump", "random", False), ("bump", "graded", False),
+])
+def test_the_front_end_tells_lattices(name, sampling, expected):
+    surface = make_surface(name, 2000, sampling=sampling, seed=0)
+    assert build_frontend(surface.points).diagnostics["lattice"] is expected
+
+
+@pytest.mark.parametrize("source", ["real/lilium", "real/camelhead", "dem/jacksboro"])
+def test_real_data_lattice_or_not(source):
+    """Triangle meshes of scans are not lattices (lilium, a regular remesh, is the nearest:
+    half its neighbours mirrored); an elevation raster is."""
+    surface = matplotlib_dem("jacksboro", 4) if source.startswith("dem/") else make_surface(source)
+    assert build_frontend(surface.points).diagnostics["lattice"] is source.startswith("dem/")
+
+
+def test_ocp_refines_a_lattice_map_on_its_uv_mesh():
+    """Grid-sampled cylinder (2k points): the point-set map is 1.7e-3 of the diameter from
+    the exact unrolling; refined on its uv mesh (the grid's own triangulation), 2.5e-5."""
+    surface = make_surface("cylinder", 2000, sampling="grid", seed=0)
+    given = surface.method_input(False)
+    refined = get_method("ocp")(given)
+    plain = get_method("ocp")(given, refine="none")
+    assert refined.diagnostics["refined"] is not None and plain.diagnostics["refined"] is None
+    assert exact_map_error(refined.uv, surface.exact_uv, None) < 1e-4
+    assert exact_map_error(plain.uv, surface.exact_uv, None) > 10 * exact_map_error(refined.uv, surface.exact_uv, None)
+
+
+def test_an_irregular_sampling_is_not_refined():
+    surface = make_surface("bump", 2000, sampling="jittered", seed=0)
+    assert get_method("ocp")(surface.method_input(False)).diagnostics["refined"] is None
+
+
+def test_a_raster_with_a_hole_maps_as_well_as_libigl():
+    """A raster of heights with a square lake, as bare points: QC within 0.1 % of scp-igl's
+    on the raster's mesh, no foldover."""
+    from parambench.bench.metrics import evaluate
+
+    y, x = np.mgrid[0:41, 0:41].astype(float)
+    keep = np.ones((41, 41), dtype=bool)
+    keep[15:24, 12:20] = False
+    s = raster_surface(x, y, 6.0 * np.sin(x / 6.0) * np.cos(y / 8.0), keep, "lake")
+    ours = evaluate(s.points, s.faces, get_method("ocp")(s.method_input(False)).uv, boundary_loops=s.boundary_loops,
+                    diameter=s.diameter)
+    base = evaluate(s.points, s.faces, get_method("scp-igl")(s).uv, boundary_loops=s.boundary_loops,
+                    diameter=s.diameter)
+    assert ours["foldovers"] == 0 and ours["qc_mean"] <= 1.001 * base["qc_mean"]
