@@ -14,7 +14,8 @@ Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 ``real/bunny10k``), pymeshlab's Stanford bunny cut open by five planes (``bunny-cut-*``:
 rims that zigzag across triangles, 8.4k-15.5k points), and its cow, airplane and bone
 cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`), its fractal terrains
-(``terrain-*``, :data:`PYMESHLAB_TERRAINS`); every generated surface with ``random`` and
+(``terrain-*``, :data:`PYMESHLAB_TERRAINS`), matplotlib's two elevation rasters (``dem-*``,
+:data:`MATPLOTLIB_DEMS`); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
@@ -69,6 +70,7 @@ from parambench.bench.benchmarks.timing import best_of
 from parambench.bench.metrics import evaluate
 from parambench.bench.metrics.surface_contact import misplaced_by_noise, touching_points
 from parambench.bench.metrics.rim import rim_recall_precision
+from parambench.datasets_gen.elevation import matplotlib_dem
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
 from parambench.datasets_gen.plane_cut import cut_by_plane
@@ -119,6 +121,14 @@ PYMESHLAB_CUTS = [("cow.obj", 2, 0.5, True, 2), ("airplane.obj", 1, 0.5, True, 1
 #: resolved by the sampling; at 0.3 knife-edge ridges fall under it, the kNN plane fits
 #: there lie almost in the surface, and ``ocp`` folds where they are.
 PYMESHLAB_TERRAINS = [(7, 0.2, 3), (7, 0.3, 1)]
+
+
+#: Real elevation rasters shipped with matplotlib (:func:`parambench.datasets_gen.elevation.matplotlib_dem`):
+#: (name, step, sea level). Jacksboro at every second row and column (34,744 points, one
+#: rectangular rim); topobathy's land (2,650 points): a coast sampled on a lattice, its rim
+#: ragged, with inlets one or two cells wide that the K nearest neighbours bridge here and
+#: there (the default front end closes no loop; ``ocp``'s retries map it).
+MATPLOTLIB_DEMS = [("jacksboro", 2, 0.0), ("topobathy", 1, 0.0)]
 
 
 def _pymeshlab_cut_id(file: str, axis: int, quantile: float, keep_above: bool, rounds: int) -> str:
@@ -278,6 +288,13 @@ def test_realdata_pymeshlab_cut_open(benchmark, monkeypatch, case):
 def test_realdata_pymeshlab_terrain(benchmark, monkeypatch, case):
     surface = pymeshlab_terrain(*case)
     label = surface.name.split("/", 1)[1]
+    _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
+
+
+@pytest.mark.parametrize("case", MATPLOTLIB_DEMS, ids=[f"dem-{n}-s{st}" for n, st, _ in MATPLOTLIB_DEMS])
+def test_realdata_dem(benchmark, monkeypatch, case):
+    surface = matplotlib_dem(*case)
+    label = surface.name.replace("/", "-")
     _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
 
 
