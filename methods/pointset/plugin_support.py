@@ -300,7 +300,8 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
 
     ``slots`` (:mod:`parambench.methods.pointset.slot_cuts`' facts) is there only where
     edges across a slot were cut; ``dem`` is the DEM kind the balls were built with
-    (what ``dem="auto"`` chose).
+    (what ``dem="auto"`` chose); ``lattice`` whether the points are a lattice
+    (:func:`~parambench.methods.pointset.lattice.is_lattice`).
     """
     diag = front.diagnostics
     slots = diag.get("neighbours", {}).get("slots") or {}
@@ -310,6 +311,7 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
         "n_detected_loops": len(front.boundary_loops),
         "boundary_method": front.params.get("boundary_method", "angle"),
         "dem": diag.get("dem", front.params.get("dem")),
+        "lattice": bool(diag.get("lattice", False)),
         "negative_weight_fraction": diag["negative_weights"]["negative_fraction"],
         "reconstruction_error": diag["reconstruction_error"],
         "boundary_loops": [loop.tolist() for loop in front.boundary_loops],
