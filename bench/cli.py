@@ -146,7 +146,16 @@ def _selfcheck_summary(check: dict | None) -> str:
             + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops"
                + ("" if cov.get("applicable", True) else " (not judged: on an irregular sampling voids look like holes)")
                if cov else "")
+            + _after_error_summary(check.get("after_error"))
             + _retry_summary(check.get("retry")))
+
+
+def _after_error_summary(note: dict | None) -> str:
+    """Whether the map is that of a second run after the first raised (Method.error_retry_params)."""
+    if not note:
+        return ""
+    changed = ", ".join(f"{key}={value}" for key, value in note["params"].items())
+    return f" (the map of a second run with {changed}: the first raised {note['error'].split(':', 1)[0]})"
 
 
 def _retry_summary(retry: dict | None) -> str:

@@ -39,7 +39,7 @@ from parambench.datasets_gen.errors import (InvalidInputError, MissingFacesError
                                             UnknownNameError, released)
 from parambench.datasets_gen.surface import MethodInput, Surface
 
-from .hints import fit_hints, method_hints
+from .hints import fit_hints, hinted, method_hints
 from .pose import run_in_unit_pose
 
 __all__ = ["Parameterization", "MethodOutput", "Method", "as_method_input", "StageTimer", "active_stage", "add_stage_hook", "remove_stage_hook", "retry_memo"]
@@ -363,15 +363,22 @@ class Method:
     def _checked_with_retries(self, surface: MethodInput, params: dict[str, Any]) -> Parameterization:
         from .pointset.plugin_support import boundary_doubt, selfcheck_result
 
+        after_error = None
         try:
             result = self.run(surface, **params)
         except SolverError as exc:  # ConvergenceError included
             # A solve that fails on loops that miss the boundary: say so, not only the solver's advice.
             doubt = boundary_doubt(surface, exc)
-            if doubt is None:
+            if doubt is not None:
+                raise doubt from exc
+            retry = self.error_retry_params(params, exc)
+            if retry is None:
                 raise
-            raise doubt from exc
+            result, after_error = self._run_after_error(surface, params, retry, exc)
+            params = retry
         check = selfcheck_result(surface, result)
+        if after_error is not None:
+            check["after_error"] = after_error
         retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
         notes: list[dict] = []
         runs = [(params, result.diagnostics)]  # the runs made: parameters, diagnostics
@@ -402,6 +409,40 @@ class Method:
         if notes:
             check["retry"] = _retry_note(notes)
         return result
+
+    def _run_after_error(self, surface: MethodInput, params: dict[str, Any], retry: dict[str, Any],
+                         exc: SolverError) -> tuple[Parameterization, dict]:
+        """The run with ``retry`` after the first run raised ``exc``: (result, the note kept as
+        ``diagnostics["selfcheck"]["after_error"]``). When the retry fails too its error is
+        raised, saying what was tried, its hints fitted to the retry's parameters (so they
+        do not offer what was just tried)."""
+        changed = {key: value for key, value in retry.items() if params.get(key) != value}
+        first = f"{type(exc).__name__}: {exc}"
+        released(exc)
+        gc.collect()
+        try:
+            result = self.run(surface, **retry)
+        except ParambenchError as second:
+            released(second)
+            fit_hints(second, self.defaults, retry)
+            tried = ", ".join(f"{key}={value!r}" for key, value in changed.items())
+            stem, hints = getattr(second, "parambench_hints", (None, ()))
+            note = f"with {tried}, tried after {type(exc).__name__} with {self._changed_from(params, changed)}"
+            if stem is None:
+                raise type(second)(f"{str(second).rstrip('.')} ({note}).") from None
+            raise hinted(type(second), f"{stem} ({note})", *hints) from None
+        return result, {"params": changed, "error": first}
+
+    @staticmethod
+    def _changed_from(params: dict[str, Any], changed: dict[str, Any]) -> str:
+        return ", ".join(f"{key}={params.get(key)!r}" for key in changed)
+
+    def error_retry_params(self, params: dict[str, Any], exc: SolverError) -> dict[str, Any] | None:
+        """Parameters for one more run when the first raised a solver error (``exc``), or
+        None (the error stands; the default). A point-set method's map from that run is
+        self-checked as any other; ``diagnostics["selfcheck"]["after_error"]`` holds the
+        changed parameters and the first error."""
+        return None
 
     def retry_params(self, params: dict[str, Any], check: dict) -> dict[str, Any] | list | None:
         """Parameters for another run when the first map failed its self-check, or None (no retry).

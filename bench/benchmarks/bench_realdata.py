@@ -15,7 +15,7 @@ Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 rims that zigzag across triangles, 8.4k-15.5k points), and its cow, airplane and bone
 cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`), its fractal terrains
 (``terrain-*``, :data:`PYMESHLAB_TERRAINS`), matplotlib's two elevation rasters (``dem-*``,
-:data:`MATPLOTLIB_DEMS`); every generated surface with ``random`` and
+:data:`MATPLOTLIB_DEMS`) and points scattered over one (:data:`MATPLOTLIB_DEMS_SCATTERED`); every generated surface with ``random`` and
 ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
@@ -74,6 +74,7 @@ from parambench.datasets_gen.elevation import matplotlib_dem
 from parambench.datasets_gen.errors import ParambenchError
 from parambench.datasets_gen.io import load_surface
 from parambench.datasets_gen.plane_cut import cut_by_plane
+from parambench.datasets_gen.scattered import scatter_on_mesh
 from parambench.datasets_gen.real import pymeshlab_samples_dir, pymeshlab_terrain
 from parambench.datasets_gen.registry import dataset_names, make_surface
 from parambench.datasets_gen.subdivide import loop_subdivided
@@ -129,6 +130,9 @@ PYMESHLAB_TERRAINS = [(7, 0.2, 3), (7, 0.3, 1)]
 #: ragged, with inlets one or two cells wide that the K nearest neighbours bridge here and
 #: there (the default front end closes no loop; ``ocp``'s retries map it).
 MATPLOTLIB_DEMS = [("jacksboro", 2, 0.0), ("topobathy", 1, 0.0)]
+#: ... and points scattered over one (name, step, points), as a scan of the terrain leaves
+#: them: none on the rim; scored as the scattered real meshes are.
+MATPLOTLIB_DEMS_SCATTERED = [("jacksboro", 2, 20000)]
 
 
 def _pymeshlab_cut_id(file: str, axis: int, quantile: float, keep_above: bool, rounds: int) -> str:
@@ -296,6 +300,17 @@ def test_realdata_dem(benchmark, monkeypatch, case):
     surface = matplotlib_dem(*case)
     label = surface.name.replace("/", "-")
     _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
+
+
+@pytest.mark.parametrize("case", MATPLOTLIB_DEMS_SCATTERED,
+                         ids=[f"dem-{n}-s{st}-scattered-{k // 1000}k" for n, st, k in MATPLOTLIB_DEMS_SCATTERED])
+def test_realdata_dem_scattered(benchmark, monkeypatch, case):
+    name, step, n_points = case
+    mesh = matplotlib_dem(name, step)
+    surface = scatter_on_mesh(mesh, n_points, seed=0)
+    label = f"dem-{name}-s{step}-scattered-{n_points // 1000}k"
+    _measure(benchmark, monkeypatch, surface, "realdata-scattered", label, mesh.name, "scattered", 0.0,
+             _rim_truth(surface, mesh))
 
 
 def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: str, sampling, noise: float,

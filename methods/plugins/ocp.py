@@ -234,6 +234,18 @@ class Ocp(Method):
             raise InvalidInputError(f"solver='multilevel' searches k along a line; use k_search='line', "
                                     f"or solver='direct' for k_search={params['k_search']!r}.")
 
+    def error_retry_params(self, params: dict, exc: Exception) -> dict | None:
+        """``k_nn = retry_k_nn`` once when every search failed, if that is more neighbours.
+
+        Found on points scattered over matplotlib's jacksboro DEM (20k points, no point on
+        the rim): with 8 neighbours no regular map at any k (ConvergenceError, turning
+        number -6), with 12 QC 1.0007x scp-igl's on the reference triangulation, 0
+        foldovers, self-check passed; the error's own advice was that same ``k_nn=12``.
+        """
+        if params["retry_k_nn"] and params["retry_k_nn"] > params["k_nn"]:
+            return {**params, "k_nn": int(params["retry_k_nn"])}
+        return None
+
     def retry_params(self, params: dict, check: dict) -> dict | None:
         """``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours;
         then the paper's energy after a Neumann-energy map that folds at its boundary or spins;

@@ -554,7 +554,7 @@ def failure_line(check: dict, params: dict, method: str) -> str:
     # After a failed retry (Method.retry_params) propose beyond what it already tried.
     retry = check.get("retry", {})
     tried = dict(params)
-    for note in [*retry.get("earlier", []), retry]:
+    for note in [check.get("after_error") or {}, *retry.get("earlier", []), retry]:
         tried.update(note.get("params", {}))
     advice, alone = cause_advice(check.get("causes", {}), check["failed"])
     hint = advice if alone else "; ".join(a for a in (advice, suggest_fix(check["failed"], tried, method)) if a)

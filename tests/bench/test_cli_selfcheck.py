@@ -125,6 +125,14 @@ def test_the_summary_says_when_the_map_is_a_retry():
     assert "second run" not in _selfcheck_summary({"passed": True, "n_triangles": 10})
 
 
+def test_the_summary_says_when_the_map_is_a_second_run_after_an_error():
+    from parambench.bench.cli import _selfcheck_summary
+
+    check = {"passed": True, "n_triangles": 10, "n_flipped": 0, "n_degenerate": 0,
+             "after_error": {"params": {"k_nn": 12}, "error": "ConvergenceError: no regular scp map found"}}
+    assert _selfcheck_summary(check).endswith("(the map of a second run with k_nn=12: the first raised ConvergenceError)")
+
+
 def test_the_summary_names_every_retry_and_the_energy_fallback():
     from parambench.bench.cli import _energy_summary, _retry_summary
 

@@ -139,3 +139,19 @@ def test_circumradii_match_their_closed_forms():
     radius = circumradii(points, faces)
     assert radius[0] == pytest.approx(2 / np.sqrt(3)) and radius[1] == pytest.approx(np.sqrt(41) / 2)  # hypotenuse / 2
     assert np.isinf(radius[2])
+
+
+def test_a_mesh_in_metres_scatters_as_its_unit_copy():
+    """matplotlib's topobathy DEM in metres (260 km across): libigl's spectral conformal map
+    raised on it before the mesh was brought to unit size; the scattered points and their
+    reference triangulation are the unit copy's, scaled."""
+    from dataclasses import replace
+
+    from parambench.datasets_gen.elevation import matplotlib_dem
+
+    mesh = matplotlib_dem("topobathy")
+    unit = replace(mesh, points=mesh.points / 1e5)
+    big, small = scatter_on_mesh(mesh, 2000, seed=0), scatter_on_mesh(unit, 2000, seed=0)
+    np.testing.assert_allclose(big.points / 1e5, small.points, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(big.faces, small.faces)
+    assert len(big.boundary_loops) == 1

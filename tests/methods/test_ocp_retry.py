@@ -174,3 +174,47 @@ def test_scattered_spot_top_passes_with_the_paper_energy_retry():
     assert "flipped" in check["retry"]["first_reason"]
     baseline = evaluate(surf.points, surf.faces, get_method("scp-igl")(surf).uv)["qc_mean"]
     assert evaluate(surf.points, surf.faces, result.uv)["qc_mean"] < 1.01 * baseline  # measured 1.0026x
+
+
+def _failing_with_few_neighbours(monkeypatch, fail_at):
+    """ocp whose searches fail (as on points scattered over matplotlib's jacksboro DEM at 20k,
+    too slow for a unit test) whenever k_nn is in ``fail_at``."""
+    from parambench.datasets_gen.errors import ConvergenceError
+    from parambench.methods.hints import Hint, hinted
+
+    ocp = get_method("ocp")
+    solve = type(ocp).solve
+
+    def flaky(self, surface, params, timer):
+        if params["k_nn"] in fail_at:
+            raise hinted(ConvergenceError, "no regular scp map found", Hint("raise k_nn (e.g. 12)", "k_nn", 12),
+                         Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor", 3.5))
+        return solve(self, surface, params, timer)
+
+    monkeypatch.setattr(type(ocp), "solve", flaky)
+    return ocp
+
+
+def test_a_failed_search_is_run_again_with_more_neighbours(monkeypatch):
+    surf = make_surface("bump", 2000, sampling="jittered", seed=0)
+    ocp = _failing_with_few_neighbours(monkeypatch, {8})
+    result = ocp(surf.method_input(False))
+    check = result.diagnostics["selfcheck"]
+    assert check["passed"] and check["after_error"]["params"] == {"k_nn": 12}
+    assert check["after_error"]["error"].startswith("ConvergenceError: no regular scp map found")
+    base = _quality(surf, get_method("scp-igl")(surf.method_input(True)))
+    assert _quality(surf, result)["qc_mean"] <= 1.01 * base["qc_mean"]
+    with pytest.raises(Exception, match="no regular scp map found"):  # retry_k_nn=0: no second run
+        ocp(surf.method_input(False), retry_k_nn=0)
+
+
+def test_when_the_second_run_fails_too_the_error_says_so_and_offers_something_else(monkeypatch):
+    from parambench.datasets_gen.errors import ConvergenceError
+
+    surf = make_surface("bump", 2000, sampling="jittered", seed=0)
+    ocp = _failing_with_few_neighbours(monkeypatch, {8, 12})
+    with pytest.raises(ConvergenceError) as info:
+        ocp(surf.method_input(False))
+    message = str(info.value)
+    assert "with k_nn=12, tried after ConvergenceError with k_nn=8" in message
+    assert "ball_eps_factor" in message and "raise k_nn" not in message
