@@ -430,6 +430,8 @@ class Method:
             note = f"with {tried}, tried after {type(exc).__name__} with {self._changed_from(params, changed)}"
             if stem is None:
                 raise type(second)(f"{str(second).rstrip('.')} ({note}).") from None
+            # What was just tried is no remedy ("raise k_nn" offers any larger value).
+            hints = [hint for hint in hints if hint.param not in changed]
             raise hinted(type(second), f"{stem} ({note})", *hints) from None
         return result, {"params": changed, "error": first}
 

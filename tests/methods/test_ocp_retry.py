@@ -187,7 +187,8 @@ def _failing_with_few_neighbours(monkeypatch, fail_at):
 
     def flaky(self, surface, params, timer):
         if params["k_nn"] in fail_at:
-            raise hinted(ConvergenceError, "no regular scp map found", Hint("raise k_nn (e.g. 12)", "k_nn", 12),
+            # As the boundary hints say it: "another value" of k_nn, not one value.
+            raise hinted(ConvergenceError, "no regular scp map found", Hint("raise k_nn (e.g. 12)", "k_nn"),
                          Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor", 3.5))
         return solve(self, surface, params, timer)
 
