@@ -15,8 +15,8 @@ Cases: the real meshes as bare points (``real/camelhead``, ``real/lilium``,
 rims that zigzag across triangles, 8.4k-15.5k points), and its cow, airplane and bone
 cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`), its fractal terrains
 (``terrain-*``, :data:`PYMESHLAB_TERRAINS`), matplotlib's two elevation rasters (``dem-*``,
-:data:`MATPLOTLIB_DEMS`) and points scattered over one (:data:`MATPLOTLIB_DEMS_SCATTERED`); every generated surface with ``random`` and
-``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
+:data:`MATPLOTLIB_DEMS`) and points scattered over one (:data:`MATPLOTLIB_DEMS_SCATTERED`);
+every generated surface with ``random`` and ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
 boundary loop scattered with random points, none on the rim, as a scan leaves them
