@@ -37,19 +37,33 @@ class Hint:
     value : object
         The value it suggests; the hint is dropped when the method already runs with it.
         Omit for "another value" (e.g. "a larger reg_eps").
+    direction : {0, 1, -1}
+        With ``value``: 1 for "raise it (e.g. to ``value``)", dropped when the method
+        already runs with ``value`` or more; -1 for "lower it", dropped at ``value`` or
+        less; 0 (default): dropped only at ``value`` itself.
     """
 
     text: str
     param: str | None = None
     value: Any = _ANY
+    direction: int = 0
 
     def applies(self, defaults: Mapping[str, Any], params: Mapping[str, Any]) -> bool:
-        """True when the method has ``param`` and does not already use ``value``."""
+        """True when the method has ``param`` and does not already use ``value`` (or, with a
+        ``direction``, a value at least as far that way)."""
         if self.param is None:
             return True
         if self.param not in defaults:
             return False
-        return self.value is _ANY or params.get(self.param, defaults[self.param]) != self.value
+        if self.value is _ANY:
+            return True
+        current = params.get(self.param, defaults[self.param])
+        if self.direction:
+            try:
+                return bool((current - self.value) * self.direction < 0)
+            except TypeError:  # not a number (None: the method's own choice)
+                return True
+        return current != self.value
 
 
 def _render(stem: str, hints: tuple[Hint, ...]) -> str:

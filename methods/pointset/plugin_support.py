@@ -169,9 +169,9 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
 #: Remedies for loops that miss boundary candidates, in the order offered (the
 #: parameters of every point-set method; :func:`~parambench.methods.hints.fit_hints`
 #: drops those a method lacks); first in errors that point upstream.
-BOUNDARY_HINTS = (Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg"),
-                  Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor"),
-                  Hint("raise k_nn (e.g. 12)", "k_nn"))
+BOUNDARY_HINTS = (Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg", 100.0, -1),
+                  Hint("raise ball_eps_factor (e.g. 3.5)", "ball_eps_factor", 3.5, 1),
+                  Hint("raise k_nn (e.g. 12)", "k_nn", 12, 1))
 
 
 def boundary_doubt(surface: MethodInput, exc: ParambenchError) -> ParambenchError | None:

@@ -114,6 +114,25 @@ def test_fit_hints_keeps_existing_parameters_and_other_values():
     assert str(exc) == "it failed; check the mesh."
 
 
+def test_boundary_hints_are_dropped_once_the_parameter_is_that_far_already():
+    """"raise k_nn (e.g. 12)" is no advice to a run with 12 neighbours or more, nor "lower
+    boundary_angle_deg (e.g. 100)" to one at 100 degrees or less."""
+    from parambench.methods.pointset.plugin_support import BOUNDARY_HINTS
+
+    defaults = {"k_nn": 8, "boundary_angle_deg": 120.0, "ball_eps_factor": 2.5}
+
+    def remedies(**params):
+        exc = hinted(SolverError, "no loop", *BOUNDARY_HINTS)
+        fit_hints(exc, defaults, {**defaults, **params})
+        return str(exc)
+
+    assert "raise k_nn" in remedies(k_nn=8) and "lower boundary_angle_deg" in remedies()
+    assert "raise k_nn" not in remedies(k_nn=12) and "raise k_nn" not in remedies(k_nn=16)
+    assert "lower boundary_angle_deg" not in remedies(boundary_angle_deg=100.0)
+    assert "lower boundary_angle_deg" not in remedies(boundary_angle_deg=90.0)
+    assert remedies(k_nn=16, boundary_angle_deg=90.0, ball_eps_factor=4.0) == f"no loop; {FALLBACK}."
+
+
 def test_errors_without_hints_pass_unchanged():
     with pytest.raises(ParambenchError, match=r"^plain; try normalized=True\.$"):
         with method_hints({"k_nn": 8}, {"k_nn": 8}):
