@@ -27,11 +27,10 @@ equirectangular projection.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from .errors import InvalidInputError
 from .mesh_loops import mesh_boundary
+from .repair import compact, largest_piece
 from .surface import Surface
 
 __all__ = ["raster_surface", "matplotlib_dem", "MATPLOTLIB_DEMS"]
@@ -127,16 +126,9 @@ def raster_surface(x: np.ndarray, y: np.ndarray, z: np.ndarray, keep: np.ndarray
         faces, is_half = faces[~drop], is_half[~drop]
     if len(faces) == 0:
         raise InvalidInputError("no grid cell has three or four corners kept: the raster has no surface.")
-    rows = np.repeat(np.arange(len(faces)), 3)
-    incidence = sp.csr_matrix((np.ones(faces.size), (rows, faces.ravel())), shape=(len(faces), len(points)))
-    _, label = connected_components(incidence @ incidence.T, directed=False)
-    faces = faces[label == np.argmax(np.bincount(label))]
-    used = np.unique(faces)
-    renumber = np.full(len(points), -1, dtype=np.int64)
-    renumber[used] = np.arange(used.size)
-    faces = renumber[faces]
-    loops, mask = mesh_boundary(faces, used.size)
-    return Surface(points=points[used], faces=faces, name=name, params=dict(params or {}),
+    points, faces = compact(points, largest_piece(faces, len(points))[0])
+    loops, mask = mesh_boundary(faces, len(points))
+    return Surface(points=points, faces=faces, name=name, params=dict(params or {}),
                    boundary_loops=loops, boundary_mask=mask)
 
 

@@ -29,10 +29,10 @@ from scipy.spatial import cKDTree
 
 from .surface import Surface
 
-__all__ = ["repair_surface", "repair_summary"]
+__all__ = ["repair_surface", "repair_summary", "largest_piece", "compact"]
 
 
-def _largest_piece(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, int]:
+def largest_piece(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, int]:
     """Faces of the largest vertex-connected piece (by face count) and the number of pieces."""
     rows = np.repeat(np.arange(len(faces)), 3)
     incidence = sp.csr_matrix((np.ones(faces.size), (rows, faces.ravel())), shape=(len(faces), n_vertices))
@@ -42,7 +42,7 @@ def _largest_piece(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, int]
     return faces[label == np.argmax(np.bincount(label))], int(n_pieces)
 
 
-def _compact(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def compact(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Drop vertices no face uses, renumbering the faces."""
     used = np.unique(faces)
     new = np.full(len(points), -1, dtype=np.int64)
@@ -53,7 +53,7 @@ def _compact(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndar
 def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
     import pymeshlab
 
-    piece, n_pieces = _largest_piece(faces, len(points))
+    piece, n_pieces = largest_piece(faces, len(points))
     kept_faces = len(piece)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(points, dtype=np.float64),
@@ -67,8 +67,8 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     mesh = ms.current_mesh()
     v = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
     f = np.asarray(mesh.face_matrix(), dtype=np.int64)
-    f, n_after = _largest_piece(f, len(v))
-    v, f = _compact(v, f)
+    f, n_after = largest_piece(f, len(v))
+    v, f = compact(v, f)
     facts = {"kind": "mesh", "pieces": n_pieces, "pieces_after_repair": n_after,
              "points_in": int(len(points)), "faces_in": int(len(faces)), "points_out": int(len(v)),
              "faces_out": int(len(f)), "faces_removed_in_repair": int(kept_faces - len(f)),
