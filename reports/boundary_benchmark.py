@@ -62,10 +62,17 @@ def boundary_ok(loops, true_loops, recall, precision) -> bool:
     return bool(loops == true_loops and recall >= RECALL_TARGET and precision >= PRECISION_TARGET)
 
 
-def ocp_ok(qc_ratio, foldovers) -> bool:
-    """Issue 11's map target: QC mean within 3 % of scp-igl's and 0 foldovers (NaN fails)."""
-    qc_ratio, foldovers = _number(qc_ratio), _number(foldovers)
-    return bool(qc_ratio <= QC_RATIO_TARGET and foldovers == 0)
+def ocp_ok(qc_ratio, foldovers, noise=0.0) -> bool:
+    """Issue 11's map target: QC mean within 3 % of scp-igl's and 0 foldovers (NaN fails).
+
+    Under normal noise (``noise`` > 0, in point spacings) the issue asks for 0 foldovers
+    only: ``scp-igl`` then maps the noisy mesh, whose noise the points carry too, so the
+    QC ratio measures the noise as much as the method. The ratio must still be a number
+    (a refusal fails).
+    """
+    qc_ratio, foldovers, noise = _number(qc_ratio), _number(foldovers), _number(noise)
+    qc_met = qc_ratio <= QC_RATIO_TARGET or (noise > 0 and not math.isnan(qc_ratio))
+    return bool(qc_met and foldovers == 0)
 
 
 def boundary_benchmark_rows(stats: pd.DataFrame) -> pd.DataFrame:
@@ -110,7 +117,7 @@ def boundary_benchmark_rows(stats: pd.DataFrame) -> pd.DataFrame:
         for which in ("old", "new"):
             rec[f"{which}_boundary_ok"] = boundary_ok(rec[f"{which}_loops"], rec["true_loops"],
                                                       rec[f"{which}_recall"], rec[f"{which}_precision"])
-        rec["ocp_ok"] = ocp_ok(rec["qc_ratio_vs_scp_igl"], rec["ocp_foldovers"])
+        rec["ocp_ok"] = ocp_ok(rec["qc_ratio_vs_scp_igl"], rec["ocp_foldovers"], rec["noise"])
         records.append(rec)
     return pd.DataFrame.from_records(records, columns=list(BOUNDARY_COLUMNS))
 
@@ -189,8 +196,8 @@ def boundary_benchmark_table(stats: pd.DataFrame) -> Table | None:
         else:
             line.append(Cell(format_number(r.ocp_qc_mean, "ratio")))
         line.append(Cell(format_number(r.scp_igl_qc_mean, "ratio")))
-        line.append(_measure(r.qc_ratio_vs_scp_igl, "ratio",
-                             None if math.isnan(r.qc_ratio_vs_scp_igl) else r.qc_ratio_vs_scp_igl <= QC_RATIO_TARGET))
+        judged = not (math.isnan(r.qc_ratio_vs_scp_igl) or r.noise > 0)  # noisy rows: 0 foldovers only
+        line.append(_measure(r.qc_ratio_vs_scp_igl, "ratio", r.qc_ratio_vs_scp_igl <= QC_RATIO_TARGET if judged else None))
         line.append(_measure(r.ocp_foldovers, "count", None if math.isnan(r.ocp_foldovers) else r.ocp_foldovers == 0,
                              _contact_title(r.noise_misplaced, r.touching_points)))
         line.append(Cell(format_number(r.scp_igl_foldovers, "count")))
@@ -229,7 +236,8 @@ def boundary_benchmark_section(stats: pd.DataFrame | None) -> Section | None:
     summary = (f"{n} case(s). Boundary target (every loop, recall >= {RECALL_TARGET:g}, precision >= "
                f"{PRECISION_TARGET:g}): old detector {int(rows['old_boundary_ok'].sum())} of {n}, new "
                f"{int(rows['new_boundary_ok'].sum())} of {n}. Map target (QC within "
-               f"{round((QC_RATIO_TARGET - 1) * 100):d} % of scp-igl, 0 foldovers): ocp {int(rows['ocp_ok'].sum())} "
+               f"{round((QC_RATIO_TARGET - 1) * 100):d} % of scp-igl, 0 foldovers; with normal noise 0 foldovers, "
+               f"as issue 11 asks): ocp {int(rows['ocp_ok'].sum())} "
                f"of {n}; {int(rows['ocp_error'].notna().sum())} refused, "
                f"{int(rows['selfcheck_passed'].map(lambda v: v is False).sum())} failed their self-check.")
     judged = rows[rows["rim_ceiling_recall"].notna()]
