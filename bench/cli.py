@@ -147,7 +147,16 @@ def _selfcheck_summary(check: dict | None) -> str:
                + ("" if cov.get("applicable", True) else " (not judged: on an irregular sampling voids look like holes)")
                if cov else "")
             + _after_error_summary(check.get("after_error"))
-            + _retry_summary(check.get("retry")))
+            + _retry_summary(check.get("retry"))
+            + _kept_summary(check.get("kept")))
+
+
+def _kept_summary(kept: dict | None) -> str:
+    """Which failed run's map is written when every run failed (the least doubtful one)."""
+    if not kept:
+        return ""
+    changed = ", ".join(f"{key}={value}" for key, value in kept["params"].items())
+    return f"; the map kept is the least doubtful of them, the run with {changed}"
 
 
 def _after_error_summary(note: dict | None) -> str:

@@ -382,6 +382,8 @@ class Method:
         retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
         notes: list[dict] = []
         runs = [(params, result.diagnostics)]  # the runs made: parameters, diagnostics
+        kept, kept_check, kept_changed = result, check, {}
+        seconds = check.get("seconds", 0.0)
         for retry in retries:
             if self.repeats_a_run(retry, runs):
                 continue
@@ -399,16 +401,25 @@ class Method:
                 continue
             runs.append((retry, second.diagnostics))
             second_check = selfcheck_result(surface, second)
+            # The earlier checks' time is the self-check's too, not the method's.
+            seconds += second_check.get("seconds", 0.0)
             notes.append({"params": changed, "passed": bool(second_check["passed"]), "first_reason": check["reason"]})
             if second_check["passed"]:
-                # The earlier checks' time is the self-check's too, not the method's.
-                second_check["seconds"] = second_check.get("seconds", 0.0) + check.get("seconds", 0.0)
+                second_check["seconds"] = seconds
                 second_check["retry"] = _retry_note(notes)
+                _carry_after_error(check, second_check)
                 return second
-            check["seconds"] = check.get("seconds", 0.0) + second_check.get("seconds", 0.0)
+            if selfcheck_doubt(second_check) < selfcheck_doubt(kept_check):
+                kept, kept_check, kept_changed = second, second_check, changed
+            del second
         if notes:
-            check["retry"] = _retry_note(notes)
-        return result
+            kept_check["retry"] = _retry_note(notes)
+            kept_check["seconds"] = seconds
+            if kept is not result:
+                # Every run failed its check: the map kept is the least doubtful, and says whose it is.
+                kept_check["kept"] = {"params": kept_changed, "first_reason": check["reason"]}
+                _carry_after_error(check, kept_check)
+        return kept
 
     def _run_after_error(self, surface: MethodInput, params: dict[str, Any], retry: dict[str, Any],
                          exc: SolverError) -> tuple[Parameterization, dict]:
@@ -531,6 +542,38 @@ def _as_list(retry: dict | list | None) -> list[dict]:
     if retry is None:
         return []
     return [retry] if isinstance(retry, dict) else list(retry)
+
+
+#: Self-check failures that leave no usable map: its triangulation or loops are wrong as a
+#: whole, not in a few triangles.
+_STRUCTURAL_FAILURES = frozenset({"check-error", "triangulation", "turning", "boundary-crossing"})
+
+
+def selfcheck_doubt(check: dict) -> tuple[bool, bool, int]:
+    """How doubtful a point-set map is by its self-check facts; smaller is better.
+
+    Ordered by: a structural failure (:data:`_STRUCTURAL_FAILURES`), then candidates off the
+    loops ("coverage": a missed hole), then the count of flipped triangles (plus the
+    degenerate ones where those fail the check). A map that passed scores (False, False, 0).
+
+    Parameters
+    ----------
+    check : dict
+        ``diagnostics["selfcheck"]`` (:func:`~parambench.methods.pointset.plugin_support.selfcheck_result`).
+
+    Returns
+    -------
+    tuple of (bool, bool, int)
+    """
+    failed = set(check.get("failed") or ())
+    bad = int(check.get("n_flipped") or 0) + (int(check.get("n_degenerate") or 0) if "degenerate" in failed else 0)
+    return bool(failed & _STRUCTURAL_FAILURES), "coverage" in failed, bad
+
+
+def _carry_after_error(first: dict, other: dict) -> None:
+    """A retry's check keeps the note that the first run needed a second run after an error."""
+    if "after_error" in first:
+        other["after_error"] = first["after_error"]
 
 
 def _retry_note(notes: list[dict]) -> dict:

@@ -133,6 +133,19 @@ def test_the_summary_says_when_the_map_is_a_second_run_after_an_error():
     assert _selfcheck_summary(check).endswith("(the map of a second run with k_nn=12: the first raised ConvergenceError)")
 
 
+def test_the_summary_says_which_failed_run_the_map_kept_is():
+    from parambench.bench.cli import _selfcheck_summary
+
+    retry = {"params": {"neighbours": "pruned"}, "passed": False, "first_reason": "8 flipped",
+             "earlier": [{"params": {"k_nn": 12}, "passed": False, "first_reason": "8 flipped"}]}
+    check = {"passed": False, "n_flipped": 3, "n_triangles": 100, "retry": retry,
+             "kept": {"params": {"k_nn": 12}, "first_reason": "8 flipped"}}
+    assert _selfcheck_summary(check).endswith(
+        "(2 retries failed too: with k_nn=12; with neighbours=pruned); the map kept is the least doubtful of them, "
+        "the run with k_nn=12")
+    assert "kept" not in _selfcheck_summary(dict(check, kept=None))
+
+
 def test_the_summary_names_every_retry_and_the_energy_fallback():
     from parambench.bench.cli import _energy_summary, _retry_summary
 
