@@ -240,6 +240,11 @@ def boundary_benchmark_section(stats: pd.DataFrame | None) -> Section | None:
                f"as issue 11 asks): ocp {int(rows['ocp_ok'].sum())} "
                f"of {n}; {int(rows['ocp_error'].notna().sum())} refused, "
                f"{int(rows['selfcheck_passed'].map(lambda v: v is False).sum())} failed their self-check.")
+    doubted = rows[rows["ocp_ok"] & rows["selfcheck_passed"].map(lambda v: v is False)]
+    if not doubted.empty:
+        summary += (f" Of the maps that meet the target, {len(doubted)} failed their self-check all the same "
+                    f"({', '.join(doubted['case'])}): the points alone could not confirm them, so flatten "
+                    "exits 3 and writes them only with --force.")
     judged = rows[rows["rim_ceiling_recall"].notna()]
     if not judged.empty:
         reachable = [boundary_ok(1, 1, r, p) for r, p in zip(judged["rim_ceiling_recall"],

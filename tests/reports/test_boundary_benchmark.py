@@ -89,6 +89,15 @@ def test_a_noisy_case_is_judged_on_foldovers(tmp_path):
     for line in table.rows:
         assert "failed" not in line[col["QC ratio"]].classes  # not a target under noise
     assert "ocp 1 of 2" in boundary_benchmark_section(stats).blocks[0].text
+    assert "self-check all the same" not in boundary_benchmark_section(stats).blocks[0].text
+
+
+def test_the_summary_names_maps_that_meet_the_target_but_failed_their_check(tmp_path):
+    stats = load_benchmarks([_write(tmp_path / "doubted.json", [
+        _case("cow-cut", ocp_qc=1.009, passed=False, failed=["flipped"]), _case("plane-random-2k")])])
+    summary = boundary_benchmark_section(stats).blocks[0].text
+    assert "ocp 2 of 2" in summary
+    assert "Of the maps that meet the target, 1 failed their self-check all the same (cow-cut)" in summary
 
 
 def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
