@@ -167,7 +167,9 @@ class Ocp(Method):
     protrusion (``map_scale_spread`` in the diagnostics; at 100k points protrusions 329,
     every other generated surface 1.0-1.7; at 1M protrusions 361, bump 1.71, cap 1.33).
     Protrusions at 1M then take 108-110 s instead of 72 s and 3.9 GiB peak instead of
-    3.5, and their map is 1.5e-6 of the diameter from the polished one above. End to end at 1M points
+    3.5, and their map is 1.5e-6 of the diameter from the polished one above. A map whose
+    fine k search did not settle is polished too (``polish_unsettled`` in the
+    diagnostics; :class:`~parambench.methods.spectral.multilevel.MultilevelSettings`). End to end at 1M points
     (bump / holes / cap, quiet 2 cores) 51 / 52 / 48 s and 2.8 GiB peak; at 300k 0.37-0.39x
     the time of ``scp-igl`` on the true mesh (see bench/MEASUREMENTS.md).
     ``retry_k_nn``: when the map fails its self-check with flipped triangles and

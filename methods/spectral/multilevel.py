@@ -179,6 +179,14 @@ class MultilevelSettings:
         reached the two-grid solves' floor (their error moves k_opt from round to round);
         None: never. Measured on saved cylinder 1M inputs (jittered): 4 unsettled rounds,
         k_opt 1.000158, then tightened to 2.5e-10 and settled at 0.9999519 in 85 s more.
+    polish_unsettled : bool
+        Polish the fine map in the full space when its k search still did not settle
+        (after ``unsettled_map_error``'s tightened solves): the k_opt then moves from round
+        to round by more than ``fine_ktol`` and the map with it. Measured at 1M points
+        (jittered): holes-bumped, unsettled after 7 rounds with the solves tightened to
+        8.4e-10, was 7.0e-4 of its uv extent from the direct path's map (1.01e-3 of the
+        diameter, issue #14's tolerance 1e-3), polished 3.2e-4; bump, holes and cap
+        settle in 2 rounds and are not polished.
     enlarged_modes : int
         Fourier frequencies of that second fine search (``fine_enlarged`` in the
         diagnostics). Measured at 300k points (bump): 32 frequencies from the start
@@ -198,6 +206,7 @@ class MultilevelSettings:
     unsettled_map_error: float | None = 0.02
     polish_from: float | None = None
     polish_spread: float | None = 20.0
+    polish_unsettled: bool = True
 
 
 def interpolation_matrix(points: np.ndarray, coarse: np.ndarray, normals: np.ndarray | None = None,
@@ -519,6 +528,9 @@ def _two_levels(lap: sp.csr_matrix, loops: list[np.ndarray], points: np.ndarray,
             polish["map_scale_spread"] = spread if np.isfinite(spread) else None  # None: part of the map collapsed
             if spread > settings.polish_spread:
                 above = 0.0
+        if settings.polish_unsettled and not sol.diagnostics.get("subspace_settled", True):
+            polish["polish_unsettled"] = True
+            above = 0.0
         if above is not None:
             precondition.release()  # the polish factorises its own coarse operator: one alive at a time
             sol, found = _polished(fine, sol, prolong, coarse_problem, above)

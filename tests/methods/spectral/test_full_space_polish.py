@@ -216,3 +216,27 @@ def test_the_coarse_problem_operator_is_the_galerkin_product_of_the_fine_one():
                                    k)
     diff = abs(prolong.T @ fine_op @ prolong - coarse_op).max()
     assert diff < 1e-12 * abs(coarse_op).max()
+
+
+def test_a_fine_search_that_does_not_settle_is_polished():
+    """A fine k search asked to settle to 1e-15 never does: with ``polish_unsettled`` the
+    map is polished in the full space (its residual falls, and it comes nearer the exact
+    map at its k), without it the map is left as the search gave it. bump, 20k points (a
+    boundary long enough for the subspace search)."""
+    from dataclasses import replace as replaced
+
+    from parambench.methods.spectral.multilevel import multilevel_scp
+
+    surface = make_surface("bump", 20000, sampling="jittered", seed=0)
+    front = run_frontend(MethodInput(surface.points, None, None, "bump"), dict(FRONTEND_DEFAULTS), StageTimer())
+    lap = ocp_laplacian(front)
+    loops = [np.asarray(lp) for lp in front.boundary_loops]
+    coarse = coarse_subsample(front, MultilevelSettings())
+    settings = replaced(MultilevelSettings(), fine_ktol=1e-15, polish_spread=None)
+    plain, plain_info = multilevel_scp(lap, loops, front.points, coarse, normals=front.normals,
+                                       settings=replaced(settings, polish_unsettled=False))
+    polished, info = multilevel_scp(lap, loops, front.points, coarse, normals=front.normals, settings=settings)
+    assert not plain.diagnostics["subspace_settled"] and "polish_unsettled" not in plain_info
+    assert info["polish_unsettled"] and info["full_space_residual"] <= info["full_space_residual_before"]
+    exact = conformal_problem(front, lap)._scp_sparse(polished.k, True).state[0]
+    assert _distance(polished.z, exact) <= _distance(plain.z, exact)
