@@ -12,7 +12,8 @@ same points in the same process. In ``extra_info``: ``k_rel_diff`` (|k_ml - k_di
 k_direct), ``qc_rel_diff`` (QC mean on the ground-truth mesh, relative), both maps'
 foldovers on the mesh, ``uv_rms_over_diameter`` (RMS distance of the two maps after a
 similarity alignment, over the surface's diameter), both self-check verdicts,
-``time_ratio_vs_direct``, the two-grid cycles, and ``meets_target``: the issue's
+``time_ratio_vs_direct``, the two-grid cycles, whether the fine map was polished because
+its k search did not settle (``polish_unsettled``), and ``meets_target``: the issue's
 thresholds (k to 1e-3, QC to 0.2 %, uv to 1e-3 of the diameter, 0 foldovers) all met.
 An error on either path is recorded (``direct_error``, ``multilevel_error``), not raised.
 """
@@ -98,5 +99,6 @@ def test_multilevel_matches_direct(benchmark, dataset, size):
                     twogrid_fell_back=multilevel.diagnostics.get("twogrid_fell_back"),
                     coarse_points=multilevel.diagnostics.get("coarse_points"),
                     map_scale_spread=multilevel.diagnostics.get("map_scale_spread"),
-                    full_space_steps=multilevel.diagnostics.get("full_space_steps", 0))
+                    full_space_steps=multilevel.diagnostics.get("full_space_steps", 0),
+                    polish_unsettled=bool(multilevel.diagnostics.get("polish_unsettled", False)))
     benchmark.extra_info.update(info)
