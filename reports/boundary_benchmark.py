@@ -38,7 +38,7 @@ BOUNDARY_COLUMNS = (
     "old_loops", "old_recall", "old_precision", "old_error",
     "new_loops", "new_recall", "new_precision", "new_error", "frontend_seconds",
     "ocp_qc_mean", "ocp_foldovers", "ocp_error", "scp_igl_qc_mean", "scp_igl_foldovers", "scp_igl_seconds",
-    "qc_ratio_vs_scp_igl", "time_ratio_vs_scp_igl", "selfcheck_passed", "selfcheck_failed",
+    "qc_ratio_vs_scp_igl", "time_ratio_vs_scp_igl", "selfcheck_passed", "selfcheck_failed", "selfcheck_kept",
     "rim_ceiling_recall", "rim_ceiling_precision", "noise_misplaced", "touching_points",
     "ocp_seconds", "old_boundary_ok", "new_boundary_ok", "ocp_ok",
 )
@@ -110,6 +110,8 @@ def boundary_benchmark_rows(stats: pd.DataFrame) -> pd.DataFrame:
             value = extra.get(col)
             if col.endswith("_error") or col == "selfcheck_failed":
                 rec[col] = value or None
+            elif col == "selfcheck_kept":
+                rec[col] = value if isinstance(value, dict) and value else None
             elif col == "selfcheck_passed":
                 rec[col] = value if isinstance(value, bool) else None
             else:
@@ -152,13 +154,18 @@ def _loops(found, true_loops) -> Cell:
     return _measure(found, "count", None if math.isnan(found) else found == true_loops)
 
 
-def _selfcheck(passed, failed) -> Cell:
+def _selfcheck(passed, failed, kept=None) -> Cell:
+    """The verdict; a failed one names its checks and, when a retry's map was kept (every
+    run failed; the least doubtful one measured), that run's parameters."""
     if not isinstance(passed, bool):
         return Cell(_MISSING, ("absent",))
     if passed:
         return Cell("passed", ("status", "ok"))
     failed = failed if isinstance(failed, list) else []
-    return Cell("failed: " + ", ".join(map(str, failed)), ("status", "suspect"))
+    text = "failed: " + ", ".join(map(str, failed))
+    if kept:
+        text += " (map of the run with " + ", ".join(f"{k}={v}" for k, v in kept.items()) + ")"
+    return Cell(text, ("status", "suspect"))
 
 
 def boundary_benchmark_table(stats: pd.DataFrame) -> Table | None:
@@ -202,7 +209,7 @@ def boundary_benchmark_table(stats: pd.DataFrame) -> Table | None:
                              _contact_title(r.noise_misplaced, r.touching_points)))
         line.append(Cell(format_number(r.scp_igl_foldovers, "count")))
         line.append(Cell(format_number(r.time_ratio_vs_scp_igl, "time")))
-        line.append(_selfcheck(r.selfcheck_passed, r.selfcheck_failed))
+        line.append(_selfcheck(r.selfcheck_passed, r.selfcheck_failed, r.selfcheck_kept))
         body.append(line)
     columns = ["Case", "Points", "Loops true", "Loops old", "Loops new", "Recall old", "Precision old",
                "Recall new", "Precision new", "Front end (s)", "ocp QC", "scp-igl QC", "QC ratio", "ocp folds",

@@ -49,8 +49,10 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
   ``scp-igl`` run on that mesh in this process, ``qc_ratio_vs_scp_igl`` and
   ``time_ratio_vs_scp_igl`` (ocp / scp-igl), the self-check verdict
   ``selfcheck_passed`` and its failed checks, ``selfcheck_retry`` (what ocp's second run
-  with more neighbours changed and whether it passed; None without one), ``ocp_error``
-  when ocp refused.
+  with more neighbours changed and whether it passed; None without one),
+  ``selfcheck_kept`` (when every run failed its check: the parameters the run whose map
+  was kept changed, as ``{}`` for the first; None otherwise), ``ocp_error`` when ocp
+  refused.
 
 ``scp-igl`` is the baseline the issue names; on ``real/bunny10k`` (5 holes) it maps holes
 with turning number +1 and folds hundreds of triangles, so a QC ratio there says little.
@@ -351,7 +353,8 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
                 ocp_error=error)
     if result is None:
         info.update(ocp_qc_mean=None, ocp_foldovers=None, qc_ratio_vs_scp_igl=None, time_ratio_vs_scp_igl=None,
-                    selfcheck_passed=None, selfcheck_failed=None, selfcheck_retry=None, ocp_loops=None)
+                    selfcheck_passed=None, selfcheck_failed=None, selfcheck_retry=None, selfcheck_kept=None,
+                    ocp_loops=None)
     else:
         quality = _quality(surface, result.uv)
         check = result.diagnostics.get("selfcheck", {})
@@ -359,5 +362,7 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
                     qc_ratio_vs_scp_igl=quality["qc_mean"] / base["qc_mean"],
                     time_ratio_vs_scp_igl=benchmark.stats.stats.min / base_time,
                     selfcheck_passed=bool(check.get("passed", False)), selfcheck_failed=check.get("failed"),
-                    selfcheck_retry=check.get("retry"), ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
+                    selfcheck_retry=check.get("retry"),
+                    selfcheck_kept=(check.get("kept") or {}).get("params") if not check.get("passed") else None,
+                    ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
     benchmark.extra_info.update(info)

@@ -93,11 +93,16 @@ def test_a_noisy_case_is_judged_on_foldovers(tmp_path):
 
 
 def test_the_summary_names_maps_that_meet_the_target_but_failed_their_check(tmp_path):
-    stats = load_benchmarks([_write(tmp_path / "doubted.json", [
-        _case("cow-cut", ocp_qc=1.009, passed=False, failed=["flipped"]), _case("plane-random-2k")])])
+    cow = dict(_case("cow-cut", ocp_qc=1.009, passed=False, failed=["flipped"]),
+               selfcheck_kept={"neighbours": "pruned"})
+    stats = load_benchmarks([_write(tmp_path / "doubted.json", [cow, _case("plane-random-2k")])])
     summary = boundary_benchmark_section(stats).blocks[0].text
     assert "ocp 2 of 2" in summary
     assert "Of the maps that meet the target, 1 failed their self-check all the same (cow-cut)" in summary
+    table = boundary_benchmark_table(stats)
+    col = {name: i for i, name in enumerate(table.columns)}
+    cells = {row[0].text: row[col["Self-check"]].text for row in table.rows}
+    assert cells == {"cow-cut": "failed: flipped (map of the run with neighbours=pruned)", "plane-random-2k": "passed"}
 
 
 def test_rows_pick_only_realdata_cases_and_judge_targets(stats):
