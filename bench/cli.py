@@ -151,40 +151,40 @@ def _selfcheck_summary(check: dict | None) -> str:
             + _kept_summary(check.get("kept")))
 
 
+def _listed(note: dict) -> str:
+    """A run note's changed parameters as ``key=value, ...``."""
+    return ", ".join(f"{key}={value}" for key, value in note["params"].items())
+
+
 def _kept_summary(kept: dict | None) -> str:
     """Which failed run's map is written when every run failed (the least doubtful one)."""
     if not kept:
         return ""
-    changed = ", ".join(f"{key}={value}" for key, value in kept["params"].items())
-    return f"; the map kept is the least doubtful of them, the run with {changed}"
+    return f"; the map kept is the least doubtful of them, the run with {_listed(kept)}"
 
 
 def _after_error_summary(note: dict | None) -> str:
     """Whether the map is that of a second run after the first raised (Method.error_retry_params)."""
     if not note:
         return ""
-    changed = ", ".join(f"{key}={value}" for key, value in note["params"].items())
-    return f" (the map of a second run with {changed}: the first raised {note['error'].split(':', 1)[0]})"
+    return f" (the map of a second run with {_listed(note)}: the first raised {note['error'].split(':', 1)[0]})"
 
 
 def _retry_summary(retry: dict | None) -> str:
     """Whether the map is a retry's (Method.retry_params) and with what."""
     if not retry:
         return ""
-    def listed(note: dict) -> str:
-        return ", ".join(f"{key}={value}" for key, value in note["params"].items())
-
-    earlier = [listed(note) for note in retry.get("earlier", [])]
+    earlier = [_listed(note) for note in retry.get("earlier", [])]
     error = f": {retry['error']}" if retry.get("error") else ""
     if not earlier:
         if retry["passed"]:
-            return f" (the map of a second run with {listed(retry)}: the first failed, {retry['first_reason']})"
-        return f" (a second run with {listed(retry)} failed too{error})"
+            return f" (the map of a second run with {_listed(retry)}: the first failed, {retry['first_reason']})"
+        return f" (a second run with {_listed(retry)} failed too{error})"
     n = len(earlier) + 1
     if retry["passed"]:
-        return (f" (the map of retry {n} of {n}, with {listed(retry)}: the first failed, {retry['first_reason']}; "
+        return (f" (the map of retry {n} of {n}, with {_listed(retry)}: the first failed, {retry['first_reason']}; "
                 f"retries with {'; with '.join(earlier)} failed)")
-    return f" ({n} retries failed too: with {'; with '.join(earlier + [listed(retry)])}{error})"
+    return f" ({n} retries failed too: with {'; with '.join(earlier + [_listed(retry)])}{error})"
 
 
 def _holes_summary(diag: dict) -> str:
