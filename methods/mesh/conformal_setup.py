@@ -15,6 +15,7 @@ from ..hints import Hint, hinted
 from ..spectral import ConformalProblem
 from ..spectral.problem import solve_line_then_direct
 from .pins import farthest_pair
+from .quad_splits import split_averaged_cotangent
 from .topology import require_connected_disk_like
 from .weights import laplacian, mesh_weights, uniform_vertex_mask
 
@@ -149,7 +150,8 @@ def solve_with_k_rule(problem: ConformalProblem, mode: str, k_search: str, *, we
 
 
 def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str, normalized: bool, uniform_at: Any,
-                       b_matrix: str) -> tuple[ConformalProblem, list[np.ndarray], dict]:
+                       b_matrix: str, averaged_quads: tuple[np.ndarray, np.ndarray] | None = None
+                       ) -> tuple[ConformalProblem, list[np.ndarray], dict]:
     """Check the mesh and set up the conformal problem.
 
     Parameters
@@ -165,6 +167,10 @@ def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str,
     b_matrix : {"boundary", "mass"}
         Mullen's boundary indicator, or libigl's Voronoi mass matrix (what
         ``igl.spectra.lscm`` uses).
+    averaged_quads : (split, flipped), optional
+        Quads whose two splits' cotangent weights are averaged
+        (:func:`parambench.methods.mesh.quad_splits.ambiguous_quads`); cotangent weights
+        without ``normalized`` only.
 
     Returns
     -------
@@ -197,9 +203,16 @@ def build_mesh_problem(surface: MethodInput, timer: StageTimer, *, weights: str,
             if weights == "authalic":
                 info["uniform_share"] = float(uniform_at.mean())
         w = mesh_weights(pts, faces, weights, normalized=bool(normalized), uniform_at=uniform_at)
+        if averaged_quads is not None:
+            if weights != "cotangent" or normalized:
+                raise InvalidInputError("averaged_quads averages cotangent weights; it does not apply to "
+                                        f"{'normalized ' if normalized else ''}{weights} weights.")
+            w = split_averaged_cotangent(pts, w, *averaged_quads)
+            info["n_averaged_quads"] = int(averaged_quads[0].shape[0] // 2)
         b = "boundary" if b_matrix == "boundary" else igl.massmatrix(pts, faces, igl.MASSMATRIX_TYPE_VORONOI)
         # Cotangent weights give the exact Dirichlet energy of the piecewise-linear map,
-        # which bounds the image area on every triangle: the energy is PSD for k >= 1.
+        # which bounds the image area on every triangle: the energy is PSD for k >= 1
+        # (averaged quads too: both splits' images cover the same quadrilateral).
         psd = 1.0 if weights == "cotangent" and not normalized else None
         lap = laplacian(w)
         problem = ConformalProblem(lap, loops, b_matrix=b, points=pts, psd_from_k=psd,

@@ -31,6 +31,7 @@ from ..base import Method, MethodOutput, StageTimer, retry_memo
 from ..hints import Hint, error_note, hinted
 from ..geometry2d import signed_area_2d
 from ..mesh.holes import HOLES_MODES, solve_with_holes
+from ..mesh.quad_splits import LATTICE_SPLIT_TOLERANCE_DEG, SPLIT_TOLERANCE_DEG
 from ..pointset.hole_filling import fill_point_holes, is_slot
 from ..pointset.laplacian import graph_laplacian
 from ..pointset.mesh_refine import MAX_MESH_PASSES, first_map_faces, mesh_passes, refine_on_uv_mesh
@@ -564,7 +565,7 @@ def _refined(sol, extra: dict, front, n_points: int, params: dict, timer: StageT
     refined = {"first_map": f"ocp ({extra.get('energy_used', params['energy'])} energy)", "first_k_opt": float(sol.k)}
     try:  # the triangulation and the similarity placement do not depend on the first map's scale
         mesh_sol, info = refine_on_uv_mesh(front.points, sol.uv[:n_points], front.boundary_loops, timer,
-                                           _passes(front))
+                                           _passes(front), _split_tolerance(front))
     except ParambenchError as exc:
         return sol, {**extra, "refined": {**refined, "error": error_note(exc, Ocp.defaults, params)}}
     return mesh_sol, {**extra, "refined": {**refined, **info}}
@@ -586,6 +587,14 @@ def _passes(front) -> int:
     if diagnostics.get("lattice"):
         return MAX_MESH_PASSES
     return mesh_passes(diagnostics.get("normal_fit"), int(diagnostics.get("k_nn") or front.knn_indices.shape[1]))
+
+
+def _split_tolerance(front) -> float:
+    """How near a Delaunay tie a uv mesh's quad must be for both its splits' weights to be
+    averaged (:mod:`parambench.methods.mesh.quad_splits`): every cell of a lattice, whose
+    mesh another tool splits by its own rule, only near ties elsewhere."""
+    lattice = bool((front.diagnostics or {}).get("lattice"))
+    return LATTICE_SPLIT_TOLERANCE_DEG if lattice else SPLIT_TOLERANCE_DEG
 
 
 def _refines(refine: str, extra: dict, lattice: bool = False) -> bool:
@@ -633,7 +642,8 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict
         # away from the normals and so would the refined map (loops turning -1).
         if signed_area_2d(pair[front.boundary_loops[0]]) < 0:
             pair[:, 1] *= -1.0
-        sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer, _passes(front))
+        sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer, _passes(front),
+                                      _split_tolerance(front))
     except ParambenchError:
         raise exc from None
     return sol, {}, {"energy_used": "mesh", "energy_error": error_note(exc, Ocp.defaults, params),

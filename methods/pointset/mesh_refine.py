@@ -22,6 +22,11 @@ The refined map is near conformal, so on clean points its own uv triangulation i
 better mesh than the first map's: the solve is repeated on it until the mesh stops
 changing (:data:`MAX_MESH_PASSES`; not under noise, :func:`mesh_passes`).
 
+Where four points are nearly cocircular in uv (every cell of a lattice), the diagonal the
+triangulation takes is a coin toss, and another mesh of the same points takes the other one:
+such quads are solved with both splits' cotangent weights averaged
+(:mod:`parambench.methods.mesh.quad_splits`), so the map favours neither.
+
 Points in no triangle of the uv triangulation (isolated by the constraints) are placed by
 the similarity that best carries the first map to the refined one over their nearest
 triangulated neighbours.
@@ -37,6 +42,7 @@ from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, MethodInput, fl
 
 from ..base import StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, solve_with_k_rule
+from ..mesh.quad_splits import SPLIT_TOLERANCE_DEG, ambiguous_quads
 from ..spectral.problem import ConformalSolution
 from .selfcheck import pointset_faces
 
@@ -85,8 +91,8 @@ GATE_K_NN = 8
 
 
 def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray],
-                      timer: StageTimer | None = None, max_passes: int = MAX_MESH_PASSES
-                      ) -> tuple[ConformalSolution, dict]:
+                      timer: StageTimer | None = None, max_passes: int = MAX_MESH_PASSES,
+                      split_tolerance_deg: float = SPLIT_TOLERANCE_DEG) -> tuple[ConformalSolution, dict]:
     """Cotangent SCP on the mesh of ``points`` connected as ``uv``'s constrained Delaunay triangulation.
 
     Repeated on the mesh the refined map's own triangulation gives until that mesh stops
@@ -103,6 +109,10 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
         Records ``refine_mesh`` (the triangulations) and the mesh problems' stages.
     max_passes : int
         Most solves (>= 1).
+    split_tolerance_deg : float
+        Quads whose two angles opposite their diagonal sum to within this many degrees of
+        180 in the map being triangulated are solved with both splits' weights averaged
+        (:func:`~parambench.methods.mesh.quad_splits.ambiguous_quads`; negative: none).
 
     Returns
     -------
@@ -110,9 +120,12 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
         The refined map on all N points (k and turning numbers of the last mesh's solve).
     info : dict
         ``n_faces``, ``n_flat_dropped`` (triangles without area in 3D, left out),
-        ``n_unplaced`` (points in no triangle, placed by :func:`similarity_placed`), all of
-        the last mesh; ``n_passes`` (solves) and ``converged`` (the last map's
-        triangulation is the mesh it was solved on).
+        ``n_unplaced`` (points in no triangle, placed by :func:`similarity_placed`),
+        ``n_averaged_quads`` (quads whose diagonal the uv triangulation could take either
+        way, solved with both splits' weights averaged:
+        :mod:`parambench.methods.mesh.quad_splits`), all of the last mesh; ``n_passes``
+        (solves) and ``converged`` (the last map's triangulation is the mesh it was solved
+        on).
 
     Raises
     ------
@@ -130,7 +143,7 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     first = np.asarray(uv, dtype=np.float64)
     with timer("refine_mesh"):
         faces, n_flat = first_map_faces(points, first, loops)
-    sol, info = _solved_on(points, first, faces, n_flat, timer)
+    sol, info = _solved_on(points, first, faces, n_flat, timer, split_tolerance_deg)
     n_passes, converged = 1, False
     while n_passes < max_passes:
         previous = sol.uv[:points.shape[0]]
@@ -140,7 +153,7 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
             if _same_faces(next_faces, faces):
                 converged = True
                 break
-            next_sol, next_info = _solved_on(points, previous, next_faces, next_flat, timer)
+            next_sol, next_info = _solved_on(points, previous, next_faces, next_flat, timer, split_tolerance_deg)
         except ParambenchError:
             break
         sol, info, faces, n_passes = next_sol, next_info, next_faces, n_passes + 1
@@ -174,15 +187,17 @@ def mesh_passes(normal_fit: dict | None, k_nn: int = GATE_K_NN) -> int:
 
 
 def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat: int,
-               timer: StageTimer) -> tuple[ConformalSolution, dict]:
+               timer: StageTimer, split_tolerance_deg: float) -> tuple[ConformalSolution, dict]:
     """Cotangent SCP on ``points`` connected by ``faces``; the points in no face placed by
     the similarity from ``first`` (:func:`similarity_placed`)."""
     used = np.unique(faces)
     index = np.full(points.shape[0], -1, dtype=np.int64)
     index[used] = np.arange(used.size)
     mesh = MethodInput(points=points[used], faces=index[faces])
+    with timer("refine_mesh"):
+        split, flipped = ambiguous_quads(points, faces, first, split_tolerance_deg)
     problem, _, _ = build_mesh_problem(mesh, timer, weights="cotangent", normalized=False, uniform_at=None,
-                                       b_matrix="boundary")
+                                       b_matrix="boundary", averaged_quads=(index[split], index[flipped]))
     with timer("solve"):
         sol = solve_with_k_rule(problem, "scp", "auto", weights="cotangent", normalized=False)
     refined = np.empty((points.shape[0], 2))
@@ -193,7 +208,8 @@ def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat:
     z = refined[:, 0] + 1j * refined[:, 1]
     full = ConformalSolution(z=z, k=sol.k, energy=sol.energy, turning=sol.turning, eigenvalue=sol.eigenvalue,
                              diagnostics=dict(sol.diagnostics))
-    return full, {"n_faces": int(faces.shape[0]), "n_flat_dropped": int(n_flat), "n_unplaced": int(unplaced.size)}
+    return full, {"n_faces": int(faces.shape[0]), "n_flat_dropped": int(n_flat), "n_unplaced": int(unplaced.size),
+                  "n_averaged_quads": int(split.shape[0] // 2)}
 
 
 def _same_faces(a: np.ndarray, b: np.ndarray) -> bool:
