@@ -10,7 +10,9 @@ ridges) cotangent SCP on its own mesh folds 0 of its triangles and 1 of the othe
 and the map solved on the other split folds 1 of the mesh's.
 
 Averaging the two splits' cotangent weights on such quads gives a Dirichlet energy that
-belongs to neither: on that terrain the map folds 0 triangles of either split. It is still
+belongs to neither: cotangent SCP on that terrain with every cell's two splits averaged
+folds 0 triangles of either split, and on ordinary rasters the refined maps come nearer
+conformal on both splits (:data:`SPLIT_TOLERANCE_DEG`). It is still
 at least the image area on every quad (each split's energy is, and both splits' images
 cover the same quadrilateral), so the conformal energy keeps the non-negativity from
 k = 1 that cotangent weights have.
@@ -26,30 +28,23 @@ from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, flat_faces
 from .topology import interior_edges
 from .weights import mesh_weights
 
-__all__ = ["SPLIT_TOLERANCE_DEG", "LATTICE_SPLIT_TOLERANCE_DEG", "ambiguous_quads", "split_averaged_cotangent"]
+__all__ = ["SPLIT_TOLERANCE_DEG", "ambiguous_quads", "split_averaged_cotangent"]
 
 #: A quad's diagonal counts as a coin toss when the two angles opposite it (in uv) sum to
-#: within this many degrees of 180 (exactly 180: cocircular, either diagonal is Delaunay).
-#: Points scattered over the real meshes (the real-data benchmark's cases, whose reference
-#: triangulation is Delaunay in libigl's map), QC over scp-igl's: spot-top 5k 1.0026 ->
-#: 1.0022x (its 2 sliver foldovers stay), spot-top 20k 1.00028 -> 1.00024x, the others
-#: within 4e-5; camelhead, which fails either way, 331 -> 334 foldovers at 5k, 582 -> 571
-#: at 20k; protrusions random 2k (its kept map is refined) 1.0057 -> 1.0065x. 20 degrees
-#: gave the same verdicts.
+#: within this many degrees of 180 (exactly 180: cocircular, either diagonal is Delaunay;
+#: every cell of a lattice's map comes near). Measured, ``ocp``'s refined maps of lattices,
+#: QC over scp-igl's on the mesh's split / on the other diagonal of every cell, none -> 10
+#: degrees: matplotlib's jacksboro DEM (every second sample) 1.0016 / 1.0015 -> 1.0010 /
+#: 1.0010, pymeshlab's fractal terrain at height 0.2 1.0034 / 1.0029 -> 1.0021 / 1.0022; at
+#: height 0.3 (knife-edge ridges) 1.0107 / 1.0129 -> 1.0100 / 1.0197 with foldovers 1 / 2
+#: -> 0 / 3: a wash there; the generated grid samplings at 2k within 2e-4 (the cap's
+#: distance from its exact map 8.8e-5 -> 9.5e-5 of the diameter). Wider tolerances pair
+#: more of a distorted map's cells (terrain h0.3: 7,108 of 16,384 at 10 degrees, 15,318 at
+#: 45; foldovers 0 / 1 from 30 degrees on) but average in splits far from Delaunay: the
+#: grid-sampled cap at 20k points, 6.3e-6 of the diameter from its exact map without,
+#: 6.1e-6 at 10, 9.1e-6 at 20, 1.5e-4 at 45 degrees (requiring the flipped split to be
+#: Delaunay in 3D kept the cap but lost the terrains' gains: h0.3 1.018x with 1 foldover).
 SPLIT_TOLERANCE_DEG = 10.0
-
-#: The same for a lattice, whose every cell is a coin toss for the tools that mesh it,
-#: whatever the map does: a distorted map leaves many cells far from a tie (10 degrees
-#: pairs 7,108 of the h0.3 terrain's 16,384 cells, 45 degrees 15,318; the lattice's own
-#: edges lie about 90 degrees away). Foldovers of ``ocp``'s map on pymeshlab's fractal
-#: terrain at height 0.3, on its mesh / on the other diagonal of every cell, for none ->
-#: 10 -> 30 -> 45 degrees: 1 / 2 -> 0 / 3 -> 0 / 1 -> 0 / 1 (cotangent SCP on the
-#: terrain's own mesh: 0 / 1); QC over scp-igl's 1.0107 -> 1.0100 -> 1.0101 -> 1.0103x; at
-#: height 0.2 1.0034 -> 1.0021 -> 1.0029 -> 1.0029x with no foldover on either split;
-#: matplotlib's jacksboro (every second sample) 1.0016 -> 1.0010x, topobathy 1.0018 ->
-#: 1.0009x; pymeshlab's airplane and bone, Loop-subdivided: 1.0003 -> 1.0005x, 0.98672 ->
-#: 0.98677x.
-LATTICE_SPLIT_TOLERANCE_DEG = 45.0
 
 #: Rounds of the matching in :func:`ambiguous_quads` (each takes every quad that is the most
 #: ambiguous of all the candidate quads its two triangles belong to).

@@ -24,8 +24,9 @@ changing (:data:`MAX_MESH_PASSES`; not under noise, :func:`mesh_passes`).
 
 Where four points are nearly cocircular in uv (every cell of a lattice), the diagonal the
 triangulation takes is a coin toss, and another mesh of the same points takes the other one:
-such quads are solved with both splits' cotangent weights averaged
-(:mod:`parambench.methods.mesh.quad_splits`), so the map favours neither.
+such quads can be solved with both splits' cotangent weights averaged
+(:mod:`parambench.methods.mesh.quad_splits`), so the map favours neither (``ocp`` does so
+on lattices).
 
 Points in no triangle of the uv triangulation (isolated by the constraints) are placed by
 the similarity that best carries the first map to the refined one over their nearest
@@ -42,7 +43,7 @@ from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, MethodInput, fl
 
 from ..base import StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, solve_with_k_rule
-from ..mesh.quad_splits import SPLIT_TOLERANCE_DEG, ambiguous_quads
+from ..mesh.quad_splits import ambiguous_quads
 from ..spectral.problem import ConformalSolution
 from .selfcheck import pointset_faces
 
@@ -92,7 +93,7 @@ GATE_K_NN = 8
 
 def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray],
                       timer: StageTimer | None = None, max_passes: int = MAX_MESH_PASSES,
-                      split_tolerance_deg: float = SPLIT_TOLERANCE_DEG) -> tuple[ConformalSolution, dict]:
+                      split_tolerance_deg: float = -1.0) -> tuple[ConformalSolution, dict]:
     """Cotangent SCP on the mesh of ``points`` connected as ``uv``'s constrained Delaunay triangulation.
 
     Repeated on the mesh the refined map's own triangulation gives until that mesh stops
@@ -112,7 +113,9 @@ def refine_on_uv_mesh(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray
     split_tolerance_deg : float
         Quads whose two angles opposite their diagonal sum to within this many degrees of
         180 in the map being triangulated are solved with both splits' weights averaged
-        (:func:`~parambench.methods.mesh.quad_splits.ambiguous_quads`; negative: none).
+        (:func:`~parambench.methods.mesh.quad_splits.ambiguous_quads`; negative, the
+        default: none; :data:`~parambench.methods.mesh.quad_splits.SPLIT_TOLERANCE_DEG`
+        for a lattice's map).
 
     Returns
     -------
@@ -194,10 +197,13 @@ def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat:
     index = np.full(points.shape[0], -1, dtype=np.int64)
     index[used] = np.arange(used.size)
     mesh = MethodInput(points=points[used], faces=index[faces])
-    with timer("refine_mesh"):
-        split, flipped = ambiguous_quads(points, faces, first, split_tolerance_deg)
+    quads = None
+    if split_tolerance_deg >= 0:
+        with timer("refine_mesh"):
+            split, flipped = ambiguous_quads(points, faces, first, split_tolerance_deg)
+        quads = (index[split], index[flipped])
     problem, _, _ = build_mesh_problem(mesh, timer, weights="cotangent", normalized=False, uniform_at=None,
-                                       b_matrix="boundary", averaged_quads=(index[split], index[flipped]))
+                                       b_matrix="boundary", averaged_quads=quads)
     with timer("solve"):
         sol = solve_with_k_rule(problem, "scp", "auto", weights="cotangent", normalized=False)
     refined = np.empty((points.shape[0], 2))
@@ -209,7 +215,7 @@ def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat:
     full = ConformalSolution(z=z, k=sol.k, energy=sol.energy, turning=sol.turning, eigenvalue=sol.eigenvalue,
                              diagnostics=dict(sol.diagnostics))
     return full, {"n_faces": int(faces.shape[0]), "n_flat_dropped": int(n_flat), "n_unplaced": int(unplaced.size),
-                  "n_averaged_quads": int(split.shape[0] // 2)}
+                  "n_averaged_quads": 0 if quads is None else int(quads[0].shape[0] // 2)}
 
 
 def _same_faces(a: np.ndarray, b: np.ndarray) -> bool:
