@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InvalidInputError
-from .mesh_loops import mesh_boundary
+from .mesh_loops import mesh_boundary, pinched_vertices
 from .repair import compact, largest_piece
 from .surface import Surface
 
@@ -58,15 +58,6 @@ def _without_corner_contacts(cells: np.ndarray) -> np.ndarray:
             return cells
         cells[:-1, :-1] &= ~main
         cells[:-1, 1:] &= ~anti
-
-
-def _pinched_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """Vertices with more than two rim edges: where separate fans of a planar mesh meet."""
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    keys, counts = np.unique(edges[:, 0] * np.int64(n_vertices) + edges[:, 1], return_counts=True)
-    rim = keys[counts == 1]
-    per_vertex = np.bincount(np.concatenate([rim // n_vertices, rim % n_vertices]), minlength=n_vertices)
-    return np.flatnonzero(per_vertex > 2)
 
 
 def raster_surface(x: np.ndarray, y: np.ndarray, z: np.ndarray, keep: np.ndarray, name: str,
@@ -119,7 +110,7 @@ def raster_surface(x: np.ndarray, y: np.ndarray, z: np.ndarray, keep: np.ndarray
     faces = np.concatenate([whole, half])
     is_half = np.arange(len(faces)) >= len(whole)
     while True:
-        bad = _pinched_vertices(faces, keep.size)
+        bad = pinched_vertices(faces, keep.size)
         drop = is_half & np.isin(faces, bad).any(axis=1)
         if not drop.any():
             break

@@ -12,7 +12,7 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-__all__ = ["boundary_loops", "mesh_boundary", "orient_loop_with_faces"]
+__all__ = ["boundary_loops", "mesh_boundary", "orient_loop_with_faces", "pinched_vertices"]
 
 
 def orient_loop_with_faces(loop: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -82,3 +82,23 @@ def mesh_boundary(faces: np.ndarray, n_points: int) -> tuple[list[np.ndarray] | 
     if loops:
         mask[np.concatenate(loops)] = True
     return loops, mask
+
+
+def pinched_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Vertices with more than two rim edges: where separate fans of a planar mesh meet.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+    n_vertices : int
+
+    Returns
+    -------
+    (P,) numpy.ndarray of int64
+        Sorted vertex indices.
+    """
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    keys, counts = np.unique(edges[:, 0] * np.int64(n_vertices) + edges[:, 1], return_counts=True)
+    rim = keys[counts == 1]
+    per_vertex = np.bincount(np.concatenate([rim // n_vertices, rim % n_vertices]), minlength=n_vertices)
+    return np.flatnonzero(per_vertex > 2)

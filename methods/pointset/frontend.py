@@ -26,6 +26,7 @@ from .boundary_rings import find_boundary_rings
 from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .lattice import is_lattice
+from .lattice_loops import lattice_loops
 from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
@@ -578,12 +579,17 @@ def weights_stage(points: np.ndarray, balls, weights: str = "tangent",
     return w, r_x
 
 
-def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params: FrontEndParams):
+def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params: FrontEndParams,
+                   lattice: bool = False):
     """Stage ``boundary``: the boundary loops, in kd-tree order.
 
     With ``boundary_method="angle"``, when at least ``4 * min_loop_size`` points pass the
     angle criterion but no loop closes (a ragged, sparsely sampled boundary), the stage
-    is run once more on balls 1.6x wider (W keeps the normal balls).
+    is run once more on balls 1.6x wider (W keeps the normal balls). On a lattice the
+    loops are the rim of its cells rebuilt from the points where those make a clean
+    surface (:func:`~parambench.methods.pointset.lattice_loops.lattice_loops`; the angle
+    criterion's candidates are kept for the self-check), ``diagnostics["loops_from"]``
+    says which.
 
     Parameters
     ----------
@@ -593,6 +599,8 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     balls : parambench.methods.pointset.dem.GeodesicBalls
         From :func:`dem_stage`.
     params : FrontEndParams
+    lattice : bool
+        The points are a lattice (:func:`~parambench.methods.pointset.lattice.is_lattice`).
 
     Returns
     -------
@@ -617,6 +625,9 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
                                   min_loop_size=min_loop_size)
     else:
         bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
+        cells = lattice_loops(p, frame_normals, nb.graph.indices) if lattice else None
+        if cells is not None:
+            return _with_loops(bnd, cells, int(params.boundary_decimate)), False
     if params.boundary_method == "angle" and not bnd.loops and bnd.candidates.sum() >= 4 * params.min_loop_size:
         # Many boundary candidates but no closed loop: a ragged, sparsely sampled
         # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
@@ -637,6 +648,16 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     if not bnd.loops:
         raise no_boundary_error(int(bnd.candidates.sum()), float(params.boundary_angle_deg), min_loop_size)
     return bnd, retried
+
+
+def _with_loops(bnd, loops: list, decimate: int):
+    """``bnd`` (a BoundaryLoops) with ``loops`` in place of its own, its candidates kept."""
+    loops = [loop[::decimate] if decimate > 1 else loop for loop in loops]
+    mask = np.zeros(bnd.mask.shape[0], dtype=bool)
+    mask[np.concatenate(loops)] = True
+    diagnostics = dict(bnd.diagnostics, loops_from="lattice cells", angle_loop_sizes=bnd.diagnostics.get("loop_sizes"),
+                       loop_sizes=[int(len(loop)) for loop in loops], n_in_loops=int(mask.sum()))
+    return replace(bnd, loops=loops, mask=mask, diagnostics=diagnostics)
 
 
 def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray, bnd, retried: bool, *,
@@ -779,8 +800,9 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         with timer("weights"):
             w, r_x = weights_stage(nb.points, balls, chosen.weights, chosen.reg_eps)
         with timer("boundary"):
-            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen)
-        return balls, w, r_x, bnd, retried, chosen.dem, normals
+            lattice = is_lattice(nb.points, nb.graph, frame_normals)
+            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen, lattice)
+        return balls, w, r_x, bnd, retried, chosen.dem, normals, lattice
 
     uncut = None
     if params.neighbours == "auto" and params.slot_cuts:
@@ -791,7 +813,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
             oriented, frame_normals, normal_fit = fit_normals(cut_nb)
         nb = cut_nb
     try:
-        balls, w, r_x, bnd, retried, dem_used, normals = dem_to_boundary(nb, (oriented, frame_normals, normal_fit))
+        balls, w, r_x, bnd, retried, dem_used, normals, lattice = dem_to_boundary(nb, (oriented, frame_normals,
+                                                                                       normal_fit))
         oriented, frame_normals, normal_fit = normals
         confirmed = uncut is None or slots_on_loops(nb.slot_ends, nb.graph, bnd.mask)
     except NoBoundaryError:
@@ -804,7 +827,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         slots = dict(nb.neighbour_diagnostics["slots"], reverted=True)
         nb, oriented, frame_normals, normal_fit = uncut
         nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, slots=slots))
-        balls, w, r_x, bnd, retried, dem_used, normals = dem_to_boundary(nb, (oriented, frame_normals, normal_fit))
+        balls, w, r_x, bnd, retried, dem_used, normals, lattice = dem_to_boundary(nb, (oriented, frame_normals,
+                                                                                       normal_fit))
         oriented, frame_normals, normal_fit = normals
     del uncut
 
@@ -816,7 +840,7 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     diagnostics = stage_diagnostics(nb, balls, w, r_x, bnd, retried, k_nn=k_nn, normals_given=given is not None,
                                     neighbours=params.neighbours, normal_fit=normal_fit)
     diagnostics["dem"] = dem_used
-    diagnostics["lattice"] = is_lattice(nb.points, nb.graph, frame_normals)
+    diagnostics["lattice"] = lattice
 
     # Kept inline (not a stage function) so each big array is released as soon as its
     # input-order copy exists: at 1M points the balls and weights are ~1 GB.

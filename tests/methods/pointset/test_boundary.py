@@ -154,20 +154,26 @@ def test_closed_sphere_raises_no_boundary(make_sphere):
         build_frontend(make_sphere(3000))
 
 
-@pytest.mark.parametrize("radius,n_loops", [(1.5, 1), (5.0, 2)])
-def test_gap_versus_hole(make_height_patch, radius, n_loops):
-    """Removing the lattice points within ``radius`` spacings of a point: 1.5 spacings is a
-    sampling gap (no loop), 5 spacings is a hole (a clockwise loop around it, closed even
-    though the jagged lattice rim has notches the angle criterion misses)."""
-    patch = make_height_patch("plane", 60, "grid")
+@pytest.mark.parametrize("sampling,radius,n_loops", [("jittered", 1.5, 1), ("jittered", 5.0, 2), ("grid", 1.0, 2),
+                                                     ("grid", 5.0, 2)])
+def test_gap_versus_hole(make_height_patch, sampling, radius, n_loops):
+    """Removing the points within ``radius`` spacings of a point: on a jittered sampling 1.5
+    spacings is a sampling gap (no loop), 5 spacings is a hole (a clockwise loop around it,
+    closed even though the jagged rim has notches the angle criterion misses). On a lattice
+    every missing grid point opens the cells around it, as a raster's no-data points do in
+    its mesh: 4 points removed give an 8-point loop (the lattice's own cells,
+    :mod:`parambench.methods.pointset.lattice_loops`)."""
+    patch = make_height_patch("plane", 60, sampling)
     h = 2 / 59
     centre = np.array([0.1, -0.2])
     keep = np.hypot(*(patch.points[:, :2] - centre).T) > radius * h
     fe = build_frontend(patch.points[keep])
     assert len(fe.boundary_loops) == n_loops
+    assert (fe.diagnostics["boundary"].get("loops_from") == "lattice cells") == (sampling == "grid")
     if n_loops == 2:
         hole = fe.points[fe.boundary_loops[1], :2]
         assert np.all(np.hypot(*(hole - centre).T) < (radius + 1.5) * h)
+        assert signed_area_2d(hole) * signed_area_2d(fe.points[fe.boundary_loops[0], :2]) < 0  # opposite turns
         assert signed_area_2d(hole) < 0
 
 
