@@ -10,15 +10,17 @@ a 139-point coast and a one-cell hole) ``ocp`` stopped with NoBoundaryError. Reb
 the points, both get their mesh's loops exactly (recall and precision 1.0).
 
 The cells come from the K nearest neighbours: a point's axis neighbours are those within
-:data:`AXIS_REACH` of its nearest neighbour's distance, in its tangent plane, that count it
-as theirs too; two of them at right angles (:data:`RIGHT_ANGLE_COS`) span a whole cell when
+:data:`AXIS_REACH` of its nearest neighbour's distance, seen along the mean normal (a
+raster's view direction) or else in the point's tangent plane, that count it as theirs too; two of them at right angles (:data:`RIGHT_ANGLE_COS`) span a whole cell when
 they share another axis neighbour, a half cell when no point lies at the cell's fourth
 corner. Half cells at a vertex where separate fans meet are dropped, as the raster mesher
 of :mod:`parambench.datasets_gen.elevation` drops them. The loops are used only where the
 cells make a manifold surface holding nearly every point (:data:`MIN_COVERED`): on steep
-or knife-edged rasters (pymeshlab's fractal terrains, jacksboro) a diagonal can come
-within reach and the cells overlap, and on triangular lattices (Loop subdivision) no two
-axis neighbours are at right angles; there the angle criterion's loops stand.
+or knife-edged rasters (pymeshlab's fractal terrains) the 8 nearest neighbours miss axis
+neighbours and the cells overlap, and on triangular lattices (Loop subdivision, the grid
+samplings) no two axis neighbours are at right angles; there the angle criterion's loops
+stand. matplotlib's jacksboro is found along its view direction (in the tangent planes
+only half its cells).
 """
 
 from __future__ import annotations
@@ -46,17 +48,20 @@ CORNER_TOL = 0.5
 _PINCH_ROUNDS = 20
 
 
-def lattice_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def lattice_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray,
+                  facing: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Triangles of a square lattice's whole and half cells.
 
     Parameters
     ----------
     points : (N, 3) numpy.ndarray of float64
     normals : (N, 3) numpy.ndarray of float64
-        Unit normals, consistently oriented.
+        Unit normals of the planes the lattice is seen in (each point's tangent plane, or
+        one view direction for all).
     knn_indices : (N, K) numpy.ndarray of int64
         Nearest neighbours, nearest first, self excluded.
+    facing : (N, 3) numpy.ndarray of float64, optional
+        Consistently oriented normals the faces are turned to (default ``normals``).
 
     Returns
     -------
@@ -100,7 +105,7 @@ def lattice_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarr
     halves = halves[[tuple(t) not in covered for t in halves.tolist()]] if len(halves) else halves.reshape(0, 3)
     faces = np.concatenate([split, halves]).astype(np.int64)
     is_half = np.r_[np.zeros(len(split), dtype=bool), np.ones(len(halves), dtype=bool)]
-    return _facing(points, normals, faces), is_half
+    return _facing(points, normals if facing is None else facing, faces), is_half
 
 
 def lattice_loops(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> list[np.ndarray] | None:
@@ -117,9 +122,26 @@ def lattice_loops(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarr
         Loops longest first, counter-clockwise seen from the normals' side for the outer
         one and clockwise for holes; None when the cells' largest piece is not
         edge-manifold, holds under :data:`MIN_COVERED` of the points, or has no rim.
+
+    The cells are looked for as seen along the mean normal first, then in each point's
+    tangent plane.
     """
+    mean = normals.sum(axis=0)
+    if np.linalg.norm(mean) > 0:
+        # A raster's or a range image's lattice is regular seen along its view direction,
+        # which the mean normal approximates; in each point's own tangent plane a slope
+        # stretches it (jacksboro: half its cells found).
+        seen = _loops_of_cells(points, normals, knn_indices, np.broadcast_to(mean / np.linalg.norm(mean), normals.shape))
+        if seen is not None:
+            return seen
+    return _loops_of_cells(points, normals, knn_indices, normals)
+
+
+def _loops_of_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray,
+                    view: np.ndarray) -> list[np.ndarray] | None:
+    """:func:`lattice_loops` with the cells found in the planes normal to ``view`` (N, 3)."""
     n = points.shape[0]
-    faces, is_half = lattice_cells(points, normals, knn_indices)
+    faces, is_half = lattice_cells(points, view, knn_indices, facing=normals)
     for _ in range(_PINCH_ROUNDS):
         pinched = pinched_vertices(faces, n)
         drop = is_half & np.isin(faces, pinched).any(axis=1)

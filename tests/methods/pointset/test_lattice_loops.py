@@ -80,3 +80,15 @@ def test_front_end_and_ocp_on_a_coast_the_angle_criterion_missed():
     base = evaluate(surface.points, surface.faces, get_method("scp-igl")(surface).uv,
                     boundary_loops=surface.boundary_loops)
     assert ours["foldovers"] == 0 and ours["qc_mean"] <= 1.03 * base["qc_mean"]
+
+
+def test_a_sloping_raster_is_read_along_its_view_direction():
+    """matplotlib's jacksboro DEM (every fourth sample, hills): in each point's tangent
+    plane only half the cells come out, and no clean surface; seen along the mean normal
+    they all do, and the front end's loop is the raster mesh's rim."""
+    surface = matplotlib_dem("jacksboro", 4)
+    fe = build_frontend(surface.points)
+    assert fe.diagnostics["boundary"]["loops_from"] == "lattice cells"
+    assert np.array_equal(fe.boundary_mask, surface.boundary_mask)
+    tangent_only = lattice_cells(fe.points, fe.normals, fe.knn_indices)[0]
+    assert len(tangent_only) < 0.9 * len(surface.faces)
