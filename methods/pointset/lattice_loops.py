@@ -44,6 +44,8 @@ MIN_COVERED = 0.99
 #: A fourth corner is missing when no point lies within this share of the nearest-neighbour
 #: distance of where it would be.
 CORNER_TOL = 0.5
+#: Points whose axis neighbours are counted to tell a square lattice from a triangular one.
+_SQUARE_SAMPLE = 4000
 #: Rounds of dropping half cells at pinched vertices.
 _PINCH_ROUNDS = 20
 
@@ -71,12 +73,8 @@ def lattice_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarr
     is_half : (M,) numpy.ndarray of bool
         The faces that are half cells.
     """
-    n, k = knn_indices.shape
-    offset = points[knn_indices] - points[:, None, :]
-    offset -= np.einsum("nki,ni->nk", offset, normals)[:, :, None] * normals[:, None, :]
-    dist = np.linalg.norm(offset, axis=2)
+    axis, offset, dist = _axis_neighbours(points, normals, knn_indices)
     near = dist[:, :1]
-    axis = _mutual(knn_indices, dist <= AXIS_REACH * near)
     # Up to 4 axis neighbours per point, nearest first (-1 padding).
     order = np.argsort(np.where(axis, dist, np.inf), axis=1, kind="stable")[:, :4]
     nbr = np.where(np.take_along_axis(axis, order, axis=1), np.take_along_axis(knn_indices, order, axis=1), -1)
@@ -141,6 +139,8 @@ def _loops_of_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.nda
                     view: np.ndarray) -> list[np.ndarray] | None:
     """:func:`lattice_loops` with the cells found in the planes normal to ``view`` (N, 3)."""
     n = points.shape[0]
+    if not _square(points, view, knn_indices):
+        return None
     faces, is_half = lattice_cells(points, view, knn_indices, facing=normals)
     for _ in range(_PINCH_ROUNDS):
         pinched = pinched_vertices(faces, n)
@@ -157,6 +157,29 @@ def _loops_of_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.nda
     if not loops:
         return None
     return sorted(loops, key=len, reverse=True)
+
+
+def _axis_neighbours(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, K) axis-neighbour mask, (N, K, 3) offsets in the planes normal to ``normals`` and
+    (N, K) their lengths."""
+    offset = points[knn_indices] - points[:, None, :]
+    offset -= np.einsum("nki,ni->nk", offset, normals)[:, :, None] * normals[:, None, :]
+    dist = np.linalg.norm(offset, axis=2)
+    return _mutual(knn_indices, dist <= AXIS_REACH * dist.min(axis=1, keepdims=True)), offset, dist
+
+
+def _square(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> bool:
+    """Whether the points of a seeded sample that have the most neighbours within axis
+    reach (the 90th percentile) have 4 (a square lattice's inside; a triangular one's has
+    6): the cells are only looked for then."""
+    n = points.shape[0]
+    rows = np.arange(n) if n <= _SQUARE_SAMPLE else np.random.default_rng(0).choice(n, _SQUARE_SAMPLE, replace=False)
+    offset = points[knn_indices[rows]] - points[rows, None, :]
+    offset -= np.einsum("nki,ni->nk", offset, normals[rows])[:, :, None] * normals[rows, None, :]
+    dist = np.linalg.norm(offset, axis=2)
+    # Inside, not the median: a small raster's rim points (2-3 axis neighbours) can be half of it.
+    return bool(np.percentile((dist <= AXIS_REACH * dist.min(axis=1, keepdims=True)).sum(axis=1), 90) == 4)
 
 
 def _mutual(knn_indices: np.ndarray, chosen: np.ndarray) -> np.ndarray:
