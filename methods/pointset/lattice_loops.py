@@ -42,8 +42,12 @@ RIGHT_ANGLE_COS = 0.35
 #: Share of the points the cells' largest piece must hold for its loops to be used.
 MIN_COVERED = 0.99
 #: A fourth corner is missing when no point lies within this share of the nearest-neighbour
-#: distance of where it would be.
+#: distance of where it would be, in the plane the lattice is seen in.
 CORNER_TOL = 0.5
+#: Points looked at around a cell's fourth corner, and how far off the seeing plane (in
+#: nearest-neighbour distances) the corner point may stand.
+_CORNER_CANDIDATES = 16
+_CORNER_HEIGHT = 4.0
 #: Points whose axis neighbours are counted to tell a square lattice from a triangular one.
 _SQUARE_SAMPLE = 4000
 #: Rounds of dropping half cells at pinched vertices.
@@ -92,8 +96,12 @@ def lattice_cells(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarr
         has = common >= 0
         whole.append(np.column_stack([i[has], j[has], common[has], l[has]]))
         lone = np.flatnonzero(~has)
-        gap, _ = tree.query(points[j[lone]] + points[l[lone]] - points[i[lone]])
-        missing = lone[gap > CORNER_TOL * near[i[lone], 0]]
+        corner = _corner_point(points, normals, tree, i[lone], j[lone], l[lone], near[i[lone], 0])
+        found = corner >= 0
+        # Where the 8 nearest neighbours missed an axis relation (noisy heights), the fourth
+        # corner is still there: a whole cell.
+        whole.append(np.column_stack([i[lone][found], j[lone][found], corner[found], l[lone][found]]))
+        missing = lone[~found]
         half.append(np.column_stack([i[missing], j[missing], l[missing]]))
     cells = _unique_cycles(np.concatenate(whole))
     halves = np.unique(np.sort(np.concatenate(half), axis=1), axis=0)
@@ -192,6 +200,29 @@ def _mutual(knn_indices: np.ndarray, chosen: np.ndarray) -> np.ndarray:
     out = np.zeros(chosen.size, dtype=bool)
     out[np.flatnonzero(flat)] = np.isin(back, key)
     return out.reshape(chosen.shape)
+
+
+def _corner_point(points: np.ndarray, normals: np.ndarray, tree: cKDTree, i: np.ndarray, j: np.ndarray,
+                  l: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """The point at the fourth corner ``j + l - i`` of each cell (-1: none).
+
+    Judged in the plane normal to ``normals[i]`` (within :data:`CORNER_TOL` of ``near``), and
+    within ``near`` of that plane's height at the corner: heights of a rough raster put the
+    corner point off the 3D parallelogram's fourth corner by more than the tolerance.
+    """
+    if i.size == 0:
+        return np.empty(0, dtype=np.int64)
+    k = _CORNER_CANDIDATES
+    target = points[j] + points[l] - points[i]
+    _, cand = tree.query(target, k=k)
+    off = points[cand] - target[:, None, :]
+    along = np.einsum("rki,ri->rk", off, normals[i])
+    across = np.linalg.norm(off - along[:, :, None] * normals[i][:, None, :], axis=2)
+    # A corner point must also stand off the plane by less than a rough raster's slopes allow.
+    ok = (across <= CORNER_TOL * near[:, None]) & (np.abs(along) <= _CORNER_HEIGHT * near[:, None])
+    ok &= (cand != i[:, None]) & (cand != j[:, None]) & (cand != l[:, None])
+    first = np.argmax(ok, axis=1)
+    return np.where(ok.any(axis=1), cand[np.arange(len(i)), first], -1)
 
 
 def _common_neighbour(nbr: np.ndarray, j: np.ndarray, l: np.ndarray, i: np.ndarray) -> np.ndarray:
