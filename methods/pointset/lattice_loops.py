@@ -141,7 +141,8 @@ def lattice_loops(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarr
         # A raster's or a range image's lattice is regular seen along its view direction,
         # which the mean normal approximates; in each point's own tangent plane a slope
         # stretches it (jacksboro: half its cells found).
-        seen = _loops_of_cells(points, normals, knn_indices, np.broadcast_to(mean / np.linalg.norm(mean), normals.shape))
+        view = np.broadcast_to(mean / np.linalg.norm(mean), normals.shape)
+        seen = _loops_of_cells(points, normals, knn_indices, view)
         if seen is not None:
             return seen
     return _loops_of_cells(points, normals, knn_indices, normals)
