@@ -176,10 +176,8 @@ def _axis_neighbours(points: np.ndarray, normals: np.ndarray, knn_indices: np.nd
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(N, K) axis-neighbour mask, (N, K, 3) offsets in the planes normal to ``normals`` and
     (N, K) their lengths."""
-    offset = points[knn_indices] - points[:, None, :]
-    offset -= np.einsum("nki,ni->nk", offset, normals)[:, :, None] * normals[:, None, :]
-    dist = np.linalg.norm(offset, axis=2)
-    return _mutual(knn_indices, dist <= AXIS_REACH * dist.min(axis=1, keepdims=True)), offset, dist
+    offset, dist = _plane_offsets(points, normals, knn_indices, np.arange(points.shape[0]))
+    return _mutual(knn_indices, _within_reach(dist)), offset, dist
 
 
 def _square(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) -> bool:
@@ -188,11 +186,23 @@ def _square(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray) ->
     6): the cells are only looked for then."""
     n = points.shape[0]
     rows = np.arange(n) if n <= _SQUARE_SAMPLE else np.random.default_rng(0).choice(n, _SQUARE_SAMPLE, replace=False)
+    _, dist = _plane_offsets(points, normals, knn_indices, rows)
+    # Inside, not the median: a small raster's rim points (2-3 axis neighbours) can be half of it.
+    return bool(np.percentile(_within_reach(dist).sum(axis=1), 90) == 4)
+
+
+def _plane_offsets(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray, rows: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(R, K, 3) offsets of the ``rows``' neighbours in the planes normal to their
+    ``normals``, and (R, K) their lengths."""
     offset = points[knn_indices[rows]] - points[rows, None, :]
     offset -= np.einsum("nki,ni->nk", offset, normals[rows])[:, :, None] * normals[rows, None, :]
-    dist = np.linalg.norm(offset, axis=2)
-    # Inside, not the median: a small raster's rim points (2-3 axis neighbours) can be half of it.
-    return bool(np.percentile((dist <= AXIS_REACH * dist.min(axis=1, keepdims=True)).sum(axis=1), 90) == 4)
+    return offset, np.linalg.norm(offset, axis=2)
+
+
+def _within_reach(dist: np.ndarray) -> np.ndarray:
+    """(R, K) bool: the neighbours within :data:`AXIS_REACH` of each row's nearest."""
+    return dist <= AXIS_REACH * dist.min(axis=1, keepdims=True)
 
 
 def _mutual(knn_indices: np.ndarray, chosen: np.ndarray) -> np.ndarray:
