@@ -212,6 +212,9 @@ class Method:
     choices : dict of str to tuple
         For parameters that take one of a few names: the allowed values. Checked by
         :meth:`__call__` before the method runs.
+    conformal_map : bool
+        A point-set method that promises a conformal map: its self-check also fails a map
+        that stretches whole regions one way ("distorted").
     """
 
     name: ClassVar[str] = ""
@@ -220,6 +223,7 @@ class Method:
     defaults: ClassVar[dict[str, Any]] = {}
     param_grid: ClassVar[dict[str, list]] = {}
     choices: ClassVar[dict[str, tuple]] = {}
+    conformal_map: ClassVar[bool] = False
 
     def resolve_params(self, params: dict[str, Any]) -> dict[str, Any]:
         """Fill in defaults and reject unknown parameter names.
@@ -377,7 +381,7 @@ class Method:
                 raise
             result, after_error = self._run_after_error(surface, params, retry, exc)
             params = retry
-        check = selfcheck_result(surface, result)
+        check = selfcheck_result(surface, result, conformal=self.conformal_map)
         if after_error is not None:
             check["after_error"] = after_error
         retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
@@ -401,7 +405,7 @@ class Method:
                               "error": f"{type(exc).__name__}: {exc}"})
                 continue
             runs.append((retry, second.diagnostics))
-            second_check = selfcheck_result(surface, second)
+            second_check = selfcheck_result(surface, second, conformal=self.conformal_map)
             # The earlier checks' time is the self-check's too, not the method's.
             seconds += second_check.get("seconds", 0.0)
             notes.append({"params": changed, "passed": bool(second_check["passed"]), "first_reason": check["reason"]})
@@ -545,9 +549,9 @@ def _as_list(retry: dict | list | None) -> list[dict]:
     return [retry] if isinstance(retry, dict) else list(retry)
 
 
-#: Self-check failures that leave no usable map: its triangulation or loops are wrong as a
-#: whole, not in a few triangles.
-_STRUCTURAL_FAILURES = frozenset({"check-error", "triangulation", "turning", "boundary-crossing"})
+#: Self-check failures that leave no usable map: its triangulation, loops or shape are
+#: wrong as a whole, not in a few triangles.
+_STRUCTURAL_FAILURES = frozenset({"check-error", "triangulation", "turning", "boundary-crossing", "distorted"})
 
 
 def selfcheck_doubt(check: dict) -> tuple[bool, bool, int]:

@@ -131,7 +131,7 @@ def _estimated_inputs(surface: MethodInput, result) -> _CheckInputs:
                         loops=[np.asarray(lp) for lp in loops], candidates=None)
 
 
-def selfcheck_result(surface: MethodInput, result) -> dict:
+def selfcheck_result(surface: MethodInput, result, conformal: bool = False) -> dict:
     """Check a point-set result and store the facts in ``result.diagnostics["selfcheck"]``.
 
     Uses the front end of the method's own run on ``surface`` when there was one,
@@ -144,6 +144,9 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
     surface : MethodInput
         The surface the method ran on.
     result : parambench.methods.base.Parameterization
+    conformal : bool
+        The method promises a conformal map: its check judges ``coherent_beltrami``
+        (:func:`~parambench.methods.pointset.selfcheck.check_pointset_map`).
 
     Returns
     -------
@@ -157,7 +160,8 @@ def selfcheck_result(surface: MethodInput, result) -> dict:
         inputs = _CHECK_INPUTS.pop(surface, None) or _estimated_inputs(surface, result)
         check = check_pointset_map(surface.points, result.uv, inputs.normals, inputs.loops,
                                    knn_indices=inputs.knn_indices, spacing=inputs.spacing,
-                                   candidates=inputs.candidates, normal_error_deg=inputs.normal_error_deg)
+                                   candidates=inputs.candidates, normal_error_deg=inputs.normal_error_deg,
+                                   conformal=conformal)
     except Exception as exc:  # checking must never hide a result
         check = {"passed": False, "reason": f"the self-check could not run ({type(exc).__name__}: {exc})",
                  "failed": ["check-error"]}

@@ -9,7 +9,8 @@ import pytest
 from matplotlib.path import Path
 from scipy.spatial import cKDTree
 
-from parambench.methods.pointset.selfcheck import check_pointset_map, loop_coverage, pointset_faces, suggest_fix
+from parambench.methods.pointset.selfcheck import (MAX_COHERENT_BELTRAMI, check_pointset_map, loop_coverage,
+                                                   pointset_faces, suggest_fix)
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.methods.pointset.uv_triangulation import delaunay_faces, triangulate_uv
 
@@ -614,3 +615,31 @@ def test_delaunay_faces_of_a_collapsed_map_keep_one_of_each_coincident_group():
 def test_delaunay_faces_refuse_a_map_with_no_area(uv):
     with pytest.raises(InvalidInputError, match="collapsed"):
         delaunay_faces(uv)
+
+
+def test_coherent_beltrami_is_zero_for_similarities_and_measures_a_stretch():
+    from parambench.methods.pointset.selfcheck import coherent_beltrami
+
+    pts, outer, xy = _noisy_grid()
+    flat = np.c_[xy, np.zeros(len(xy))]
+    faces = pointset_faces(flat, xy, [outer])
+    turn = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    assert coherent_beltrami(flat, 3.0 * xy @ turn.T + 5.0, faces) < 1e-12
+    # uv = (x, 2y): the metric in uv is diag(1, 1/4), nu = (1 - 1/4) / (1 + 1/4) everywhere.
+    assert coherent_beltrami(flat, xy * [1.0, 2.0], faces) == pytest.approx(0.6, abs=1e-9)
+
+
+def test_a_stretched_map_fails_as_distorted_only_where_a_conformal_map_is_promised():
+    pts, outer, xy = _noisy_grid()
+    normals = _estimated_normals(pts, adaptive=True)
+    exact = check_pointset_map(pts, xy, normals, [outer], conformal=True)
+    # Noise 0.5 spacings makes nu random per triangle; the cells average it away.
+    assert exact["passed"], exact["reason"]
+    assert exact["coherent_beltrami"] < 0.5 * MAX_COHERENT_BELTRAMI
+    stretched = xy * [1.0, 1.6]  # no flip, no crossing: only the shape is wrong
+    judged = check_pointset_map(pts, stretched, normals, [outer], conformal=True)
+    assert not judged["passed"] and judged["failed"] == ["distorted"]
+    assert "not conformal" in judged["reason"] and judged["coherent_beltrami"] > MAX_COHERENT_BELTRAMI
+    assert suggest_fix(judged["failed"], {"refine": "auto", "k_nn": 8}, "ocp") == "try --param refine=mesh"
+    unjudged = check_pointset_map(pts, stretched, normals, [outer])
+    assert unjudged["passed"] and unjudged["coherent_beltrami"] == judged["coherent_beltrami"]
