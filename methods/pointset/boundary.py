@@ -112,6 +112,9 @@ _RIM_PROBE = 1.5
 #: ... at least this share of that distance from every point.
 _RIM_EMPTY = 0.8
 
+#: More than this share of the points on no loop are candidates: too few points for an inside.
+_MOSTLY_BOUNDARY = 0.4
+
 #: Grid (per side) on which the empty disk inside a small loop is searched.
 _EMPTY_GRID = 32
 
@@ -821,12 +824,21 @@ def _local_median_step(points: np.ndarray, loops: list[np.ndarray]) -> np.ndarra
                            for loop in loops])
 
 
-def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int) -> NoBoundaryError:
+def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
+                      n_points: int | None = None) -> NoBoundaryError:
     """The error for "no loop", worded by how many points passed the angle criterion.
 
+    Most of the points (``n_points``, when given): too few points to have an inside
+    (40 random points on a square: 21 candidates, which read as "closed surface").
     Few candidates: the surface is closed. Many that do not close into a loop: the
     boundary is too ragged or sparse for balls of this size.
     """
+    if n_points is not None and n_candidates > _MOSTLY_BOUNDARY * n_points:
+        return NoBoundaryError(
+            f"{n_candidates} of the {n_points} points pass the {angle_deg:g}-degree angle criterion, so "
+            "the points have almost no inside: too few to find a boundary loop; sample the surface more "
+            "densely (a few hundred points or more)."
+        )
     if n_candidates < 4 * min_loop_size:
         return NoBoundaryError(
             f"no boundary found ({n_candidates} isolated point(s) pass the {angle_deg:g}-degree angle "
@@ -939,7 +951,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
             slots, _ = put_back_slot_tips(points, normals, slots, outward, None)
             kept, n_hairpin_slots = kept + slots, len(slots)
     if not kept and require_loop:
-        raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size)
+        raise no_boundary_error(int(candidates.sum()), angle_deg, min_loop_size, points.shape[0])
     kept.sort(key=lambda c: _perimeter(points, c), reverse=True)
     n_put_back = 0
     if hairpins:

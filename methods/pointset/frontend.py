@@ -646,7 +646,8 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
             "empty triangle): a closed surface (cut it open before flattening), or a noisy sampling; "
             "try boundary_method='angle'.")
     if not bnd.loops:
-        raise no_boundary_error(int(bnd.candidates.sum()), float(params.boundary_angle_deg), min_loop_size)
+        raise no_boundary_error(int(bnd.candidates.sum()), float(params.boundary_angle_deg), min_loop_size,
+                                p.shape[0])
     return bnd, retried
 
 

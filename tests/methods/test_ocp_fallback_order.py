@@ -94,8 +94,8 @@ def test_a_retry_that_changes_only_refine_reuses_the_solved_map(monkeypatch):
     surface = make_surface("bump", 800, sampling="random", seed=1)
     real_check, solved = support.selfcheck_result, []
 
-    def fails_unless_refined(surf, result):
-        facts = real_check(surf, result)
+    def fails_unless_refined(surf, result, **kwargs):
+        facts = real_check(surf, result, **kwargs)
         if result.params["refine"] != "mesh":  # stand-in: the unrefined maps "fold"
             facts.update(passed=False, failed=["flipped"], reason="1 flipped triangle(s) (stand-in)")
         return facts

@@ -268,6 +268,9 @@ def test_is_outer_rim_tells_a_rim_from_a_hole_and_from_a_ring_inside_the_surface
 
 def test_no_boundary_messages():
     assert "closed surface: cut it open" in str(no_boundary_error(5, 120.0, 8))
+    assert "closed surface: cut it open" in str(no_boundary_error(5, 120.0, 8, n_points=2000))
+    few = str(no_boundary_error(21, 120.0, 8, n_points=40))
+    assert "21 of the 40 points" in few and "sample the surface more densely" in few
     msg = str(no_boundary_error(500, 120.0, 8))
     assert "no boundary loop closes" in msg and "raise k_nn or ball_eps_factor" in msg
 
