@@ -189,7 +189,9 @@ class Ocp(Method):
     clean points solved again on the refined map's own triangulation until it stops
     changing (:mod:`parambench.methods.pointset.mesh_refine`); ``"auto"`` (default) does so only
     where the Neumann energy gave no map (from the paper energy's map, or where that
-    failed too from an SDP map, :func:`_mesh_fallback`, ``energy_used`` then ``"mesh"``;
+    failed too from an SDP map, or, where that gives no mesh and the surface is a height
+    field over the plane across its mean normal, from the points projected on it,
+    :func:`_mesh_fallback`, ``energy_used`` then ``"mesh"``;
     from :data:`MULTILEVEL_FROM` points on W^tan for these is rebuilt,
     :class:`TangentWeights`, and on the two-level path they keep to two levels), where
     the points are a lattice (a raster, a range image, a grid sampling; below
@@ -650,22 +652,79 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict
     scattered over a real mesh the point Laplacians have negative boundary modes, and no
     k gives a regular map (:mod:`parambench.methods.pointset.mesh_refine`). The SDP pair
     of the paper's ``I - W^tan`` (B-orthonormal, as ``sdp``) needs no k; its uv
-    triangulation gives the mesh. If that fails too, ``exc`` (the first error) is raised.
+    triangulation gives the mesh; where it gives none and the points are a height field
+    over the plane across their mean normal (:func:`height_field_projection`), their
+    projection does (uniform random points on flat 4:1 to 100:1 strips at 20k points, 10:1 at 8k:
+    ConvergenceError before; now their own plane's map to 1e-8 of the diagonal). If
+    that fails too, ``exc`` (the first error) is raised.
     ``energy_used`` is ``"mesh"`` and ``energy_error`` keeps the first error. The pair
     is solved on two levels where ``solver`` is ``"multilevel"`` (:func:`_sdp_pair`).
     """
+    first = "sdp"
     try:
         pair = _sdp_pair(front, graph_laplacian(w_tan), solver, params, timer)
-        # An eigenvector pair has no handedness: mirrored, its triangulation would face
-        # away from the normals and so would the refined map (loops turning -1).
-        if signed_area_2d(pair[front.boundary_loops[0]]) < 0:
-            pair[:, 1] *= -1.0
-        sol, info = refine_on_uv_mesh(front.points, pair, front.boundary_loops, timer, _passes(front),
-                                      _split_tolerance(front))
+        sol, info = _refined_from(front, pair, timer)
     except ParambenchError:
-        raise exc from None
+        # SDP's pair maps an elongated domain along its length twice over (the second
+        # eigenvector is the first one's overtone, not the cross direction); a height
+        # field's projection gives the mesh instead.
+        projected = height_field_projection(front.points, front.normals)
+        if projected is None:
+            raise exc from None
+        try:
+            sol, info = _refined_from(front, projected, timer)
+        except ParambenchError:
+            raise exc from None
+        first = "plane projection"
     return sol, {}, {"energy_used": "mesh", "energy_error": error_note(exc, Ocp.defaults, params),
-                     "refined": {"first_map": "sdp", **info}}
+                     "refined": {"first_map": first, **info}}
+
+
+def _refined_from(front, first_map: np.ndarray, timer: StageTimer):
+    """Cotangent SCP on the mesh ``first_map`` (N, 2) triangulates, facing the normals."""
+    # A map from an eigenvector pair or a projection has no handedness: mirrored, its
+    # triangulation would face away from the normals and so would the refined map (loops
+    # turning -1).
+    if signed_area_2d(first_map[front.boundary_loops[0]]) < 0:
+        first_map = first_map * [1.0, -1.0]
+    return refine_on_uv_mesh(front.points, first_map, front.boundary_loops, timer, _passes(front),
+                             _split_tolerance(front))
+
+
+#: A point set is a height field over the plane across its mean normal when every normal
+#: makes at most this angle with the mean one (degrees).
+HEIGHT_FIELD_MAX_DEG = 75.0
+
+
+def height_field_projection(points: np.ndarray, normals: np.ndarray) -> np.ndarray | None:
+    """The points projected on the plane across their mean normal, if the surface is a height field over it.
+
+    The mean normal, not the least-squares plane's: a long strip with more relief than
+    width (z = sin(x / 2) over 20 x 1) has its least-squares plane upright.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    normals : (N, 3) numpy.ndarray of float64
+        Consistently oriented unit normals.
+
+    Returns
+    -------
+    (N, 2) numpy.ndarray of float64 or None
+        Coordinates in the plane; None when some normal lies more than
+        :data:`HEIGHT_FIELD_MAX_DEG` from the mean normal (the projection could fold).
+    """
+    up = normals.mean(axis=0)
+    length = float(np.linalg.norm(up))
+    if not length > 0.0:
+        return None
+    up = up / length
+    if float((normals @ up).min()) < np.cos(np.deg2rad(HEIGHT_FIELD_MAX_DEG)):
+        return None
+    # Two axes across it: the points' own principal directions, projected and orthonormalised.
+    centred = points - points.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred - np.outer(centred @ up, up), full_matrices=False)
+    return centred @ axes[:2].T
 
 
 def _sdp_pair(front, lap, solver: str, params: dict, timer: StageTimer) -> np.ndarray:

@@ -122,3 +122,41 @@ def test_a_stretched_map_of_a_developable_tile_is_caught_and_retried(n, aspect, 
     aligned = similarity_align(result.uv, exact)
     rms = np.sqrt(np.mean(np.sum((aligned - exact) ** 2, axis=1)))
     assert rms < 1e-3 * np.linalg.norm(np.ptp(exact, axis=0))
+
+
+def test_an_elongated_random_tile_maps_through_its_own_plane():
+    """8000 uniform random points on a flat 10 x 1 rectangle (a corridor scan, no point on
+    the rim). Both energies' k searches found no regular map and SDP's pair, the mesh
+    fallback's first map, runs twice along the length (its second eigenvector is the first
+    one's overtone): ConvergenceError, at 20k points on 4:1 to 100:1 strips too. The
+    surface is a height field over the plane across its mean normal, whose projection gives the
+    mesh instead; cotangent SCP on it is the plane's own map."""
+    from parambench.bench.metrics import similarity_align
+    from parambench.datasets_gen.surface import MethodInput
+
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 1.0, (8000, 2)) * [10.0, 1.0]
+    result = get_method("ocp")(MethodInput(np.c_[xy, np.zeros(len(xy))]))
+    check = result.diagnostics["selfcheck"]
+    assert check["passed"], check["reason"]
+    assert result.diagnostics["refined"]["first_map"] == "plane projection"
+    aligned = similarity_align(result.uv, xy)
+    assert np.sqrt(np.mean(np.sum((aligned - xy) ** 2, axis=1))) < 1e-8 * np.hypot(10.0, 1.0)
+
+
+def test_height_field_projection_only_where_no_normal_turns_past_the_limit():
+    from parambench.methods.plugins.ocp import height_field_projection
+
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-1.0, 1.0, (500, 2))
+    turn = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    tilted = np.c_[xy, np.zeros(len(xy))] @ turn.T + [3.0, -2.0, 7.0]
+    flat = height_field_projection(tilted, np.tile(turn[:, 2], (len(xy), 1)))
+    assert flat is not None
+    # The projection is the plane's own coordinates, up to a rigid motion.
+    np.testing.assert_allclose(np.linalg.norm(flat[1:] - flat[0], axis=1),
+                               np.linalg.norm(xy[1:] - xy[0], axis=1), atol=1e-9)
+    theta = rng.uniform(0.0, 0.49 * np.pi, 500)  # a hemisphere: normals up to 88 degrees off
+    phi = rng.uniform(0.0, 2.0 * np.pi, 500)
+    normals = np.c_[np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)]
+    assert height_field_projection(normals, normals) is None
