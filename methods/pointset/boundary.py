@@ -46,6 +46,7 @@ from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 
+from ..geometry2d import signed_area_2d
 from ..numba_cache import configure_numba_cache
 from .boundary_cover import BRIDGE_K, ahead_scores, cover_successors, projected_candidates
 from .normals import tangent_frames
@@ -703,9 +704,7 @@ def empty_radius_inside(points: np.ndarray, loop: np.ndarray, tree: cKDTree | No
     float
     """
     q = points[loop]
-    centre = q.mean(axis=0)
-    _, _, vt = np.linalg.svd(q - centre, full_matrices=False)
-    x = (q - centre) @ vt[:2].T
+    centre, plane, x = _in_loop_plane(q)
     lo, hi = x.min(axis=0), x.max(axis=0)
     u, v = np.meshgrid(np.linspace(lo[0], hi[0], grid), np.linspace(lo[1], hi[1], grid))
     g = np.column_stack([u.ravel(), v.ravel()])
@@ -721,8 +720,15 @@ def empty_radius_inside(points: np.ndarray, loop: np.ndarray, tree: cKDTree | No
         radius = float(np.sqrt(((q - centre) ** 2).sum(axis=1).max()))
         near = ((points - centre) ** 2).sum(axis=1) <= (3.0 * radius) ** 2
         tree = cKDTree(points[near])
-    dist, _ = tree.query(centre + g[inside] @ vt[:2])
+    dist, _ = tree.query(centre + g[inside] @ plane)
     return float(dist.max())
+
+
+def _in_loop_plane(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A loop's points (L, 3) in its least-squares plane: (centroid (3,), axes (2, 3), coordinates (L, 2))."""
+    centre = q.mean(axis=0)
+    _, _, vt = np.linalg.svd(q - centre, full_matrices=False)
+    return centre, vt[:2], (q - centre) @ vt[:2].T
 
 
 def _in_plane(vectors: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -1148,13 +1154,10 @@ def is_outer_rim(points: np.ndarray, loop: np.ndarray, outward: np.ndarray, tree
     bool
     """
     q = points[loop]
-    centre = q.mean(axis=0)
-    _, _, vt = np.linalg.svd(q - centre, full_matrices=False)
-    x = (q - centre) @ vt[:2].T
-    signed_area = 0.5 * float(np.sum(x[:, 0] * np.roll(x[:, 1], -1) - np.roll(x[:, 0], -1) * x[:, 1]))
+    _, plane, x = _in_loop_plane(q)
     tangent = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
-    inward = np.sign(signed_area) * np.column_stack([-tangent[:, 1], tangent[:, 0]])
-    leaving = np.einsum("ij,ij->i", outward[loop] @ vt[:2].T, inward) < 0
+    inward = np.sign(signed_area_2d(x)) * np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    leaving = np.einsum("ij,ij->i", outward[loop] @ plane.T, inward) < 0
     if np.mean(leaving) < _RIM_FACING:
         return False
     reach = _RIM_PROBE * _perimeter(points, loop) / loop.size
