@@ -262,8 +262,8 @@ class Ocp(Method):
         the check finds at a thin part, the neighbourhoods pruned of every edge whose
         ends' normals or tangent offsets disagree (``neighbours="pruned"``); after a loop
         that crosses itself or turns the wrong way, or a stretched map (and no flip,
-        which asked for it first), ``k_nn = retry_k_nn`` last. When every run fails its check, the least
-        doubtful map is kept
+        which asked for it first), ``k_nn = retry_k_nn`` last. When every run fails its
+        check, the least doubtful map is kept
         (:func:`~parambench.methods.base.selfcheck_doubt`).
 
         The last: pymeshlab's cow, cut open and subdivided (22k points), folds 17 true-mesh
@@ -654,9 +654,10 @@ def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict
     of the paper's ``I - W^tan`` (B-orthonormal, as ``sdp``) needs no k; its uv
     triangulation gives the mesh; where it gives none and the points are a height field
     over the plane across their mean normal (:func:`height_field_projection`), their
-    projection does, from ``k_nn = retry_k_nn`` on (uniform random points on flat 4:1 to 100:1 strips at 20k points, 10:1 at 8k:
-    ConvergenceError before; now their own plane's map to 1e-8 of the diagonal). If
-    that fails too, ``exc`` (the first error) is raised.
+    projection does, from ``k_nn = retry_k_nn`` on (uniform random points on flat 4:1 to
+    100:1 strips at 20k points, 10:1 at 8k: ConvergenceError before; now their own
+    plane's map to 1e-8 of the diagonal). If that fails too, ``exc`` (the first error)
+    is raised.
     ``energy_used`` is ``"mesh"`` and ``energy_error`` keeps the first error. The pair
     is solved on two levels where ``solver`` is ``"multilevel"`` (:func:`_sdp_pair`).
     """

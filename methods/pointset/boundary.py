@@ -113,7 +113,8 @@ _RIM_PROBE = 1.5
 #: ... at least this share of that distance from every point.
 _RIM_EMPTY = 0.8
 
-#: More than this share of the points on no loop are candidates: too few points for an inside.
+#: No loop closed and more than this share of the points are candidates: too few points
+#: to have an inside (:func:`no_boundary_error`).
 _MOSTLY_BOUNDARY = 0.4
 
 #: Grid (per side) on which the empty disk inside a small loop is searched.

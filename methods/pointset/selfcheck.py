@@ -109,7 +109,8 @@ from .failure_causes import cause_advice, describe_causes, failure_causes
 from .row_chunks import for_each_chunk
 from .uv_triangulation import triangulate_uv
 
-__all__ = ["check_pointset_map", "coherent_beltrami", "loop_coverage", "normal_tolerance_deg", "pointset_faces", "suggest_fix", "failure_line", "THRESHOLDS"]
+__all__ = ["check_pointset_map", "coherent_beltrami", "loop_coverage", "normal_tolerance_deg", "pointset_faces",
+           "suggest_fix", "failure_line", "THRESHOLDS"]
 
 MAX_FLIPPED = 0
 MAX_DEGENERATE_FRACTION = 0.01
