@@ -53,6 +53,7 @@ from .normals import tangent_frames
 from .row_chunks import for_each_chunk
 from .hole_filling import enclosed_points, is_slot
 from .loop_untangle import untangle_loops
+from .loop_wrap import wrap_outside_points
 from .slot_tips import put_back_slot_tips
 
 __all__ = [
@@ -971,6 +972,7 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         if not n:
             break
     kept, n_untangled = untangle_loops(points, normals, kept)
+    kept, n_wrapped, n_notches = wrap_outside_points(points, normals, kept, outward, ball_indices)
     in_loops = int(sum(c.size for c in kept))
     loops = [c[::int(decimate)] for c in kept]
     out_mask = np.zeros(points.shape[0], dtype=bool)
@@ -983,6 +985,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         "n_dropped_loops": int(n_dropped_loops),
         "loop_sizes": [int(c.size) for c in kept],
         "n_put_back": n_put_back,
+        "n_wrapped": n_wrapped,
+        "n_notches_dropped": n_notches,
         "n_hairpin_slots": n_hairpin_slots,
         "n_cover_loops": n_cover_loops,
         "n_untangled": n_untangled,
