@@ -145,6 +145,8 @@ def _selfcheck_summary(check: dict | None) -> str:
             + (f", loop turning {turning}" if turning else "")
             + (f", stretched (coherent Beltrami coefficient {check.get('coherent_beltrami', 0):.2f})"
                if "distorted" in (check.get("failed") or ()) else "")
+            + (f", {check.get('n_outside', 0)} point(s) outside the loops"
+               if "outside" in (check.get("failed") or ()) else "")
             + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops"
                + ("" if cov.get("applicable", True) else " (not judged: on an irregular sampling voids look like holes)")
                if cov else "")

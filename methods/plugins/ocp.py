@@ -261,7 +261,7 @@ class Ocp(Method):
         paper's energy refined the same way; and at the very last, after flipped triangles
         the check finds at a thin part, the neighbourhoods pruned of every edge whose
         ends' normals or tangent offsets disagree (``neighbours="pruned"``); after a loop
-        that crosses itself or turns the wrong way, or a stretched map (and no flip,
+        that crosses itself or turns the wrong way, a stretched map, or points beyond the loops (and no flip,
         which asked for it first), ``k_nn = retry_k_nn`` last. When every run fails its
         check, the least doubtful map is kept
         (:func:`~parambench.methods.base.selfcheck_doubt`).
@@ -315,7 +315,7 @@ class Ocp(Method):
             # kNN edge across it ("auto" cuts only edges across a gap with no short detour,
             # and round the rim of an ear the detour is short).
             retries.append({**params, "neighbours": "pruned"})
-        if failed & {"boundary-crossing", "turning", "distorted"} and "flipped" not in failed \
+        if failed & {"boundary-crossing", "turning", "distorted", "outside"} and "flipped" not in failed \
                 and params["retry_k_nn"] > params["k_nn"]:
             # Last, a loop that still crosses itself in uv, or a map still stretched, with
             # every energy and mesh: more neighbours for a smoother rim. Uniform random

@@ -643,3 +643,29 @@ def test_a_stretched_map_fails_as_distorted_only_where_a_conformal_map_is_promis
     assert suggest_fix(judged["failed"], {"refine": "auto", "k_nn": 8}, "ocp") == "try --param refine=mesh"
     unjudged = check_pointset_map(pts, stretched, normals, [outer])
     assert unjudged["passed"] and unjudged["coherent_beltrami"] == judged["coherent_beltrami"]
+
+
+def test_the_distortion_allowed_follows_the_noise():
+    """A clean input's conformal map may stretch less than a noisy one's: the limit is
+    MAX_COHERENT_BELTRAMI_CLEAN up to CLEAN_TOL_DEG of normal tolerance, MAX_COHERENT_BELTRAMI
+    at NORMAL_TOL_DEG, linear between."""
+    from parambench.methods.pointset.selfcheck import (CLEAN_TOL_DEG, MAX_COHERENT_BELTRAMI_CLEAN, NORMAL_TOL_DEG,
+                                                       coherent_limit)
+
+    assert coherent_limit(0.0) == coherent_limit(CLEAN_TOL_DEG) == coherent_limit(None) == MAX_COHERENT_BELTRAMI_CLEAN
+    assert coherent_limit(NORMAL_TOL_DEG) == pytest.approx(MAX_COHERENT_BELTRAMI)
+    middle = coherent_limit(0.5 * (CLEAN_TOL_DEG + NORMAL_TOL_DEG))
+    assert middle == pytest.approx(0.5 * (MAX_COHERENT_BELTRAMI_CLEAN + MAX_COHERENT_BELTRAMI))
+    # A clean grid stretched by s = sqrt(11/9) in v: nu = (s^2 - 1) / (s^2 + 1) = 0.1 everywhere,
+    # past the clean limit and under the noisy one (the old, single limit let it pass).
+    x, y = np.meshgrid(np.linspace(0, 1, 21), np.linspace(0, 1, 21))
+    xy = np.c_[x.ravel(), y.ravel()]
+    flat = np.c_[xy, np.zeros(len(xy))]
+    outer = np.r_[np.arange(21), 20 + 21 * np.arange(1, 21), 440 - np.arange(1, 21), 420 - 21 * np.arange(1, 20)]
+    normals = np.tile([0.0, 0.0, 1.0], (len(xy), 1))
+    judged = check_pointset_map(flat, xy * [1.0, np.sqrt(11.0 / 9.0)], normals, [outer], conformal=True)
+    assert judged["normal_tol_deg"] <= CLEAN_TOL_DEG
+    assert judged["coherent_beltrami"] == pytest.approx(0.1, abs=1e-4)
+    assert MAX_COHERENT_BELTRAMI_CLEAN < 0.1 < MAX_COHERENT_BELTRAMI
+    assert judged["failed"] == ["distorted"]
+    assert check_pointset_map(flat, xy, normals, [outer], conformal=True)["passed"]
