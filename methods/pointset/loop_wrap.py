@@ -95,20 +95,19 @@ def _in_plane(vectors: np.ndarray, normal: np.ndarray) -> np.ndarray:
 _CHUNK = 32768
 
 
-def _crossings(points, normals, edges: _LoopEdges, p, q, skip_a=None, skip_b=None) -> np.ndarray:
-    """Per segment (p_i, q_i): the loop edge it crosses (the first found), or -1.
+def _crossings(points, normals, edges: _LoopEdges, p, q) -> np.ndarray:
+    """Per segment (p_i, q_i): the loop edge it properly crosses (the first found), or -1.
 
-    Crossings are tested in the tangent plane at p; loop edges with an end at ``skip_a``
-    or ``skip_b`` (per segment) are not counted."""
+    Crossings are tested in the tangent plane at p; an edge sharing an end with the
+    segment only touches it."""
     out = np.empty(p.size, dtype=np.int64)
     for start in range(0, p.size, _CHUNK):
         sl = slice(start, start + _CHUNK)
-        out[sl] = _crossings_chunk(points, normals, edges, p[sl], q[sl],
-                                   None if skip_a is None else skip_a[sl], None if skip_b is None else skip_b[sl])
+        out[sl] = _crossings_chunk(points, normals, edges, p[sl], q[sl])
     return out
 
 
-def _crossings_chunk(points, normals, edges: _LoopEdges, p, q, skip_a, skip_b) -> np.ndarray:
+def _crossings_chunk(points, normals, edges: _LoopEdges, p, q) -> np.ndarray:
     near = edges.near(0.5 * (points[p] + points[q]))
     origin = points[p][:, None, :]
     n = normals[p][:, None, :]
@@ -116,9 +115,6 @@ def _crossings_chunk(points, normals, edges: _LoopEdges, p, q, skip_a, skip_b) -
     ea = _in_plane(points[edges.a[near]] - origin, n)
     eb = _in_plane(points[edges.b[near]] - origin, n)
     hit = _cross_2d(np.zeros_like(pq), pq, ea, eb)
-    for skip in (skip_a, skip_b):
-        if skip is not None:
-            hit &= (edges.a[near] != skip[:, None]) & (edges.b[near] != skip[:, None])
     first = np.argmax(hit, axis=1)
     return np.where(hit.any(axis=1), near[np.arange(p.size), first], -1)
 
@@ -225,8 +221,10 @@ def _insertions(points, normals, edges: _LoopEdges, pockets) -> list[tuple[int, 
         if not ei.size:
             continue
         e, m = crossed[ei], members[mi]
-        bad = (_crossings(points, normals, edges, m, edges.a[e], skip_a=edges.a[e], skip_b=edges.b[e]) >= 0) | \
-              (_crossings(points, normals, edges, m, edges.b[e], skip_a=edges.a[e], skip_b=edges.b[e]) >= 0)
+        # Edges sharing an end with a new edge cannot cross it properly; the edges next to
+        # the split one can cross the new edge from the other end.
+        bad = (_crossings(points, normals, edges, m, edges.a[e]) >= 0) | \
+            (_crossings(points, normals, edges, m, edges.b[e]) >= 0)
         if bad.all():
             continue
         in_span = (t[ei, mi] >= 0.0) & (t[ei, mi] <= 1.0)

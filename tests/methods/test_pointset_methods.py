@@ -58,7 +58,10 @@ def test_scp_tan_spins_and_ocp_does_not(dataset):
     surface = make_surface(dataset, 3000, sampling="jittered", seed=0).points_only()
     spun = get_method("scp-tan")(surface)
     assert spun.diagnostics["turning"][0] > 1  # Sec. 4.2: the boundary winds several times at k = 1
-    fixed = get_method("ocp")(surface, energy="paper")  # Sec. 4.2 as printed: W^tan needs k_opt >> 1
+    # Sec. 4.2 as printed: W^tan needs k_opt >> 1. Unrefined: with refine="auto" the self-check
+    # sends the paper energy's saddle and holes maps (1.08x / 1.05x scp-igl's QC, coherent
+    # Beltrami coefficient 0.09 / 0.07 on clean points) to the uv-mesh refinement.
+    fixed = get_method("ocp")(surface, energy="paper", refine="none")
     assert fixed.diagnostics["turning"][0] == 1 and fixed.diagnostics["k_opt"] > 1
     assert len(fixed.diagnostics["landscape"]["k"]) >= 3
 
