@@ -11,9 +11,10 @@ escape the self-check's other tests.
 Such points are found as pockets: in the band of points around the loops (the balls of
 the loop points), the edges from each point to its nearest ball members that cross a
 loop edge (in the tangent plane) are cut; a connected group of the rest that lies on the
-loop's outer side at most of its cut edges (the side the loop points' gap bisectors
-face) and that stays closed when grown through uncut edges beyond the band, within
-:data:`MAX_POCKET_SHARE` of its loop's size, is a pocket outside the loop (a row of
+loop's outer side at half of its cut edges or more (the side the loop points' gap
+bisectors face; a tie counts, as beside a notch of the loop) and that stays closed when
+grown through uncut edges beyond the band, within :data:`MAX_POCKET_SHARE` of its loop's
+size, is a pocket outside the loop (a row of
 points just inside a ragged rim can be cut off from the rest of the band too, but grows
 into the surface). Each round, one point per pocket is inserted into a loop edge its
 edges cross, as a convex hull is built: the point farthest beyond that edge (its foot
@@ -168,7 +169,7 @@ def _pockets(points, normals, loops, edges: _LoopEdges, ball_indices):
     total = np.bincount(group, minlength=sizes.size)
     loop_size = np.array([lp.size for lp in loops])
     out = []
-    for g in np.flatnonzero((total > 0) & (votes > 0.5 * total)):
+    for g in np.flatnonzero((total > 0) & (votes >= 0.5 * total)):
         mine = (group == g) & beyond
         cap = MAX_POCKET_SHARE * loop_size[np.bincount(edges.loop_of[by[mine]]).argmax()]
         members = _closed_group(points, normals, edges, ball_indices, on_loop, band[labels == g], cap)
