@@ -261,8 +261,8 @@ class Ocp(Method):
         paper's energy refined the same way; and at the very last, after flipped triangles
         the check finds at a thin part, the neighbourhoods pruned of every edge whose
         ends' normals or tangent offsets disagree (``neighbours="pruned"``); after a loop
-        that crosses itself or turns the wrong way, a stretched map, or points beyond the loops (and no flip,
-        which asked for it first), ``k_nn = retry_k_nn`` last. When every run fails its
+        that crosses itself or turns the wrong way, a stretched map, or points beyond the
+        loops (and no flip, which asked for it first), ``k_nn = retry_k_nn`` last. When every run fails its
         check, the least doubtful map is kept
         (:func:`~parambench.methods.base.selfcheck_doubt`).
 

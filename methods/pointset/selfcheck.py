@@ -79,8 +79,9 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   :func:`coherent_limit` in the area-weighted RMS over the cells (``coherent_beltrami``):
   ``MAX_COHERENT_BELTRAMI_CLEAN`` = 0.06 where the normal tolerance is at most
   ``CLEAN_TOL_DEG`` = 3 degrees (clean points), rising linearly to
-  ``MAX_COHERENT_BELTRAMI`` = 0.15 at ``NORMAL_TOL_DEG`` (noise of half a spacing). Noise makes nu random from triangle to triangle, and the
-  cells average it away; a map that stretches whole regions one way keeps it. Measured:
+  ``MAX_COHERENT_BELTRAMI`` = 0.15 at ``NORMAL_TOL_DEG`` (noise of half a spacing).
+  Noise makes nu random from triangle to triangle, and the cells average it away; a
+  map that stretches whole regions one way keeps it. Measured:
   ``ocp`` maps that pass otherwise, clean (generated surfaces random and graded at 2k,
   real meshes as points and scattered at 5k) 0-0.047 (the most on ``protrusions``'
   fingertips), at normal noise 0.5 spacings 0.046-0.078; two maps of uniform random
@@ -101,7 +102,7 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   mean a loop cuts across the surface. Measured on the real-data benchmark's 84 cases
   before the front end wrapped such loops: 13 cases had 1-3 points outside, up to 0.45
   spacings deep; after it, 3 cases (``real/bunny10k``, 3 points 0.32 deep, failing on
-  folds anyway; two slits at 0 and 0.009).
+  folds anyway; two slits at 0 and 0.009). It costs 0.3 s at 790k points.
 
 The facts are JSON-serialisable; ``passed`` is their conjunction and ``reason`` says in
 one line what failed, and why where the geometry tells

@@ -251,8 +251,8 @@ def test_coverage_not_judged_on_irregular_samplings_says_so(bump_xyz, tmp_path, 
 def test_the_summary_names_a_stretched_map_and_points_outside_the_loops():
     from parambench.bench.cli import _selfcheck_summary
 
-    check = {"passed": False, "n_flipped": 0, "n_degenerate": 0, "n_triangles": 3900, "failed": ["distorted", "outside"],
-             "coherent_beltrami": 0.097, "n_outside": 4}
+    check = {"passed": False, "n_flipped": 0, "n_degenerate": 0, "n_triangles": 3900,
+             "failed": ["distorted", "outside"], "coherent_beltrami": 0.097, "n_outside": 4}
     text = _selfcheck_summary(check)
     assert "stretched (coherent Beltrami coefficient 0.10)" in text and "4 point(s) outside the loops" in text
     assert "outside the loops" not in _selfcheck_summary(dict(check, failed=["distorted"]))
