@@ -1,4 +1,4 @@
-"""Planar geometry of the methods: polygon area and turning number, uv triangle orientation.
+"""Planar geometry of the methods: polygon area and turning number, uv triangle orientation, segment crossings.
 
 The methods' one definition of these (the turning-number penalty, the hybrid weights'
 folds, the point-set self-check). The evaluation keeps its own
@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["signed_area_2d", "turning_number", "triangle_signed_areas", "flipped_triangles", "COLLAPSE_REL_TOL"]
+__all__ = ["signed_area_2d", "turning_number", "triangle_signed_areas", "flipped_triangles", "segments_cross",
+           "COLLAPSE_REL_TOL"]
 
 #: A triangle whose |uv area| is at most this share of the mean |uv area| has no orientation.
 COLLAPSE_REL_TOL = 1e-12
@@ -91,3 +92,26 @@ def flipped_triangles(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
     live = np.abs(signed) > COLLAPSE_REL_TOL * np.abs(signed).mean()
     majority = 1.0 if np.count_nonzero(signed[live] > 0) >= np.count_nonzero(signed[live] < 0) else -1.0
     return live & (signed * majority < 0)
+
+
+def _orientation(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Twice the signed area of triangles (a, b, c): 2D points in the last axis, broadcast."""
+    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+
+
+def segments_cross(p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Whether segments pq and ab cross properly (each one's ends strictly on either side of the other).
+
+    Segments that share an end, or only touch, do not cross.
+
+    Parameters
+    ----------
+    p, q, a, b : (..., 2) numpy.ndarray of float64
+        End points, broadcast against each other.
+
+    Returns
+    -------
+    (...) numpy.ndarray of bool
+    """
+    return ((_orientation(p, q, a) * _orientation(p, q, b) < 0)
+            & (_orientation(a, b, p) * _orientation(a, b, q) < 0))

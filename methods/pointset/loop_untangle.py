@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry2d import segments_cross
 from .normals import tangent_frames
 
 __all__ = ["MAX_OFFSET", "MAX_NORMAL_ANGLE_DEG", "local_crossings", "untangle_loop", "untangle_loops"]
@@ -38,11 +39,6 @@ MAX_NORMAL_ANGLE_DEG = 45.0
 
 #: Rounds of moves per loop; each round undoes every crossing found that touches no other.
 _MAX_ROUNDS = 20
-
-
-def _orientation(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Twice the signed area of triangles (a, b, c), rows of 2D points."""
-    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
 
 
 def local_crossings(points: np.ndarray, normals: np.ndarray, loop: np.ndarray,
@@ -91,9 +87,7 @@ def local_crossings(points: np.ndarray, normals: np.ndarray, loop: np.ndarray,
     # The edge size - 1 steps ahead shares a point with edge i.
     for k in range(2, min(max_offset, size - 2) + 1):
         b0, b1 = chart(pos + k), chart(pos + k + 1)
-        crosses = ((_orientation(a0, a1, b0) * _orientation(a0, a1, b1) < 0)
-                   & (_orientation(b0, b1, a0) * _orientation(b0, b1, a1) < 0)
-                   & flat_a & flat(pos + k) & flat(pos + k + 1))
+        crosses = segments_cross(a0, a1, b0, b1) & flat_a & flat(pos + k) & flat(pos + k + 1)
         hits = np.flatnonzero(crosses)
         found.append(np.stack([hits, np.full(hits.size, k)], axis=1))
     return np.concatenate(found).astype(np.int64)

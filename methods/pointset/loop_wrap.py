@@ -38,6 +38,9 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from ..geometry2d import segments_cross
+from .normals import tangent_frames
+
 __all__ = ["wrap_outside_points", "MAX_WRAP_ROUNDS", "MAX_POCKET_SHARE", "NOTCH_DEPTH"]
 
 #: Most rounds of insertions (each inserts at most one point per pocket).
@@ -63,6 +66,8 @@ class _LoopEdges:
         sizes = np.array([lp.size for lp in loops])
         self.starts = np.cumsum(sizes) - sizes
         self.loop_of = np.repeat(np.arange(len(loops)), sizes)
+        start = np.repeat(self.starts, sizes)
+        self.prev = start + (np.arange(self.a.size) - start - 1) % np.repeat(sizes, sizes)  # the edge ending at a
         side = _unit(np.cross(points[self.b] - points[self.a], _unit(normals[self.a] + normals[self.b])))
         # One side per loop: the one its points' gap bisectors face.
         facing = np.einsum("ij,ij->i", side, outward[self.a] + outward[self.b])
@@ -75,21 +80,6 @@ class _LoopEdges:
         k = min(_NEAR_EDGES, self.a.size)
         _, idx = self.tree.query(centres, k=k)
         return idx.reshape(centres.shape[0], k)
-
-
-def _cross_2d(p, q, a, b) -> np.ndarray:
-    """Proper crossings of segments pq and ab (2D, broadcast over leading axes)."""
-    def orient(u, v, w):
-        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
-    return ((orient(p, q, a) * orient(p, q, b) < 0) & (orient(a, b, p) * orient(a, b, q) < 0))
-
-
-def _in_plane(vectors: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """2D coordinates of 3D vectors (..., 3) in the plane across ``normal`` (rows, broadcast)."""
-    helper = np.where(np.abs(normal[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    e1 = _unit(np.cross(normal, helper))
-    e2 = np.cross(normal, e1)
-    return np.stack([np.einsum("...j,...j->...", vectors, e1), np.einsum("...j,...j->...", vectors, e2)], axis=-1)
 
 
 #: Segments tested per chunk (a few tens of MB of temporaries).
@@ -111,11 +101,14 @@ def _crossings(points, normals, edges: _LoopEdges, p, q) -> np.ndarray:
 def _crossings_chunk(points, normals, edges: _LoopEdges, p, q) -> np.ndarray:
     near = edges.near(0.5 * (points[p] + points[q]))
     origin = points[p][:, None, :]
-    n = normals[p][:, None, :]
-    pq = _in_plane(points[q][:, None, :] - origin, n)
-    ea = _in_plane(points[edges.a[near]] - origin, n)
-    eb = _in_plane(points[edges.b[near]] - origin, n)
-    hit = _cross_2d(np.zeros_like(pq), pq, ea, eb)
+    e1, e2 = tangent_frames(normals[p])
+
+    def chart(vectors):  # (S, K, 3) -> (S, K, 2) on each segment's tangent plane at p
+        return np.stack([np.einsum("skj,sj->sk", vectors, e1), np.einsum("skj,sj->sk", vectors, e2)], axis=-1)
+
+    pq = chart(points[q][:, None, :] - origin)
+    hit = segments_cross(np.zeros_like(pq), pq, chart(points[edges.a[near]] - origin),
+                         chart(points[edges.b[near]] - origin))
     first = np.argmax(hit, axis=1)
     return np.where(hit.any(axis=1), near[np.arange(p.size), first], -1)
 
@@ -245,12 +238,8 @@ def _drop_notches(points, normals, loops, outward, touched: np.ndarray, max_roun
     dropped = 0
     for _ in range(max_rounds):
         edges = _LoopEdges(points, normals, loops, outward)
-        v = edges.a
-        sizes = np.array([lp.size for lp in loops])
-        local = np.arange(v.size) - np.repeat(edges.starts, sizes)
-        size = np.repeat(sizes, sizes)
-        u = edges.a[np.repeat(edges.starts, sizes) + (local - 1) % size]
-        w = edges.b
+        v, u, w = edges.a, edges.a[edges.prev], edges.b
+        size = np.array([lp.size for lp in loops])[edges.loop_of]
         chord = points[w] - points[u]
         side = _unit(np.cross(chord, _unit(normals[u] + normals[w]))) * edges.sign[edges.loop_of, None]
         depth = -np.einsum("ij,ij->i", points[v] - points[u], side)

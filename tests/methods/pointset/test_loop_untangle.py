@@ -116,3 +116,17 @@ def test_the_rims_of_a_fold_are_not_taken_for_a_curl():
     front = build_frontend(fold.points)
     assert front.diagnostics["boundary"]["n_untangled"] == 0
     assert len(front.boundary_loops) == len(fold.boundary_loops) == 1
+
+
+def test_segments_cross_only_properly():
+    from parambench.methods.geometry2d import segments_cross
+
+    p, q = np.array([0.0, 0.0]), np.array([2.0, 0.0])
+    assert segments_cross(p, q, np.array([1.0, -1.0]), np.array([1.0, 1.0]))
+    assert not segments_cross(p, q, np.array([3.0, -1.0]), np.array([3.0, 1.0]))  # beyond q
+    assert not segments_cross(p, q, q, np.array([3.0, 1.0]))  # a shared end only touches
+    assert not segments_cross(p, q, np.array([1.0, 0.0]), np.array([1.0, 1.0]))  # an end on pq touches
+    # Broadcast: one segment against a (2, 3) grid of others.
+    a = np.array([[[0.5, -1.0], [1.5, 1.0], [5.0, -1.0]], [[0.5, 1.0], [0.5, 0.5], [1.0, -2.0]]])
+    b = a + np.array([0.0, 2.0]) * np.where(a[..., 1:] < 0, 1.0, -1.0)  # vertical, across y = 0 or onto it
+    np.testing.assert_array_equal(segments_cross(p, q, a, b), [[True, True, False], [True, True, False]])
