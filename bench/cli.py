@@ -139,8 +139,10 @@ def _selfcheck_summary(check: dict | None) -> str:
     turning = check.get("turning_numbers")
     cov = check.get("coverage")
     uncertain = check.get("n_flipped_uncertain", 0)
+    ring = check.get("n_ring_flipped", 0)
     return (f"; self-check {'ok' if check['passed'] else 'FAILED'}: {check.get('n_flipped', 0)} flipped"
             + (f" (+{uncertain} within the normals' error of {check.get('normal_tol_deg', 0):g} deg)" if uncertain else "")
+            + (f", {ring} triangle(s) of neighbouring points reversed" if ring else "")
             + f", {check.get('n_degenerate', 0)} degenerate of {check['n_triangles']} triangles"
             + (f", loop turning {turning}" if turning else "")
             + (f", stretched (coherent Beltrami coefficient {check.get('coherent_beltrami', 0):.2f})"

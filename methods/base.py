@@ -558,8 +558,9 @@ def selfcheck_doubt(check: dict) -> tuple[bool, bool, int]:
     """How doubtful a point-set map is by its self-check facts; smaller is better.
 
     Ordered by: a structural failure (:data:`_STRUCTURAL_FAILURES`), then candidates off the
-    loops ("coverage": a missed hole), then the count of flipped triangles (plus the
-    degenerate ones where those fail the check). A map that passed scores (False, False, 0).
+    loops ("coverage": a missed hole), then the count of flipped triangles (those of the uv
+    triangulation and the reversed triangles of neighbouring points, plus the degenerate
+    ones where those fail the check). A map that passed scores (False, False, 0).
 
     Parameters
     ----------
@@ -571,7 +572,8 @@ def selfcheck_doubt(check: dict) -> tuple[bool, bool, int]:
     tuple of (bool, bool, int)
     """
     failed = set(check.get("failed") or ())
-    bad = int(check.get("n_flipped") or 0) + (int(check.get("n_degenerate") or 0) if "degenerate" in failed else 0)
+    bad = (int(check.get("n_flipped") or 0) + int(check.get("n_ring_flipped") or 0)
+           + (int(check.get("n_degenerate") or 0) if "degenerate" in failed else 0))
     return bool(failed & _STRUCTURAL_FAILURES), "coverage" in failed, bad
 
 

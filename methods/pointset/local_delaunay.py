@@ -29,6 +29,7 @@ from parambench.datasets_gen.errors import InvalidInputError
 
 from ..numba_cache import configure_numba_cache
 from .normals import tangent_frames
+from .row_chunks import for_each_chunk
 
 __all__ = ["local_delaunay_rings", "tangent_plane_rings", "drop_outside_boundary", "one_ring_cotangent_weights"]
 
@@ -181,8 +182,8 @@ def local_delaunay_rings(points: np.ndarray, normals: np.ndarray, candidates: np
     e1, e2 = tangent_frames(np.asarray(normals, dtype=np.float64))
     valid = cand >= 0
     rings = np.full(cand.shape + (2,), -1, dtype=np.int64)
-    for lo in range(0, n, _BLOCK):
-        sl = slice(lo, lo + _BLOCK)
+
+    def block(sl: slice) -> None:
         offsets = pts[np.where(valid[sl], cand[sl], 0)] - pts[sl, None, :]
         coords = np.stack([np.einsum("nkd,nd->nk", offsets, e1[sl]), np.einsum("nkd,nd->nk", offsets, e2[sl])],
                           axis=-1)
@@ -191,6 +192,8 @@ def local_delaunay_rings(points: np.ndarray, normals: np.ndarray, candidates: np
         ok = local >= 0
         rings[sl] = np.where(ok, np.take_along_axis(cand[sl], np.where(ok, local, 0).reshape(len(local), -1),
                                                     axis=1).reshape(local.shape), -1)
+
+    for_each_chunk(block, n, _BLOCK)  # blocks write disjoint rows; the kernel releases the GIL
     return rings
 
 

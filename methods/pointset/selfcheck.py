@@ -45,6 +45,13 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   Under noise the check is only as good as its normals: the front end's are refitted
   on larger neighbourhoods where the fit residual says noise
   (:func:`parambench.methods.pointset.normals.noise_adaptive_normals`).
+* **flipped, off the uv triangulation** (``n_ring_flipped`` <= ``MAX_RING_FLIPPED`` = 0):
+  the triangulation above may pick, of two triangles sharing a quad, the diagonal along
+  which the map stays consistent, and hide a fold (a graded plane's boundary spike). Each
+  point's tangent-plane Delaunay one-ring among its neighbours is read too, and a
+  well-shaped triangle of it (for every corner's normal within the tolerance) that the map
+  clearly reverses fails the check
+  (:mod:`parambench.methods.pointset.ring_orientation`; ``n_ring_judged``).
 * **degenerate** (share of triangles <= ``MAX_DEGENERATE_FRACTION`` = 1 %): zero uv area
   (below ``ZERO_AREA_REL`` = 1e-10 of the median), or a 3D edge longer than
   ``BRIDGE_FACTOR`` = 4 times the local spacing of its points (the triangle bridges a
@@ -123,6 +130,7 @@ from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import triangle_signed_areas, turning_number
 from .failure_causes import cause_advice, describe_causes, failure_causes
+from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation
 from .row_chunks import for_each_chunk
 from .uv_triangulation import loop_winding_numbers, triangulate_uv
 
@@ -150,6 +158,7 @@ MAX_COHERENT_BELTRAMI_CLEAN = 0.06
 CLEAN_TOL_DEG = 3.0
 COHERENT_CELL_TRIANGLES = 100
 MAX_OUTSIDE_DEPTH = 0.25
+MAX_RING_FLIPPED = 0
 
 #: The thresholds as reported in ``diagnostics["selfcheck"]["thresholds"]``.
 THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENERATE_FRACTION,
@@ -162,7 +171,8 @@ THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENER
               "min_missed_chain": MIN_MISSED_CHAIN,
               "max_uncovered_fraction": MAX_UNCOVERED_FRACTION, "max_coherent_beltrami": MAX_COHERENT_BELTRAMI,
               "max_coherent_beltrami_clean": MAX_COHERENT_BELTRAMI_CLEAN, "clean_tol_deg": CLEAN_TOL_DEG,
-              "max_outside_depth": MAX_OUTSIDE_DEPTH}
+              "max_outside_depth": MAX_OUTSIDE_DEPTH, "max_ring_flipped": MAX_RING_FLIPPED,
+              "ring_quality": RING_QUALITY, "ring_normal_deg": RING_NORMAL_DEG}
 
 #: Most cells per side of the uv bounding box over which :func:`coherent_beltrami` averages ...
 _MAX_CELLS = 8
@@ -406,6 +416,17 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
     return facts, n_dropped, _FailedFaces(faces, flipped, zero & ~rim)
 
 
+def _ring_facts(points, uv, normals, knn, loops, spacing_pt, tol_deg: float, face_facts: dict,
+                faces: np.ndarray) -> tuple[dict, np.ndarray]:
+    """:func:`~parambench.methods.pointset.ring_orientation.ring_orientation` with the uv
+    triangulation's mirror and zero-area threshold."""
+    area = np.abs(triangle_signed_areas(uv, faces)) if faces.size else np.zeros(0)
+    min_area = ZERO_AREA_REL * (float(np.median(area)) if area.size else 0.0)
+    return ring_orientation(points, uv, normals, knn, loops, spacing_pt, tol_deg=tol_deg,
+                            mirrored=bool(face_facts.get("mirrored", False)), min_uv_area=min_area,
+                            bridge_factor=BRIDGE_FACTOR)
+
+
 def coherent_beltrami(points: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float:
     """How far a map stretches whole regions one way: its Beltrami coefficient averaged over cells.
 
@@ -561,6 +582,9 @@ def _reason(facts: dict) -> str:
         parts.append(f"{facts['n_flipped']} flipped triangle(s) of {facts['n_triangles']}")
     if _too_many_inner_slivers(facts):
         parts.append(f"{facts['n_flipped_inner_slivers']} flipped sliver triangle(s) off the boundary loops")
+    if facts.get("n_ring_flipped", 0) > MAX_RING_FLIPPED:
+        parts.append(f"{facts['n_ring_flipped']} well-shaped triangle(s) of neighbouring points reversed in uv "
+                     f"(the map folds where its uv triangulation does not show it)")
     if _too_uncertain(facts):
         parts.append(f"{facts['n_flipped_uncertain']} triangles flipped within the normals' error "
                      f"(more than {100 * MAX_UNCERTAIN_FRACTION:g} % of {facts['n_triangles']})")
@@ -624,7 +648,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         ``triangulation`` ("cdt", "delaunay", "delaunay-fallback" or "none"),
         ``n_triangles``, ``n_removed_outside``, ``normal_tol_deg``, ``n_flipped``,
         ``n_flipped_slivers`` (of them ``n_flipped_inner_slivers``, not all corners on a
-        loop), ``n_flipped_uncertain``, ``mirrored``,
+        loop), ``n_flipped_uncertain``, ``mirrored``, ``n_ring_judged`` and ``n_ring_flipped``
+        (:func:`~parambench.methods.pointset.ring_orientation.ring_orientation`),
         ``n_zero_area``, ``n_bridging``, ``n_degenerate``, ``degenerate_fraction``,
         ``turning_numbers`` and ``expected_turning`` (per loop), ``turning_ok``,
         ``coverage`` (:func:`loop_coverage`, or None), ``thresholds``, ``seconds``; when
@@ -657,6 +682,12 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
                                                          drop_bridging=not loops, tol_deg=tol, on_loop=on_loop)
             facts.update(normal_tol_deg=round(tol, 3), triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
                          boundary_crosses=tri.boundary_crosses, **face_facts)
+            ring_facts, ring_flipped = _ring_facts(points, uv, normals, knn, loops, spacing_pt, tol, face_facts,
+                                                   tri.faces)
+            facts.update(ring_facts)
+            failing = _FailedFaces(np.concatenate([failing.faces, ring_flipped]),
+                                   np.concatenate([failing.flipped, np.ones(len(ring_flipped), dtype=bool)]),
+                                   np.concatenate([failing.zero, np.zeros(len(ring_flipped), dtype=bool)]))
     if loops and np.all(np.isfinite(uv)):
         # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
         mirrored = facts.get("mirrored", turning_number(uv[loops[0]]) < 0)
@@ -666,7 +697,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     failed = []
     if "reason_override" in facts:
         failed.append("triangulation")
-    if facts.get("n_flipped", 0) > MAX_FLIPPED or _too_uncertain(facts) or _too_many_inner_slivers(facts):
+    if (facts.get("n_flipped", 0) > MAX_FLIPPED or _too_uncertain(facts) or _too_many_inner_slivers(facts)
+            or facts.get("n_ring_flipped", 0) > MAX_RING_FLIPPED):
         failed.append("flipped")
     if facts.get("boundary_crosses", False):
         failed.append("boundary-crossing")

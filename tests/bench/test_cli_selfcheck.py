@@ -111,6 +111,8 @@ def test_flatten_summary_names_uncertain_flips_only_when_there_are_some():
     assert _selfcheck_summary(check) == "; self-check ok: 0 flipped, 0 degenerate of 3900 triangles"
     text = _selfcheck_summary(dict(check, n_flipped_uncertain=2))
     assert "0 flipped (+2 within the normals' error of 10 deg), 0 degenerate" in text
+    text = _selfcheck_summary(dict(check, passed=False, n_ring_flipped=1))
+    assert text.startswith("; self-check FAILED: 0 flipped, 1 triangle(s) of neighbouring points reversed, 0 degenerate")
 
 
 def test_the_summary_says_when_the_map_is_a_retry():
