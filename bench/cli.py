@@ -140,6 +140,7 @@ def _selfcheck_summary(check: dict | None) -> str:
     cov = check.get("coverage")
     uncertain = check.get("n_flipped_uncertain", 0)
     ring = check.get("n_ring_flipped", 0)
+    unresolved = check.get("n_unresolved", 0)
     return (f"; self-check {'ok' if check['passed'] else 'FAILED'}: {check.get('n_flipped', 0)} flipped"
             + (f" (+{uncertain} within the normals' error of {check.get('normal_tol_deg', 0):g} deg)" if uncertain else "")
             + (f", {ring} triangle(s) of neighbouring points reversed" if ring else "")
@@ -149,6 +150,8 @@ def _selfcheck_summary(check: dict | None) -> str:
                if "distorted" in (check.get("failed") or ()) else "")
             + (f", {check.get('n_outside', 0)} point(s) outside the loops"
                if "outside" in (check.get("failed") or ()) else "")
+            + (f", {unresolved} point(s) where the sampling does not resolve the surface (neighbouring normals "
+               f"over 60 deg apart): a fold there may go unseen" if unresolved else "")
             + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops"
                + ("" if cov.get("applicable", True) else " (not judged: on an irregular sampling voids look like holes)")
                if cov else "")

@@ -51,7 +51,10 @@ against the 3D geometry. Thresholds (module constants, reported with every check
   point's tangent-plane Delaunay one-ring among its neighbours is read too, and a
   well-shaped triangle of it (for every corner's normal within the tolerance) that the map
   clearly reverses fails the check
-  (:mod:`parambench.methods.pointset.ring_orientation`; ``n_ring_judged``).
+  (:mod:`parambench.methods.pointset.ring_orientation`; ``n_ring_judged``). Where a point's
+  neighbours' normals turn by more than 60 degrees the points do not resolve the surface and
+  no test can tell a fold there (``protrusions``' fingertips: maps with 1-3 folds there
+  pass): ``n_unresolved`` counts those points, reported, not judged.
 * **degenerate** (share of triangles <= ``MAX_DEGENERATE_FRACTION`` = 1 %): zero uv area
   (below ``ZERO_AREA_REL`` = 1e-10 of the median), or a 3D edge longer than
   ``BRIDGE_FACTOR`` = 4 times the local spacing of its points (the triangle bridges a
@@ -130,7 +133,7 @@ from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import triangle_signed_areas, turning_number
 from .failure_causes import cause_advice, describe_causes, failure_causes
-from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation
+from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation, unresolved_points
 from .row_chunks import for_each_chunk
 from .uv_triangulation import loop_winding_numbers, triangulate_uv
 
@@ -649,7 +652,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         ``n_triangles``, ``n_removed_outside``, ``normal_tol_deg``, ``n_flipped``,
         ``n_flipped_slivers`` (of them ``n_flipped_inner_slivers``, not all corners on a
         loop), ``n_flipped_uncertain``, ``mirrored``, ``n_ring_judged`` and ``n_ring_flipped``
-        (:func:`~parambench.methods.pointset.ring_orientation.ring_orientation`),
+        (:func:`~parambench.methods.pointset.ring_orientation.ring_orientation`), ``n_unresolved``
+        (:func:`~parambench.methods.pointset.ring_orientation.unresolved_points`),
         ``n_zero_area``, ``n_bridging``, ``n_degenerate``, ``degenerate_fraction``,
         ``turning_numbers`` and ``expected_turning`` (per loop), ``turning_ok``,
         ``coverage`` (:func:`loop_coverage`, or None), ``thresholds``, ``seconds``; when
@@ -684,7 +688,7 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
                          boundary_crosses=tri.boundary_crosses, **face_facts)
             ring_facts, ring_flipped = _ring_facts(points, uv, normals, knn, loops, spacing_pt, tol, face_facts,
                                                    tri.faces)
-            facts.update(ring_facts)
+            facts.update(ring_facts, n_unresolved=int(unresolved_points(normals, knn).sum()))
             failing = _FailedFaces(np.concatenate([failing.faces, ring_flipped]),
                                    np.concatenate([failing.flipped, np.ones(len(ring_flipped), dtype=bool)]),
                                    np.concatenate([failing.zero, np.zeros(len(ring_flipped), dtype=bool)]))

@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.surface import MethodInput
-from parambench.methods.pointset.ring_orientation import ring_orientation
+from parambench.methods.pointset.ring_orientation import ring_orientation, unresolved_points
 from parambench.methods.registry import get_method
 
 
@@ -86,3 +86,15 @@ def test_ocp_on_a_graded_plane_has_no_fold_the_uv_triangulation_hides():
     metrics = evaluate(surf.points, surf.faces, final.uv)
     assert final.diagnostics["selfcheck"]["passed"]
     assert metrics["foldovers"] == 0 and metrics["qc_mean"] < 1.001
+
+
+def test_unresolved_points_are_those_beside_a_normal_that_turns_away():
+    points, normals, knn, _ = _plane()
+    assert not unresolved_points(normals, knn).any()
+    i = 17
+    tilted = normals.copy()
+    tilted[i] = [np.sin(np.radians(70.0)), 0.0, np.cos(np.radians(70.0))]
+    mask = unresolved_points(tilted, knn)
+    assert mask[i] and set(np.flatnonzero(mask)) == {i} | set(np.flatnonzero((knn == i).any(axis=1)))
+    tilted[i] = [np.sin(np.radians(50.0)), 0.0, np.cos(np.radians(50.0))]  # within 60 degrees
+    assert not unresolved_points(tilted, knn).any()
