@@ -357,6 +357,10 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
                    else "not judged (irregular sampling: voids look like holes)")
         coverage = (f", loop coverage {verdict}: {cov['n_uncovered']} of {cov['n_candidates']} boundary "
                     f"candidates off the loops, largest connected group {cov['largest_uncovered_group']}")
+    unresolved = (report.get("selfcheck") or {}).get("n_unresolved", 0)
+    if unresolved:
+        coverage += (f", {unresolved} point(s) where the sampling does not resolve the surface (neighbouring normals "
+                     f"over 60 deg apart: a map's fold there may go unseen)")
     print(f"{surface.n_points} points, mean spacing {report['mean_spacing']:.4g}, "
           f"{len(loops)} boundary loop(s){coverage} -> {out}")
     if cov and not cov["passed"]:

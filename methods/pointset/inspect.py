@@ -9,6 +9,7 @@ from parambench.datasets_gen.surface import Surface
 from .coincident import coincident_groups, warn_merged
 from .frontend import build_frontend
 from .plugin_support import frontend_candidates
+from .ring_orientation import unresolved_points
 from .selfcheck import loop_coverage
 
 __all__ = ["inspect_surface"]
@@ -35,9 +36,11 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         ``negative_weight_fraction`` {"interior", "boundary"},
         ``reconstruction_error`` {"mean", "max", "unit"} (R_x / l^2), ``ball_size``,
         ``timings`` (seconds per stage), ``params``, the full ``diagnostics`` and
-        ``selfcheck``: the boundary part of a map's self-check, ``{"coverage":
-        loop_coverage(...) or None}`` (:func:`parambench.methods.pointset.selfcheck.loop_coverage`:
-        do the loops cover the angle-criterion candidates?).
+        ``selfcheck``: the parts of a map's self-check that need no map, ``{"coverage":
+        loop_coverage(...) or None, "n_unresolved": int}``
+        (:func:`parambench.methods.pointset.selfcheck.loop_coverage`: do the loops cover the
+        angle-criterion candidates?; :func:`parambench.methods.pointset.ring_orientation.unresolved_points`:
+        points where the sampling does not resolve the surface, and a map's fold would go unseen).
 
     Raises
     ------
@@ -68,5 +71,6 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         "timings": {k: float(v) for k, v in fe.timings.items()},
         "params": dict(fe.params),
         "diagnostics": diag,
-        "selfcheck": {"coverage": coverage},
+        "selfcheck": {"coverage": coverage,
+                      "n_unresolved": int(unresolved_points(fe.normals, fe.knn_indices).sum())},
     }

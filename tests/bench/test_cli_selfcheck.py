@@ -101,7 +101,22 @@ def test_inspect_writes_loop_coverage(bump_xyz, tmp_path, capsys):
     assert main(["inspect", str(src), "-o", str(out)]) == 0
     cov = json.loads(out.read_text())["selfcheck"]["coverage"]
     assert cov["passed"] and 0 < cov["n_candidates"] < len(points) and cov["n_uncovered"] < cov["n_candidates"]
-    assert "loop coverage ok" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "loop coverage ok" in text and "does not resolve" not in text
+    assert json.loads(out.read_text())["selfcheck"]["n_unresolved"] == 0
+
+
+def test_inspect_names_the_points_the_sampling_does_not_resolve(tmp_path, capsys):
+    # protrusions' fingertips are thinner than 2k points sample: neighbours' normals turn away.
+    from parambench.datasets_gen.registry import make_surface
+
+    src = tmp_path / "protrusions.xyz"
+    np.savetxt(src, make_surface("protrusions", 2000, sampling="jittered", seed=1).points)
+    out = tmp_path / "front.json"
+    assert main(["inspect", str(src), "-o", str(out)]) == 0
+    n = json.loads(out.read_text())["selfcheck"]["n_unresolved"]
+    assert 20 < n < 400
+    assert f", {n} point(s) where the sampling does not resolve the surface" in capsys.readouterr().out
 
 
 def test_flatten_summary_names_uncertain_flips_only_when_there_are_some():

@@ -162,3 +162,4 @@ def test_inspect_surface_is_json(make_height_patch):
     assert set(back["negative_weight_fraction"]) == {"interior", "boundary"}
     assert set(back["reconstruction_error"]) >= {"mean", "max"}
     assert set(back["timings"]) == set(STAGES)
+    assert back["selfcheck"]["n_unresolved"] == 0  # a flat patch: every neighbour's normal agrees
