@@ -19,7 +19,7 @@ from scipy.spatial import Delaunay, cKDTree
 
 from parambench.bench.metrics import evaluate
 from parambench.bench.run_cell import _method_input
-from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
+from parambench.datasets_gen.errors import InvalidInputError, SolverError, UnknownNameError
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods import get_method
 from parambench.methods.plugins.fbcp_pc import _loop_neighbour_columns, fbcp_laplacian
@@ -189,6 +189,44 @@ def test_bad_parameters_raise_project_errors():
         get_method("fbcp-pc")(surf, k_local=2)
     with pytest.raises(InvalidInputError, match="boundary='detected'"):
         get_method("fbcp-pc")(surf, boundary="given")  # method input carries no loops
+    for bad in (2, -1, True, 8.0):
+        with pytest.raises(InvalidInputError, match="retry_k_local"):
+            get_method("fbcp-pc")(surf, retry_k_local=bad)
+
+
+# ---------------------------------------------------------------------------- retries
+@pytest.mark.parametrize(("k_local", "retry", "sizes"), [(16, 32, [32, 24]), (16, 0, []), (32, 32, []),
+                                                         (16, 18, [18, 17]), (16, 17, [17])])
+def test_retry_sizes(k_local, retry, sizes):
+    from parambench.methods.plugins.fbcp_pc import FbcpPc
+
+    assert FbcpPc._retry_sizes({"k_local": k_local, "retry_k_local": retry}) == sizes
+
+
+def test_an_indefinite_energy_on_random_points_retries_with_more_neighbours():
+    # Uniform random points on a plane (2k): the 16-point one-rings disagree and the energy
+    # is indefinite; with 32 the map is the plane itself, up to a similarity.
+    surf = make_surface("plane", 2000, sampling="random", seed=0)
+    with pytest.raises(SolverError, match="indefinite"):
+        get_method("fbcp-pc")(surf.method_input(needs_faces=False), retry_k_local=0)
+    res = get_method("fbcp-pc")(surf.method_input(needs_faces=False))
+    check = res.diagnostics["selfcheck"]
+    assert check["passed"] and check["after_error"]["params"] == {"k_local": 32}
+    metrics = evaluate(surf.points, surf.faces, res.uv)
+    assert metrics["foldovers"] == 0 and metrics["qc_mean"] < 1.01
+
+
+def test_a_folded_map_retries_with_more_neighbours():
+    surf = make_surface("saddle", 2000, sampling="random", seed=0)
+    first = get_method("fbcp-pc")(surf.method_input(needs_faces=False), retry_k_local=0)
+    assert not first.diagnostics["selfcheck"]["passed"]
+    assert evaluate(surf.points, surf.faces, first.uv)["foldovers"] > 0
+    res = get_method("fbcp-pc")(surf.method_input(needs_faces=False))
+    check = res.diagnostics["selfcheck"]
+    assert check["passed"] and check["retry"]["params"] == {"k_local": 32}
+    base = evaluate(surf.points, surf.faces, get_method("scp-igl")(surf).uv)["qc_mean"]
+    metrics = evaluate(surf.points, surf.faces, res.uv)
+    assert metrics["foldovers"] == 0 and metrics["qc_mean"] < 1.01 * base
 
 
 # --------------------------------------------------------- given loops: no leak, coincident
