@@ -354,7 +354,8 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
     if result is None:
         info.update(ocp_qc_mean=None, ocp_foldovers=None, qc_ratio_vs_scp_igl=None, time_ratio_vs_scp_igl=None,
                     selfcheck_passed=None, selfcheck_failed=None, selfcheck_retry=None, selfcheck_kept=None,
-                    selfcheck_n_outside=None, selfcheck_outside_depth=None, ocp_loops=None)
+                    selfcheck_n_outside=None, selfcheck_outside_depth=None, selfcheck_n_ring_flipped=None,
+                    selfcheck_n_unresolved=None, ocp_loops=None)
     else:
         quality = _quality(surface, result.uv)
         check = result.diagnostics.get("selfcheck", {})
@@ -364,6 +365,7 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
                     selfcheck_passed=bool(check.get("passed", False)), selfcheck_failed=check.get("failed"),
                     selfcheck_retry=check.get("retry"), selfcheck_n_outside=check.get("n_outside"),
                     selfcheck_outside_depth=check.get("outside_depth"),
+                    selfcheck_n_ring_flipped=check.get("n_ring_flipped"), selfcheck_n_unresolved=check.get("n_unresolved"),
                     selfcheck_kept=(check.get("kept") or {}).get("params") if not check.get("passed") else None,
                     ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
     benchmark.extra_info.update(info)

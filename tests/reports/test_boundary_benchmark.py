@@ -92,6 +92,18 @@ def test_a_noisy_case_is_judged_on_foldovers(tmp_path):
     assert "self-check all the same" not in boundary_benchmark_section(stats).blocks[0].text
 
 
+def test_the_summary_names_maps_that_passed_their_check_with_foldovers(tmp_path):
+    stats = load_benchmarks([_write(tmp_path / "unseen.json", [
+        _case("saddle-random-2k-noise0.5", ocp_qc=1.69, folds=2, misplaced=0),
+        _case("bump-random-2k", ocp_qc=1.04, folds=3, passed=False, failed=["flipped"]),
+        _case("plane-random-2k")])])
+    summary = boundary_benchmark_section(stats).blocks[0].text
+    assert " 1 map(s) passed their self-check with foldovers on the ground-truth mesh (saddle-random-2k-noise0.5 2)" \
+        in summary
+    clean = load_benchmarks([_write(tmp_path / "clean.json", [_case("plane-random-2k")])])
+    assert "passed their self-check with foldovers" not in boundary_benchmark_section(clean).blocks[0].text
+
+
 def test_the_summary_names_maps_that_meet_the_target_but_failed_their_check(tmp_path):
     cow = dict(_case("cow-cut", ocp_qc=1.009, passed=False, failed=["flipped"]),
                selfcheck_kept={"neighbours": "pruned"})
