@@ -84,7 +84,9 @@ _EMPTY, _KEPT, _REVERSED = 0, 1, 2
 def _shaped_for(nx, ny, nz, p, unit, sin_tol, q_min):
     """The triangle ``p`` (3 x 3), of 3D normal ``(nx, ny, nz)`` (twice its area), is
     counter-clockwise about ``unit`` with quality >= ``q_min`` on ``unit``'s plane, for
-    every reference normal within the tolerance (``sin_tol``)."""
+    every reference normal within the tolerance (``sin_tol``): the self-check's tangent-plane
+    sliver test (``selfcheck._tangent_sliver``, the same wobble bound) for one triangle and
+    one normal, compiled."""
     area = 0.5 * (nx * unit[0] + ny * unit[1] + nz * unit[2])
     cx = ny * unit[2] - nz * unit[1]
     cy = nz * unit[0] - nx * unit[2]

@@ -382,6 +382,7 @@ class _FailedFaces(NamedTuple):
     faces: np.ndarray  # (M, 3) the triangles judged
     flipped: np.ndarray  # (M,) flipped, slivers and uncertain ones included
     zero: np.ndarray  # (M,) zero uv area, off the rim
+    zero_area: float  # the uv area at or below which a triangle has none
 
 
 def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
@@ -398,7 +399,8 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
     # own bends of 1e-13 with triangles of no area, fanning along the rim. Not the map's.
     rim = per.sliver & (on_loop[faces].all(axis=1) if on_loop is not None else False)
     bridging, area, agree, sliver, uncertain = per
-    zero = area <= ZERO_AREA_REL * (np.median(area) if area.size else 0.0)
+    zero_area = ZERO_AREA_REL * (float(np.median(area)) if area.size else 0.0)
+    zero = area <= zero_area
     valid = ~(zero | bridging)
     n_neg = np.count_nonzero(agree[valid] < 0)
     n_pos = np.count_nonzero(agree[valid] > 0)
@@ -416,18 +418,21 @@ def _face_facts(points, uv, normals, faces, spacing_pt, drop_bridging: bool,
              "n_degenerate": n_degenerate,
              "degenerate_fraction": n_degenerate / m if m else 1.0,
              "coherent_beltrami": round(coherent_beltrami(points, uv, faces[valid]), 5)}
-    return facts, n_dropped, _FailedFaces(faces, flipped, zero & ~rim)
+    return facts, n_dropped, _FailedFaces(faces, flipped, zero & ~rim, zero_area)
 
 
-def _ring_facts(points, uv, normals, knn, loops, spacing_pt, tol_deg: float, face_facts: dict,
-                faces: np.ndarray) -> tuple[dict, np.ndarray]:
-    """:func:`~parambench.methods.pointset.ring_orientation.ring_orientation` with the uv
-    triangulation's mirror and zero-area threshold."""
-    area = np.abs(triangle_signed_areas(uv, faces)) if faces.size else np.zeros(0)
-    min_area = ZERO_AREA_REL * (float(np.median(area)) if area.size else 0.0)
-    return ring_orientation(points, uv, normals, knn, loops, spacing_pt, tol_deg=tol_deg,
-                            mirrored=bool(face_facts.get("mirrored", False)), min_uv_area=min_area,
-                            bridge_factor=BRIDGE_FACTOR)
+def _with_ring_facts(facts: dict, failing: _FailedFaces, points, uv, normals, knn, loops, spacing_pt,
+                     tol_deg: float) -> _FailedFaces:
+    """Add :func:`~parambench.methods.pointset.ring_orientation.ring_orientation`'s facts (with
+    the uv triangulation's mirror and zero-area threshold) and ``n_unresolved`` to ``facts``;
+    the failing triangles with the reversed ring triangles added as flipped."""
+    ring, reversed_ = ring_orientation(points, uv, normals, knn, loops, spacing_pt, tol_deg=tol_deg,
+                                       mirrored=bool(facts.get("mirrored", False)), min_uv_area=failing.zero_area,
+                                       bridge_factor=BRIDGE_FACTOR)
+    facts.update(ring, n_unresolved=int(unresolved_points(normals, knn).sum()))
+    added = np.ones(len(reversed_), dtype=bool)
+    return _FailedFaces(np.concatenate([failing.faces, reversed_]), np.concatenate([failing.flipped, added]),
+                        np.concatenate([failing.zero, ~added]), failing.zero_area)
 
 
 def coherent_beltrami(points: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float:
@@ -686,12 +691,7 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
                                                          drop_bridging=not loops, tol_deg=tol, on_loop=on_loop)
             facts.update(normal_tol_deg=round(tol, 3), triangulation=tri.kind, n_removed_outside=tri.n_removed + n_dropped,
                          boundary_crosses=tri.boundary_crosses, **face_facts)
-            ring_facts, ring_flipped = _ring_facts(points, uv, normals, knn, loops, spacing_pt, tol, face_facts,
-                                                   tri.faces)
-            facts.update(ring_facts, n_unresolved=int(unresolved_points(normals, knn).sum()))
-            failing = _FailedFaces(np.concatenate([failing.faces, ring_flipped]),
-                                   np.concatenate([failing.flipped, np.ones(len(ring_flipped), dtype=bool)]),
-                                   np.concatenate([failing.zero, np.zeros(len(ring_flipped), dtype=bool)]))
+            failing = _with_ring_facts(facts, failing, points, uv, normals, knn, loops, spacing_pt, tol)
     if loops and np.all(np.isfinite(uv)):
         # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
         mirrored = facts.get("mirrored", turning_number(uv[loops[0]]) < 0)
