@@ -365,7 +365,8 @@ def _measure(benchmark, monkeypatch, surface, group: str, label: str, dataset: s
                     selfcheck_passed=bool(check.get("passed", False)), selfcheck_failed=check.get("failed"),
                     selfcheck_retry=check.get("retry"), selfcheck_n_outside=check.get("n_outside"),
                     selfcheck_outside_depth=check.get("outside_depth"),
-                    selfcheck_n_ring_flipped=check.get("n_ring_flipped"), selfcheck_n_unresolved=check.get("n_unresolved"),
+                    selfcheck_n_ring_flipped=check.get("n_ring_flipped"),
+                    selfcheck_n_unresolved=check.get("n_unresolved"),
                     selfcheck_kept=(check.get("kept") or {}).get("params") if not check.get("passed") else None,
                     ocp_loops=len(result.diagnostics.get("boundary_loops") or []))
     benchmark.extra_info.update(info)

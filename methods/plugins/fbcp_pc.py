@@ -113,10 +113,10 @@ from ..spectral import ConformalProblem
 __all__ = ["FbcpPc", "RETRY_K_LOCAL", "BOUNDARY_SOURCES", "FREE_BOUNDARY_SOLVERS", "given_loops", "fbcp_laplacian"]
 
 BOUNDARY_SOURCES = ("detected", "given")
+FREE_BOUNDARY_SOLVERS = ("spectral", "two-pins")
 
 #: ``k_local`` of the retry after a failed run (module docstring, "Retries").
 RETRY_K_LOCAL = 32
-FREE_BOUNDARY_SOLVERS = ("spectral", "two-pins")
 
 
 def given_loops(surface: MethodInput) -> list[np.ndarray]:

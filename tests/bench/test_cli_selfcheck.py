@@ -127,7 +127,8 @@ def test_flatten_summary_names_uncertain_flips_only_when_there_are_some():
     text = _selfcheck_summary(dict(check, n_flipped_uncertain=2))
     assert "0 flipped (+2 within the normals' error of 10 deg), 0 degenerate" in text
     text = _selfcheck_summary(dict(check, passed=False, n_ring_flipped=1))
-    assert text.startswith("; self-check FAILED: 0 flipped, 1 triangle(s) of neighbouring points reversed, 0 degenerate")
+    assert text.startswith("; self-check FAILED: 0 flipped, 1 triangle(s) of neighbouring points reversed, "
+                           "0 degenerate")
     text = _selfcheck_summary(dict(check, n_unresolved=46))
     assert text.endswith("of 3900 triangles, 46 point(s) where the sampling does not resolve the surface (neighbouring "
                          "normals over 60 deg apart): a fold there may go unseen")
