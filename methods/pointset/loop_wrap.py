@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 
 from ..geometry2d import segments_cross
 from .normals import tangent_frames
+from .vectors import unit_vectors
 
 __all__ = ["wrap_outside_points", "MAX_WRAP_ROUNDS", "MAX_POCKET_SHARE", "NOTCH_DEPTH"]
 
@@ -53,10 +54,6 @@ MAX_POCKET_SHARE = 0.25
 _NEAR_EDGES = 16
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), np.finfo(float).tiny)
-
-
 class _LoopEdges:
     """The loops' edges: ends, loop, outer in-plane unit normal, and a tree of midpoints."""
 
@@ -68,7 +65,7 @@ class _LoopEdges:
         self.loop_of = np.repeat(np.arange(len(loops)), sizes)
         start = np.repeat(self.starts, sizes)
         self.prev = start + (np.arange(self.a.size) - start - 1) % np.repeat(sizes, sizes)  # the edge ending at a
-        side = _unit(np.cross(points[self.b] - points[self.a], _unit(normals[self.a] + normals[self.b])))
+        side = unit_vectors(np.cross(points[self.b] - points[self.a], unit_vectors(normals[self.a] + normals[self.b])))
         # One side per loop: the one its points' gap bisectors face.
         facing = np.einsum("ij,ij->i", side, outward[self.a] + outward[self.b])
         sign = np.where(np.bincount(self.loop_of, weights=facing, minlength=len(loops)) >= 0, 1.0, -1.0)
@@ -241,7 +238,7 @@ def _drop_notches(points, normals, loops, outward, touched: np.ndarray, max_roun
         v, u, w = edges.a, edges.a[edges.prev], edges.b
         size = np.array([lp.size for lp in loops])[edges.loop_of]
         chord = points[w] - points[u]
-        side = _unit(np.cross(chord, _unit(normals[u] + normals[w]))) * edges.sign[edges.loop_of, None]
+        side = unit_vectors(np.cross(chord, unit_vectors(normals[u] + normals[w]))) * edges.sign[edges.loop_of, None]
         depth = -np.einsum("ij,ij->i", points[v] - points[u], side)
         candidate = touched[v] & (size > 3) & (depth >= NOTCH_DEPTH * np.linalg.norm(chord, axis=1))
         idx = np.flatnonzero(candidate)

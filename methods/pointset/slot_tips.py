@@ -8,7 +8,7 @@ points and the cap's own, 3-5 per end) are left off the loop: the cap's points h
 angular gaps of 50-76 degrees, like the interior points one row behind them (45-74), and
 the lips' last points 86-119, under the criterion; neither the angle criterion nor the
 put-back of passed-over points
-(:func:`~parambench.methods.pointset.boundary.put_back_passed_over`, which wants outward
+(:func:`~parambench.methods.pointset.boundary_putback.put_back_passed_over`, which wants outward
 directions that agree, while a hairpin's two ends face each other) can take them. On the
 slit at 2k points that is 7-9 of its 209 boundary points, the difference between recall
 0.957-0.967 and the 0.97 issue 11 asks for.

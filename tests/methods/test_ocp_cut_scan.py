@@ -72,10 +72,10 @@ def test_a_failed_k_search_on_a_coarse_cut_scan_points_upstream_not_in_a_circle(
     error is kept in the diagnostics."""
     from functools import partial
 
-    import parambench.methods.pointset.boundary as boundary
+    import parambench.methods.pointset.boundary_putback as putback
     from parambench.methods.plugins.ocp import Ocp
 
-    monkeypatch.setattr(boundary, "put_back_passed_over", partial(boundary.put_back_passed_over, notch_detour=0.0))
+    monkeypatch.setattr(putback, "put_back_passed_over", partial(putback.put_back_passed_over, notch_detour=0.0))
     with pytest.warns(UserWarning, match="coincide"):
         result = get_method("ocp")(cow_top.method_input(False))
     message = result.diagnostics["energy_error"]

@@ -10,8 +10,8 @@ from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.geometry2d import signed_area_2d
 from parambench.methods.pointset.boundary import (angular_gaps, bridge_successors, cycles, empty_radius_inside,
-                                                  find_boundary, is_outer_rim, loop_zigzag, no_boundary_error,
-                                                  put_back_passed_over, successors)
+                                                  find_boundary, is_outer_rim, no_boundary_error, successors)
+from parambench.methods.pointset.boundary_putback import loop_zigzag, put_back_passed_over
 from parambench.methods.pointset.frontend import build_frontend
 from parambench.methods.pointset.normals import tangent_frames
 
@@ -43,7 +43,7 @@ def test_boundary_matches_registry_ground_truth(name, sampling):
     clockwise, holes clockwise seen from the normals' side), no fake loops.
     Measured: recall 1.0 and precision >= 0.996 on all of them (also for random and
     blue-noise samplings, and for holes-bumped, cylinder, protrusions, gnome-strip),
-    except the saddle: since notches are put back (see ``_NOTCH_DETOUR`` in the module),
+    except the saddle: since notches are put back (see ``_NOTCH_DETOUR`` in ``boundary_putback``),
     some of its first interior row, where the steep rim's lattice is sparse and looks like
     a zigzag rim's notches, joins the loop (precision 0.943 grid, 0.924 jittered); issue
     11's target, 0.9, holds there."""
