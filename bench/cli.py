@@ -292,7 +292,8 @@ def _offer_repair(repair: bool):
 
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from parambench.datasets_gen.io import load_surface
-    from parambench.methods.pointset.selfcheck import failure_line, pointset_faces
+    from parambench.methods.pointset.selfcheck import pointset_faces
+    from parambench.methods.pointset.selfcheck_advice import failure_line
     from parambench.methods.registry import get_method
 
     from .uv_output import UV_FORMATS, write_uv
@@ -365,7 +366,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
           f"{len(loops)} boundary loop(s){coverage} -> {out}")
     if cov and not cov["passed"]:
         # The diagnostics are written either way; the exit code says the loops are doubtful.
-        from parambench.methods.pointset.selfcheck import suggest_fix
+        from parambench.methods.pointset.selfcheck_advice import suggest_fix
 
         print(f"parambench: error: inspect: {cov['largest_uncovered_group']} connected boundary candidates lie "
               f"on no detected loop (a missed hole or boundary); {suggest_fix(['coverage'], report['params'], 'ocp')}",

@@ -7,7 +7,7 @@ import pytest
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.datasets_gen.registry import make_surface
-from parambench.methods.pointset.selfcheck import failure_line
+from parambench.methods.pointset.selfcheck_advice import failure_line
 from parambench.methods.base import selfcheck_doubt
 from parambench.methods.registry import get_method
 

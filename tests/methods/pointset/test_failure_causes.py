@@ -15,7 +15,8 @@ from parambench.methods.pointset.failure_causes import (cause_advice, describe_c
 from parambench.methods.pointset.frontend import build_frontend
 from parambench.methods.pointset.params import frontend_params
 from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS, with_shape_cause
-from parambench.methods.pointset.selfcheck import check_pointset_map, failure_line
+from parambench.methods.pointset.selfcheck import check_pointset_map
+from parambench.methods.pointset.selfcheck_advice import failure_line
 from parambench.methods.registry import get_method
 
 

@@ -10,7 +10,8 @@ from matplotlib.path import Path
 from scipy.spatial import cKDTree
 
 from parambench.methods.pointset.selfcheck import (MAX_COHERENT_BELTRAMI, check_pointset_map, loop_coverage,
-                                                   pointset_faces, suggest_fix)
+                                                   pointset_faces)
+from parambench.methods.pointset.selfcheck_advice import suggest_fix
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.methods.pointset.uv_triangulation import delaunay_faces, triangulate_uv
 

@@ -1,0 +1,82 @@
+"""What to try after a point-set map failed its self-check: one line for the user.
+
+The line names what failed (the check's reason) and one change worth trying: a cause told
+from the geometry where it names no parameter (:func:`.failure_causes.cause_advice`: a part
+thinner than the sampling, stray points), else a parameter of the method that ran, changed
+beyond what its retries already tried (:func:`suggest_fix`), so the advice never sends the
+user in a circle.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .failure_causes import cause_advice
+
+__all__ = ["suggest_fix", "failure_line"]
+
+
+#: Per failed check, most telling first (a spinning boundary also folds and stretches
+#: triangles): (parameter, how to change it) in order of preference.
+_FIXES = {
+    "turning": [("k_search", "line"), ("k", "x10"), ("ball_eps_factor", "raise"), ("k_nn", "raise")],
+    "coverage": [("boundary_angle_deg", "lower"), ("ball_eps_factor", "raise")],
+    "flipped": [("k_nn", "raise"), ("ball_eps_factor", "raise"), ("n_neighbors", "raise")],
+    "boundary-crossing": [("k_nn", "raise"), ("ball_eps_factor", "raise"), ("n_neighbors", "raise")],
+    "degenerate": [("ball_eps_factor", "raise"), ("k_nn", "raise"), ("n_neighbors", "raise")],
+    "triangulation": [("k_nn", "raise"), ("n_neighbors", "raise")],
+    "distorted": [("refine", "mesh"), ("k_nn", "raise")],
+    "outside": [("boundary_angle_deg", "lower"), ("k_nn", "raise")],
+}
+
+
+def _proposal(key: str, how: str, current: Any) -> str | None:
+    if how in ("line", "mesh"):
+        return None if current == how else f"{key}={how}"
+    if not isinstance(current, (int, float)) or isinstance(current, bool):
+        return None
+    if how == "x10":  # scp-tan's fixed k: k_opt of W^tan is ~10-25 (Sec. 4.2)
+        return f"{key}={10 * current:g}"
+    if how == "lower":
+        return f"{key}={current - 20:g}"
+    if isinstance(current, int):
+        return f"{key}={current + 4}"
+    return f"{key}={current * 1.4:.3g}"
+
+
+def suggest_fix(failed: list[str], params: dict, method: str) -> str:
+    """A parameter change worth trying for the first failed check, as ``--param KEY=VALUE``.
+
+    Parameters
+    ----------
+    failed : list of str
+        ``diagnostics["selfcheck"]["failed"]``.
+    params : dict
+        The parameters the method ran with (only keys present here are proposed).
+    method : str
+        Method name, for the fallback advice.
+
+    Returns
+    -------
+    str
+        E.g. ``"try --param boundary_angle_deg=100"``, or advice to try ``ocp``.
+    """
+    for name in sorted(failed, key=lambda f: list(_FIXES).index(f) if f in _FIXES else len(_FIXES)):
+        for key, how in _FIXES.get(name, []):
+            if key in params:
+                change = _proposal(key, how, params[key])
+                if change:
+                    return f"try --param {change}"
+    return "try another method, e.g. --method ocp" if method != "ocp" else "try --param k_nn=12"
+
+
+def failure_line(check: dict, params: dict, method: str) -> str:
+    """One line, no final period: what failed and what to try."""
+    # After a failed retry (Method.retry_params) propose beyond what it already tried.
+    retry = check.get("retry", {})
+    tried = dict(params)
+    for note in [check.get("after_error") or {}, *retry.get("earlier", []), retry]:
+        tried.update(note.get("params", {}))
+    advice, alone = cause_advice(check.get("causes", {}), check["failed"])
+    hint = advice if alone else "; ".join(a for a in (advice, suggest_fix(check["failed"], tried, method)) if a)
+    return f"{method}: the map fails its self-check: {check['reason']}; {hint}"
