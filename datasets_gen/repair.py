@@ -11,8 +11,9 @@ decision about the data.
 
 For a mesh: the largest piece by face count (faces joined through shared vertices), then
 pymeshlab's duplicate-face removal, non-manifold edge repair (faces removed), non-manifold
-vertex repair (the fans split into copies of the vertex) and unreferenced-vertex removal,
-then the largest piece again (a split vertex can disconnect what it joined). pymeshlab
+vertex repair (the fans split into copies of the vertex), unreferenced-vertex removal and
+coherent re-orientation of the faces (the minority winding of a piece reversed), then the
+largest piece again (a split vertex can disconnect what it joined). pymeshlab
 sees the arrays parambench's own reader validated, never the file. For a point set: the
 largest component of the symmetrised k-nearest-neighbour graph, the graph the point-set
 front end builds (its ``k_nn``).
@@ -64,16 +65,36 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     ms.meshing_repair_non_manifold_vertices()
     n_split = ms.current_mesh().vertex_number() - n_before_split
     ms.meshing_remove_unreferenced_vertices()
+    n_faces = ms.current_mesh().face_number()
+    before = np.asarray(ms.current_mesh().face_matrix(), dtype=np.int64)
+    # Faces wound against their neighbours (files merged from tools that wind differently,
+    # or a duplicate face kept in its reversed copy); a non-orientable piece stays as it is
+    # and the methods refuse it.
+    ms.meshing_re_orient_faces_coherently()
     mesh = ms.current_mesh()
     v = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
     f = np.asarray(mesh.face_matrix(), dtype=np.int64)
+    n_reversed = _reversed_faces(before, f) if len(f) == n_faces else 0
     f, n_after = largest_piece(f, len(v))
     v, f = compact(v, f)
     facts = {"kind": "mesh", "pieces": n_pieces, "pieces_after_repair": n_after,
              "points_in": int(len(points)), "faces_in": int(len(faces)), "points_out": int(len(v)),
              "faces_out": int(len(f)), "faces_removed_in_repair": int(kept_faces - len(f)),
-             "vertices_split": int(n_split)}
+             "vertices_split": int(n_split), "faces_reversed": int(n_reversed)}
     return v, f, facts
+
+
+def _reversed_faces(before: np.ndarray, after: np.ndarray) -> int:
+    """Faces (row for row) whose winding changed: the same vertices in the other cyclic order.
+
+    Only the minority of a piece counts: reversing a whole piece changes no map.
+    """
+    same = np.all(np.sort(before, axis=1) == np.sort(after, axis=1), axis=1)
+    cyclic = np.zeros(len(before), dtype=bool)
+    for shift in range(3):
+        cyclic |= np.all(np.roll(before, shift, axis=1) == after, axis=1)
+    flipped = same & ~cyclic
+    return int(min(flipped.sum(), (same & cyclic).sum()))
 
 
 def _largest_knn_component(points: np.ndarray, k_nn: int) -> tuple[np.ndarray, int]:
@@ -105,7 +126,8 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
     facts : dict
         ``kind`` ("mesh" or "points"), ``pieces`` (components found), ``points_in``,
         ``points_out``; for meshes also ``faces_in``, ``faces_out``,
-        ``faces_removed_in_repair``, ``vertices_split``, ``pieces_after_repair``.
+        ``faces_removed_in_repair``, ``vertices_split``, ``pieces_after_repair``,
+        ``faces_reversed`` (faces whose winding the re-orientation changed).
 
     Raises
     ------
@@ -135,5 +157,7 @@ def repair_summary(facts: dict) -> str:
             f"{facts['vertices_split']} vertex copies from splitting non-manifold vertices, "
             f"{facts['faces_removed_in_repair']} face(s) of that piece removed (duplicates, non-manifold edges, "
             "pieces the split cut off)"
+            + (f", {facts['faces_reversed']} face(s) reversed to match their neighbours' winding"
+               if facts.get("faces_reversed") else "")
             + (f", {facts['pieces_after_repair']} pieces after the split (the largest kept)"
                if facts["pieces_after_repair"] > 1 else ""))

@@ -338,11 +338,17 @@ class Method:
         return result
 
     def _run_point_or_mesh(self, surface: MethodInput, **params: Any) -> Parameterization:
-        """Mesh methods: :meth:`run` in unit pose. Point-set methods: :meth:`_run_and_check`
-        in unit pose on one point per group of coincident points (the pose is that of the
-        distinct points, so copies change nothing), its uv copied to the others."""
+        """Mesh methods: :meth:`run` in unit pose, its map checked on the mesh's faces
+        (:func:`~parambench.methods.mesh.map_check.check_mesh_map`). Point-set methods:
+        :meth:`_run_and_check` in unit pose on one point per group of coincident points (the
+        pose is that of the distinct points, so copies change nothing), its uv copied to
+        the others. Either check goes to ``diagnostics["selfcheck"]``."""
         if self.needs_faces:
-            return run_in_unit_pose(self.run, surface, params)
+            from .mesh.map_check import check_mesh_map
+
+            result = run_in_unit_pose(self.run, surface, params)
+            result.diagnostics["selfcheck"] = check_mesh_map(surface.points, surface.faces, result.uv)
+            return result
         # Imported here because parambench.methods.pointset imports this module.
         from .pointset.coincident import run_on_representatives
 

@@ -17,7 +17,9 @@ __all__ = [
     "interior_edges",
     "non_manifold_edges",
     "non_manifold_vertices",
+    "coherent_flips",
     "require_manifold",
+    "require_oriented",
     "require_disk",
     "require_connected_disk_like",
 ]
@@ -65,6 +67,16 @@ def _half_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return start, end, edge_id.ravel()
 
 
+def _paired_half_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Start and end corners of every half-edge, and the two half-edges (h1, h2) of each edge on exactly two faces."""
+    start, end, edge_id = _half_edges(faces)
+    order = np.argsort(edge_id, kind="stable")
+    counts = np.bincount(edge_id)
+    ptr = np.concatenate([[0], np.cumsum(counts)])
+    two = np.flatnonzero(counts == 2)
+    return start, end, order[ptr[two]], order[ptr[two] + 1]
+
+
 def interior_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edges shared by exactly two faces, with the corners opposite them.
 
@@ -87,12 +99,7 @@ def interior_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
         empty = np.empty((0, 2), dtype=np.int64)
         return empty, empty, empty
     flat = faces.ravel()
-    start, end, edge_id = _half_edges(faces)
-    counts = np.bincount(edge_id)
-    order = np.argsort(edge_id, kind="stable")
-    keep = counts[edge_id[order]] == 2
-    pairs = order[keep].reshape(-1, 2)  # each edge's two half-edges, next to each other
-    first, second = pairs[:, 0], pairs[:, 1]
+    _, end, first, second = _paired_half_edges(faces)
     third = (3 * (first // 3) + (first % 3 + 2) % 3, 3 * (second // 3) + (second % 3 + 2) % 3)
     return (np.column_stack([flat[first], flat[end[first]]]).astype(np.int64),
             np.column_stack([first // 3, second // 3]).astype(np.int64),
@@ -143,12 +150,7 @@ def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
         Sorted vertex indices.
     """
     flat = faces.ravel()
-    start, end, edge_id = _half_edges(faces)
-    order = np.argsort(edge_id, kind="stable")
-    counts = np.bincount(edge_id)
-    ptr = np.concatenate([[0], np.cumsum(counts)])
-    two = np.flatnonzero(counts == 2)
-    h1, h2 = order[ptr[two]], order[ptr[two] + 1]
+    start, end, h1, h2 = _paired_half_edges(faces)
     # link the corners of the two faces that sit at the same vertex, at both ends of the edge
     h2_at_start_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], start[h2], end[h2])
     h2_at_end_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], end[h2], start[h2])
@@ -160,6 +162,50 @@ def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     vertex_fan = np.unique(flat * np.int64(fan.max() + 1) + fan)
     fans_per_vertex = np.bincount(vertex_fan // (fan.max() + 1), minlength=n_vertices)
     return np.flatnonzero(fans_per_vertex > 1).astype(np.int64)
+
+
+def coherent_flips(faces: np.ndarray) -> tuple[np.ndarray | None, int]:
+    """Faces to reverse so that every interior edge runs opposite ways in its two faces.
+
+    Two faces on an edge are wound alike when they run it in opposite directions. Faces
+    are linked through edges shared by exactly two faces; in each face-connected piece the
+    orientation held by more faces is kept. A piece where no choice works (a Moebius band:
+    going round it brings a face back reversed) is not orientable.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+        Call on an edge-manifold mesh (:func:`non_manifold_edges`).
+
+    Returns
+    -------
+    flips : (M,) numpy.ndarray of bool, or None
+        True at the faces wound against the orientation kept; None when the mesh is not
+        orientable.
+    n_conflicts : int
+        Interior edges that both of their faces run the same way.
+    """
+    m = faces.shape[0]
+    if m == 0:
+        return np.zeros(0, dtype=bool), 0
+    flat = faces.ravel()
+    start, _, h1, h2 = _paired_half_edges(faces)
+    alike = flat[start[h1]] == flat[start[h2]]  # both faces run the edge the same way
+    f1, f2 = h1 // 3, h2 // 3
+    # The orientation double cover: node f is face f as given, node f + m face f reversed.
+    # A conflicting edge joins each face to the other's reversal.
+    g2 = np.where(alike, f2 + m, f2)
+    i = np.concatenate([f1, f1 + m])
+    j = np.concatenate([g2, np.where(alike, f2, f2 + m)])
+    graph = sp.coo_matrix((np.ones(i.size), (i, j)), shape=(2 * m, 2 * m))
+    _, label = connected_components(graph, directed=False)
+    as_given, reversed_ = label[:m], label[m:]
+    n_conflicts = int(alike.sum())
+    if np.any(as_given == reversed_):
+        return None, n_conflicts
+    size = np.bincount(as_given, minlength=label.max() + 1)
+    flips = (size[as_given] < size[reversed_]) | ((size[as_given] == size[reversed_]) & (as_given > reversed_))
+    return flips, n_conflicts
 
 
 def _examples(items) -> str:
@@ -194,6 +240,7 @@ def require_manifold(faces: np.ndarray, n_vertices: int) -> None:
             f"the mesh has {len(edges)} non-manifold edge(s) shared by more than two faces (vertices {_examples(shown)}); "
             "repair them (pymeshlab meshing_repair_non_manifold_edges) or use --points-only."
         ))
+    require_oriented(faces)
     verts = non_manifold_vertices(faces, n_vertices)
     if verts.size:
         raise repairable(NotADiskError(
@@ -201,6 +248,36 @@ def require_manifold(faces: np.ndarray, n_vertices: int) -> None:
             f"(vertex {_examples(verts.tolist())}); repair them (pymeshlab meshing_repair_non_manifold_vertices) "
             "or use --points-only."
         ))
+
+
+def require_oriented(faces: np.ndarray) -> None:
+    """Raise unless the faces are wound coherently (see :func:`coherent_flips`).
+
+    Files merged from tools that wind faces differently, or with faces reversed by hand,
+    break every boundary walk and cotangent solve downstream: the maps came out distorted
+    or folded with no error (a grid with 40 faces reversed: QC 1.7e12 from ``scp``, 74
+    flipped triangles from ``scp-igl``).
+
+    Raises
+    ------
+    NotADiskError
+        The surface is not orientable (no map to the plane keeps its faces' orientation),
+        or some faces are wound against their neighbours (repairable: ``--repair``
+        reverses them).
+    """
+    flips, n_conflicts = coherent_flips(faces)
+    if flips is None:
+        raise NotADiskError(
+            f"the surface is not orientable ({n_conflicts} edge(s) where going round it brings a face back reversed, "
+            "as on a Moebius band); no map to the plane keeps its faces' orientation: cut it so that it becomes "
+            "orientable, or use --points-only.")
+    if n_conflicts:
+        shown = [f"face {int(f)} (vertices {', '.join(str(int(v)) for v in faces[f])})"
+                 for f in np.flatnonzero(flips)[:_EXAMPLES]]
+        raise repairable(NotADiskError(
+            f"{int(flips.sum())} face(s) are wound against their neighbours ({n_conflicts} edge(s) run the same way "
+            f"in both of their faces; {_examples(shown)}; 0-based, polygons split into triangles); reverse them "
+            "(pymeshlab meshing_re_orient_faces_coherently) or use --points-only."), "reverse them")
 
 
 def _component_count(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import igl
 import numpy as np
 
+from parambench.datasets_gen.errors import SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
@@ -31,6 +32,14 @@ class LscmIgl(Method):
             i, j = farthest_pair(surface.points, np.concatenate(loops))
         d = float(np.linalg.norm(surface.points[i] - surface.points[j]))
         with timer("solve"):
-            uv, _ = igl.lscm(surface.points, surface.faces, np.array([i, j], dtype=np.int64),
-                             np.array([[0.0, 0.0], [d, 0.0]]))
+            try:
+                uv, _ = igl.lscm(surface.points, surface.faces, np.array([i, j], dtype=np.int64),
+                                 np.array([[0.0, 0.0], [d, 0.0]]))
+            except RuntimeError as exc:  # libigl's own "igl::lscm failed": its sparse solve broke down
+                raise SolverError(f"libigl's LSCM failed on {surface.name!r} ({exc}); check the mesh for "
+                                  "degenerate or overlapping faces, or try --method scp.") from None
+        uv = np.asarray(uv, dtype=np.float64)
+        if not np.all(np.isfinite(uv)):
+            raise SolverError(f"libigl's LSCM returned a non-finite map on {surface.name!r}; check the mesh for "
+                              "degenerate or overlapping faces, or try --method scp.")
         return MethodOutput(uv, {"pins": [i, j], "n_boundary_loops": len(loops)})

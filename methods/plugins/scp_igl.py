@@ -25,7 +25,11 @@ class ScpIgl(Method):
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
         with timer("solve"):
-            uv = igl.spectra.lscm(surface.points, surface.faces)
+            try:
+                uv = igl.spectra.lscm(surface.points, surface.faces)
+            except RuntimeError as exc:  # libigl's own solver failure
+                raise SolverError(f"igl.spectra.lscm failed on {surface.name!r} ({exc}); check the mesh for "
+                                  "degenerate or overlapping faces, or try --method scp.") from None
         uv = np.asarray(uv, dtype=np.float64)
         if not np.all(np.isfinite(uv)) or np.ptp(uv, axis=0).min() <= 0:
             raise SolverError(f"igl.spectra.lscm returned a degenerate map on {surface.name!r}; "

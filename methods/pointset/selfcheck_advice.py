@@ -1,10 +1,10 @@
-"""What to try after a point-set map failed its self-check: one line for the user.
+"""What to try after a map failed its self-check: one line for the user.
 
 The line names what failed (the check's reason) and one change worth trying: a cause told
 from the geometry where it names no parameter (:func:`.failure_causes.cause_advice`: a part
 thinner than the sampling, stray points), else a parameter of the method that ran, changed
 beyond what its retries already tried (:func:`suggest_fix`), so the advice never sends the
-user in a circle.
+user in a circle. A mesh map's check has advice of its own (:func:`mesh_advice`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any
 
 from .failure_causes import cause_advice
 
-__all__ = ["suggest_fix", "failure_line"]
+__all__ = ["suggest_fix", "failure_line", "mesh_advice"]
 
 
 #: Per failed check, most telling first (a spinning boundary also folds and stretches
@@ -70,8 +70,26 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
     return "try another method, e.g. --method ocp" if method != "ocp" else "try --param k_nn=12"
 
 
+def mesh_advice(check: dict, params: dict, method: str) -> str:
+    """What to try after a mesh map failed its check (:func:`~parambench.methods.mesh.map_check.check_mesh_map`).
+
+    Where every flipped face sits at a fold of the mesh itself, no weights help. Otherwise
+    the hybrid weights (Sec. 5), made to remove folds, then ``scp`` with them, then remeshing.
+    """
+    n_flipped = int(check.get("n_flipped") or 0)
+    if n_flipped and check.get("n_folded_3d") == n_flipped:
+        return "the mesh folds back on itself at those faces: repair its geometry there"
+    if "weights" in params and params["weights"] != "hybrid":
+        return "try --param weights=hybrid"
+    if method != "scp":
+        return "try --method scp --param weights=hybrid"
+    return "remesh the surface into better-shaped triangles (e.g. pymeshlab meshing_isotropic_explicit_remeshing)"
+
+
 def failure_line(check: dict, params: dict, method: str) -> str:
     """One line, no final period: what failed and what to try."""
+    if check.get("kind") == "mesh":
+        return f"{method}: the map fails its self-check: {check['reason']}; {mesh_advice(check, params, method)}"
     # After a failed retry (Method.retry_params) propose beyond what it already tried.
     retry = check.get("retry", {})
     tried = dict(params)

@@ -45,3 +45,21 @@ def test_lscm_pins_are_farthest_boundary_pair():
     d = np.linalg.norm(surface.points[boundary][:, None] - surface.points[boundary][None], axis=-1)
     assert np.linalg.norm(surface.points[i] - surface.points[j]) == pytest.approx(d.max())
     np.testing.assert_allclose(result.uv[i], [0, 0], atol=1e-9)
+
+
+@pytest.mark.parametrize("method, target", [("lscm-igl", "lscm"), ("scp-igl", "spectra.lscm")])
+def test_a_libigl_solver_failure_is_a_solver_error_naming_what_to_do(monkeypatch, method, target):
+    """libigl signals a failed solve with a bare RuntimeError ("igl::lscm failed"), which the
+    command line printed as a traceback."""
+    import igl
+    import igl.spectra
+
+    from parambench.datasets_gen.errors import SolverError
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("igl::lscm failed")
+
+    module, name = (igl.spectra, "lscm") if target == "spectra.lscm" else (igl, "lscm")
+    monkeypatch.setattr(module, name, broken)
+    with pytest.raises(SolverError, match="igl::lscm failed.*try --method scp"):
+        get_method(method)(make_surface("bump", 300, sampling="jittered", seed=0))

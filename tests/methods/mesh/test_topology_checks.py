@@ -13,6 +13,7 @@ from parambench.datasets_gen.mesh_loops import mesh_boundary
 from parambench.datasets_gen.surface import Surface
 from parambench.methods import get_method, method_names
 from parambench.methods.mesh.topology import (
+    coherent_flips,
     duplicate_faces,
     non_manifold_edges,
     non_manifold_vertices,
@@ -140,3 +141,50 @@ def test_reader_and_methods_take_loops_from_one_definition(reverse):
     directed = {(int(a), int(b)) for f in faces for a, b in zip(f, np.roll(f, -1))}
     for loop in read:
         assert all((int(a), int(b)) in directed for a, b in zip(loop, np.roll(loop, -1)))
+
+
+def _moebius(n: int = 40):
+    """A Moebius band: 3 vertices across, ``n`` steps round, the last row glued to the first turned over."""
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)[:, None]
+    s = np.array([-0.3, 0.0, 0.3])[None, :]
+    pts = np.stack([(1 + s * np.cos(t / 2)) * np.cos(t), (1 + s * np.cos(t / 2)) * np.sin(t),
+                    s * np.sin(t / 2) + 0 * t], axis=-1).reshape(-1, 3)
+    faces = []
+    for i in range(n):
+        for k in range(2):
+            a, b = 3 * i + k, 3 * i + k + 1
+            c, d = (3 * (i + 1) + k + 1, 3 * (i + 1) + k) if i < n - 1 else (1 - k, 2 - k)
+            faces += [[a, b, c], [a, c, d]]
+    return pts, np.array(faces, dtype=np.int64)
+
+
+def test_coherent_flips_finds_exactly_the_reversed_minority():
+    pts, faces = _grid(8)
+    rng = np.random.default_rng(3)
+    reversed_ = np.zeros(len(faces), dtype=bool)
+    reversed_[rng.choice(len(faces), 20, replace=False)] = True
+    mixed = np.where(reversed_[:, None], faces[:, ::-1], faces)
+    flips, n_conflicts = coherent_flips(mixed)
+    np.testing.assert_array_equal(flips, reversed_)
+    assert n_conflicts > 0
+    # Reversing the whole mesh is no conflict: nothing to flip.
+    assert not coherent_flips(faces[:, ::-1])[0].any() and coherent_flips(faces)[1] == 0
+
+
+def test_a_moebius_band_is_not_orientable_and_every_mesh_method_says_so():
+    pts, faces = _moebius()
+    assert coherent_flips(faces)[0] is None
+    for method in MESH_METHODS:
+        with pytest.raises(NotADiskError, match="not orientable"):
+            get_method(method)(Surface(pts, faces, name="moebius"))
+
+
+@pytest.mark.parametrize("method", MESH_METHODS)
+def test_faces_wound_against_their_neighbours_are_refused_with_the_repair(method):
+    """Before: ``scp`` mapped such a grid with QC 1.7e12 and ``scp-igl`` folded 74 triangles, exit 0."""
+    pts, faces = _grid(8)
+    faces[:10] = faces[:10, ::-1]
+    with pytest.raises(NotADiskError, match="10 face.s. are wound against their neighbours") as err:
+        get_method(method)(Surface(pts, faces, name="mixed"))
+    assert getattr(err.value, "repairable", False)
+    assert "meshing_re_orient_faces_coherently" in str(err.value)
