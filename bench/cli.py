@@ -150,6 +150,7 @@ def _selfcheck_summary(check: dict | None) -> str:
                if "distorted" in (check.get("failed") or ()) else "")
             + (f", {check.get('n_outside', 0)} point(s) outside the loops"
                if "outside" in (check.get("failed") or ()) else "")
+            + (f", {check['n_isolated']} point(s) far from all others" if check.get("n_isolated") else "")
             + (f", {unresolved} point(s) where the sampling does not resolve the surface (neighbouring normals "
                f"over 60 deg apart): a fold there may go unseen" if unresolved else "")
             + (f", {cov['n_uncovered']} of {cov['n_candidates']} boundary candidates off the loops"
@@ -290,6 +291,22 @@ def _offer_repair(repair: bool):
         raise
 
 
+def _check_output_path(out: Path, source: Path) -> None:
+    """Refuse, before any work, an output that cannot be written or would overwrite the input.
+
+    Raises
+    ------
+    InputFileError
+        The output's folder does not exist, or the output is the input file itself (a
+        mesh written over by its own uv layout, with exit code 0).
+    """
+    if not out.parent.exists():
+        raise InputFileError(f"output directory {str(out.parent)!r} does not exist; create it first.")
+    if out.exists() and source.exists() and out.resolve() == source.resolve():
+        raise InputFileError(f"the output {str(out)!r} is the input file: writing it would destroy the input; "
+                             "pass another output path.")
+
+
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from parambench.datasets_gen.io import load_surface
     from parambench.methods.pointset.selfcheck import pointset_faces
@@ -301,6 +318,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() not in UV_FORMATS:
         raise InputFileError(f"cannot write {out.name!r}: output must end in {', '.join(UV_FORMATS)}.")
+    _check_output_path(out, Path(args.input))
     surface = load_surface(args.input, points_only=args.points_only)
     method = get_method(args.method or _default_method(surface))
     params = parse_param_values(args.param or [], method.defaults)
@@ -313,7 +331,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
                + _holes_summary(result.diagnostics) + _energy_summary(result.diagnostics))
     if failed and not args.force:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
-        repair = "--repair drops the stray points; " if "stray" in check.get("causes", {}) and not args.repair else ""
+        strays = "stray" in check.get("causes", {}) or "isolated" in (check.get("failed") or ())
+        repair = "--repair drops the stray points; " if strays and not args.repair else ""
         print(f"parambench: error: {failure_line(check, result.params, method.name)} "
               f"({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
@@ -336,8 +355,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     from parambench.methods.pointset.params import FrontEndParams
 
     out = Path(args.output)
-    if not out.parent.exists():
-        raise InputFileError(f"output directory {str(out.parent)!r} does not exist; create it first.")
+    _check_output_path(out, Path(args.input))
     surface = load_surface(args.input, points_only=args.points_only)
     defaults = {f.name: f.default for f in fields(FrontEndParams)}
     params = parse_param_values(args.param or [], defaults)

@@ -390,7 +390,9 @@ class Method:
         check = selfcheck_result(surface, result, conformal=self.conformal_map)
         if after_error is not None:
             check["after_error"] = after_error
-        retries = [] if check["passed"] else _as_list(self.retry_params(params, check))
+        # Points far from all others fail every run alike: no parameter moves them onto the surface.
+        hopeless = "isolated" in (check.get("failed") or ())
+        retries = [] if check["passed"] or hopeless else _as_list(self.retry_params(params, check))
         notes: list[dict] = []
         runs = [(params, result.diagnostics)]  # the runs made: parameters, diagnostics
         kept, kept_check, kept_changed = result, check, {}

@@ -557,8 +557,8 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
     if n_points is not None and n_candidates > _MOSTLY_BOUNDARY * n_points:
         return NoBoundaryError(
             f"{n_candidates} of the {n_points} points pass the {angle_deg:g}-degree angle criterion, so "
-            "the points have almost no inside: too few to find a boundary loop; sample the surface more "
-            "densely (a few hundred points or more)."
+            "the points have almost no inside: too few points, or a strip or curve only a spacing or two "
+            "wide; sample the surface more densely (a few hundred points or more, several across it)."
         )
     if n_candidates < 4 * min_loop_size:
         return NoBoundaryError(

@@ -23,7 +23,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from parambench.datasets_gen.surface import MethodInput, duplicate_tolerance, find_duplicate_points
+from parambench.datasets_gen.errors import TooFewPointsError
+from parambench.datasets_gen.surface import MIN_POINTS, MethodInput, duplicate_tolerance, find_duplicate_points
 
 __all__ = ["CoincidentPointsWarning", "CoincidentGroups", "MERGE_SPACING_TOL", "merge_tolerance",
            "coincident_groups", "run_on_representatives", "warn_merged"]
@@ -185,13 +186,18 @@ def run_on_representatives(run: Callable[..., Any], surface: MethodInput, params
     Raises
     ------
     ParambenchError
-        Whatever the method or the MethodInput built on the representatives raises (e.g.
-        TooFewPointsError when almost every point is a copy).
+        Whatever the method or the MethodInput built on the representatives raises;
+        TooFewPointsError, before any warning, when fewer than ``MIN_POINTS`` distinct points remain.
     """
     groups = coincident_groups(surface.points)
     if groups.n_merged == 0:
         return run(surface, **params)
     reps = groups.representatives
+    if reps.size < MIN_POINTS:
+        raise TooFewPointsError(
+            f"{surface.name}: {groups.n_merged} of {groups.inverse.size} points coincide with an earlier point "
+            f"(within {groups.tolerance:.3g}), leaving {reps.size} distinct point(s); at least {MIN_POINTS} are "
+            "needed: pass points that sample the surface.")
     warn_merged(surface.name, groups, "the method ran on the {} distinct points and each copy gets its "
                 "representative's uv", stacklevel=4)
     normals = None if surface.normals is None else surface.normals[reps]

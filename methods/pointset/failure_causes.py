@@ -323,10 +323,11 @@ def cause_advice(causes: dict, failed: list[str]) -> tuple[str, bool]:
     advice : str
         "" without a recognised cause.
     alone : bool
-        True when every failed check is explained by a cause no parameter changes (a
-        collapse, with nothing but degenerate triangles failing; stray points at half the
-        failing triangles or more, or a thin part at three quarters of the flipped ones or
-        more, with nothing but flipped and degenerate ones failing).
+        True when every failed check is explained by a cause no parameter changes (points
+        far from all others, which skew every other fact too; a collapse, with nothing but
+        degenerate triangles failing; stray points at half the failing triangles or more,
+        or a thin part at three quarters of the flipped ones or more, with nothing but
+        flipped and degenerate ones failing).
     """
     advice = []
     if "thin" in causes:
@@ -337,8 +338,10 @@ def cause_advice(causes: dict, failed: list[str]) -> tuple[str, bool]:
         advice.append("remove the parts that hang on by single points (a scan's loose flaps and strands)")
     if "collapse" in causes or "protrusion" in causes:
         advice.append("cut the shrunk protrusion off, or cut a seam along it, before flattening")
+    if "isolated" in failed:
+        advice.append("remove the points far from the rest (a scan's junk rows, such as 0 0 0) before flattening")
     only_folds = set(failed) <= {"flipped", "degenerate"}
-    alone = (("collapse" in causes and set(failed) == {"degenerate"})
+    alone = ("isolated" in failed or ("collapse" in causes and set(failed) == {"degenerate"})
              or ("stray" in causes and causes["stray"]["share"] >= _STRAY_ALONE and only_folds)
              or ("thin" in causes and causes["thin"]["share"] >= _THIN_ALONE and only_folds))
     return "; ".join(advice), alone

@@ -17,8 +17,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
-from parambench.datasets_gen.surface import (MIN_POINTS, duplicate_tolerance, require_unique_points, validate_normals,
-                                             validate_points)
+from parambench.datasets_gen.surface import (MIN_POINTS, core_box, duplicate_tolerance, require_unique_points,
+                                             validate_normals, validate_points)
 
 from ..base import StageTimer
 from .boundary import find_boundary, no_boundary_error
@@ -204,6 +204,41 @@ class FrontEnd:
         return replace(self, ball_indices=None, tangent_coords=None, W=None)
 
 
+#: Spread of the points across their principal line over their spread along it, below which
+#: they sample a curve, not a surface (a 20:1 strip spreads 0.05 across, 400:1 0.0025).
+MIN_CROSS_SPREAD = 1e-3
+
+
+def require_two_dimensional(points: np.ndarray) -> None:
+    """Raise unless the points spread in two directions (they are no line or curve segment).
+
+    Collinear points reached the boundary search, which took them for a set with no inside
+    ("500 of the 500 points pass ...: sample the surface more densely") or for several
+    components, neither of which says what is wrong.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+
+    Raises
+    ------
+    InvalidInputError
+        The standard deviation across the principal line is under ``MIN_CROSS_SPREAD`` of
+        that along it, among the points of :func:`~parambench.datasets_gen.surface.core_box`.
+    """
+    lo, hi = core_box(points)
+    core = points[np.all((points >= lo) & (points <= hi), axis=1)]
+    # A junk row far away (0 0 0 in a georeferenced scan) would be the line's direction.
+    core = core if core.shape[0] >= MIN_POINTS else points
+    centred = core - core.mean(axis=0)
+    variances = np.sort(np.linalg.eigvalsh(centred.T @ centred))[::-1]
+    spread = float(np.sqrt(max(variances[1], 0.0) / variances[0])) if variances[0] > 0 else 0.0
+    if spread < MIN_CROSS_SPREAD:
+        raise InvalidInputError(
+            f"the points lie on a line (their spread across it is {spread:.1e} of their spread along it): they "
+            "sample a curve, not a surface; pass points that cover the surface in two directions.")
+
+
 def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[np.ndarray, np.ndarray | None]:
     """Check the options and the arrays of :func:`build_frontend` (its first step, not timed).
 
@@ -240,6 +275,7 @@ def validate_inputs(points: Any, normals: Any, params: FrontEndParams) -> tuple[
     if int(k_nn) != k_nn or k_nn < 2:
         raise InvalidInputError(f"k_nn must be an integer >= 2, got {k_nn}.")
     pts = validate_points(points, min_points=max(MIN_POINTS, int(k_nn) + 1))
+    require_two_dimensional(pts)
     nrm = None if normals is None else validate_normals(normals, pts.shape[0])
     # Checked after the arrays, as before the stages were split (the first error reported stays the same).
     if params.spacing not in SPACING_MODES:

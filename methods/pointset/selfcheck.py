@@ -135,6 +135,7 @@ from ..geometry2d import triangle_signed_areas, turning_number
 from .failure_causes import describe_causes, failure_causes
 from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation, unresolved_points
 from .row_chunks import for_each_chunk
+from .stray_points import ISOLATED_FACTOR, isolated_mask
 from .uv_triangulation import loop_winding_numbers, triangulate_uv
 
 __all__ = ["check_pointset_map", "coherent_beltrami", "coherent_limit", "loop_coverage", "normal_tolerance_deg",
@@ -175,7 +176,7 @@ THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENER
               "max_uncovered_fraction": MAX_UNCOVERED_FRACTION, "max_coherent_beltrami": MAX_COHERENT_BELTRAMI,
               "max_coherent_beltrami_clean": MAX_COHERENT_BELTRAMI_CLEAN, "clean_tol_deg": CLEAN_TOL_DEG,
               "max_outside_depth": MAX_OUTSIDE_DEPTH, "max_ring_flipped": MAX_RING_FLIPPED,
-              "ring_quality": RING_QUALITY, "ring_normal_deg": RING_NORMAL_DEG}
+              "ring_quality": RING_QUALITY, "ring_normal_deg": RING_NORMAL_DEG, "isolated_factor": ISOLATED_FACTOR}
 
 #: Most cells per side of the uv bounding box over which :func:`coherent_beltrami` averages ...
 _MAX_CELLS = 8
@@ -610,6 +611,10 @@ def _reason(facts: dict) -> str:
     if _too_far_outside(facts):
         parts.append(f"{facts['n_outside']} point(s) lie outside the boundary loops, up to "
                      f"{facts['outside_depth']:.2g} spacings deep (a loop cuts across the surface)")
+    if facts.get("n_isolated"):
+        parts.append(f"{facts['n_isolated']} point(s) lie far from all the others (their neighbours more than "
+                     f"{ISOLATED_FACTOR:g} times farther than those neighbours' own): not samples of the surface, "
+                     "and their uv means nothing")
     cov = facts.get("coverage")
     if cov and not cov["passed"]:
         parts.append(f"{cov['largest_uncovered_group']} boundary candidates lie on no detected loop (a missed hole?)")
@@ -650,7 +655,9 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     dict
         JSON-serialisable: ``passed`` (bool), ``reason`` (one line; "ok" when passed),
         ``failed`` (names among "triangulation", "flipped", "boundary-crossing",
-        "degenerate", "turning", "coverage", "distorted", "outside"), ``coherent_beltrami``,
+        "degenerate", "turning", "coverage", "distorted", "outside", "isolated"), ``coherent_beltrami``,
+        ``n_isolated`` (points far from all others,
+        :func:`~parambench.methods.pointset.stray_points.isolated_mask`),
         ``n_outside`` and ``outside_depth`` (:func:`points_outside`; with loops),
         ``conformal_judged``,
         ``triangulation`` ("cdt", "delaunay", "delaunay-fallback" or "none"),
@@ -673,7 +680,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     knn = _knn(points) if knn_indices is None else knn_indices
     spacing_pt = _local_spacing(points, knn)
     l_mean = float(spacing_pt.mean()) if spacing is None else float(spacing)
-    facts: dict[str, Any] = {"conformal_judged": bool(conformal)}
+    facts: dict[str, Any] = {"conformal_judged": bool(conformal),
+                             "n_isolated": int(isolated_mask(spacing_pt, knn).sum())}
     failing = None
     if not np.all(np.isfinite(uv)):
         facts.update(triangulation="none", n_triangles=0, reason_override="the map has non-finite uv coordinates")
@@ -716,6 +724,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         failed.append("distorted")
     if _too_far_outside(facts):
         failed.append("outside")
+    if facts["n_isolated"]:
+        failed.append("isolated")
     if failing is not None and ("flipped" in failed or "degenerate" in failed):
         facts["causes"] = failure_causes(points, uv, normals, knn, spacing_pt, failing.faces, failing.flipped,
                                          failing.zero)

@@ -28,7 +28,8 @@ from .neighbourhoods import knn_graph, local_spacing
 from .normals import pca_normals
 from .row_chunks import for_each_chunk
 
-__all__ = ["STRAY_OFFSET", "STRAY_NOISE_FACTOR", "offsets_off_surface", "stray_mask", "find_stray_points"]
+__all__ = ["STRAY_OFFSET", "STRAY_NOISE_FACTOR", "ISOLATED_FACTOR", "offsets_off_surface", "stray_mask",
+           "isolated_mask", "find_stray_points"]
 
 #: Smallest offset from its neighbours' tangent planes, in their spacings, of a stray
 #: point. Real meshes' largest offsets where their sampling density jumps: camelhead 1.86,
@@ -38,6 +39,13 @@ STRAY_OFFSET = 1.5
 #: ... and at least this many times the median point's offset, which grows with the noise
 #: (about the noise's standard deviation at 8 neighbours).
 STRAY_NOISE_FACTOR = 4.0
+
+#: A point whose mean distance to its neighbours is more than this many times their own
+#: median one is far from the surface the rest sample, wherever it lies: a junk row of a
+#: scan (``0 0 0`` in a georeferenced file), which may even lie in the surface's plane,
+#: where no tangent-plane offset sees it. Measured, largest ratio without such points:
+#: see :func:`isolated_mask`.
+ISOLATED_FACTOR = 50.0
 
 #: Rows per chunk (bounded temporaries of (rows, K, 3)).
 _CHUNK = 65536
@@ -81,8 +89,26 @@ def stray_mask(offsets: np.ndarray) -> np.ndarray:
     return offsets > max(STRAY_OFFSET, STRAY_NOISE_FACTOR * float(np.median(offsets)))
 
 
+def isolated_mask(spacing: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
+    """(N,) bool: points whose spacing exceeds ``ISOLATED_FACTOR`` times their neighbours' median spacing.
+
+    Parameters
+    ----------
+    spacing : (N,) numpy.ndarray of float64
+        Each point's mean distance to its ``knn_indices`` neighbours.
+    knn_indices : (N, K) numpy.ndarray of int64
+        Neighbours of each point (the point itself not among them).
+
+    Returns
+    -------
+    (N,) numpy.ndarray of bool
+    """
+    return spacing > ISOLATED_FACTOR * np.median(spacing[knn_indices], axis=1)
+
+
 def find_stray_points(points: np.ndarray, k_nn: int = 8, passes: int = 3) -> np.ndarray:
-    """The stray points of a point set, found from its positions alone.
+    """The stray points of a point set, found from its positions alone: off their neighbours'
+    tangent planes (:func:`stray_mask`) or far from every other point (:func:`isolated_mask`).
 
     Parameters
     ----------
@@ -104,7 +130,8 @@ def find_stray_points(points: np.ndarray, k_nn: int = 8, passes: int = 3) -> np.
         sub = points[kept]
         graph = knn_graph(sub, min(int(k_nn), sub.shape[0] - 1))
         normals = pca_normals(sub, np.column_stack([np.arange(sub.shape[0]), graph.indices]))
-        found = stray_mask(offsets_off_surface(sub, normals, graph.indices, local_spacing(graph)))
+        found = (stray_mask(offsets_off_surface(sub, normals, graph.indices, local_spacing(graph)))
+                 | isolated_mask(graph.distances.mean(axis=1), graph.indices))
         if not found.any():
             break
         stray[kept[found]] = True

@@ -77,6 +77,9 @@ BAD_CASES = {
     "unknown-param": ("grid", ["flatten", "{src}", "--method", "scp-igl", "--param", "zz=1", "-o", "{tmp}/o.obj"],
                       "UnknownNameError"),
     "bad-output": ("grid", ["flatten", "{src}", "-o", "{tmp}/o.png"], "InputFileError"),
+    "output-over-input": ("grid", ["flatten", "{src}", "-o", "{src}"], "InputFileError"),
+    "output-folder-missing": ("grid", ["flatten", "{src}", "-o", "{tmp}/no/o.obj"], "InputFileError"),
+    "inspect-folder-missing": ("grid", ["inspect", "{src}", "-o", "{tmp}/no/o.json"], "InputFileError"),
     "points-only-mesh-method": ("grid", ["flatten", "{src}", "--points-only", "--method", "scp-igl",
                                          "-o", "{tmp}/o.obj"], "MissingFacesError"),
     "closed": ("tetra", ["flatten", "{src}", "--method", "scp-igl", "-o", "{tmp}/o.obj"], "NotADiskError"),
@@ -97,9 +100,12 @@ def test_bad_input_one_line_exit_2(case, tmp_path, capsys, write_obj):
     elif kind == "two":
         write_obj(src, *_two_components())
     argv = [a.format(tmp=tmp_path, src=src) for a in argv]
+    before = src.read_bytes() if src.exists() else None
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and error in err and "Traceback" not in err
+    if before is not None:
+        assert src.read_bytes() == before  # the input is never written over
 
 
 def test_nan_coordinates_in_file(tmp_path, capsys):

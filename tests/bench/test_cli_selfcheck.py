@@ -277,3 +277,27 @@ def test_the_summary_names_a_stretched_map_and_points_outside_the_loops():
     text = _selfcheck_summary(check)
     assert "stretched (coherent Beltrami coefficient 0.10)" in text and "4 point(s) outside the loops" in text
     assert "outside the loops" not in _selfcheck_summary(dict(check, failed=["distorted"]))
+
+
+@pytest.mark.parametrize("junk", [[0.0, 0.0, 0.0], "in-plane"])
+def test_a_junk_row_far_from_the_scan_fails_the_check_and_repair_drops_it(tmp_path, capsys, junk):
+    """A georeferenced patch (UTM-sized coordinates) with one ``0 0 0`` row, or a unit patch
+    with a point far off in its own plane (no tangent-plane offset sees it): before, exit 0
+    with a uv for that point inside the patch's."""
+    from parambench.datasets_gen.registry import make_surface
+
+    patch = make_surface("bump", 2000, sampling="jittered", seed=0).points
+    if junk == "in-plane":
+        rows = np.vstack([patch, [1e4, 0.0, 0.0]])
+    else:
+        rows = np.vstack([patch * 10.0 + [500000.0, 5400000.0, 120.0], junk])
+    src, out = tmp_path / "scan.xyz", tmp_path / "scan.obj"
+    np.savetxt(src, rows, fmt="%.17g")
+    assert main(["flatten", str(src), "-o", str(out)]) == EXIT_SELFCHECK
+    captured = capsys.readouterr()
+    assert "1 point(s) far from all others" in captured.out and not out.exists()
+    assert "lie far from all the others" in captured.err and "--repair drops the stray points" in captured.err
+    assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
+    assert "dropped 1 stray point(s)" in capsys.readouterr().err
+    kept = np.array([line.split()[1:] for line in out.read_text().splitlines() if line.startswith("v ")], float)
+    assert len(kept) == len(patch)

@@ -211,3 +211,14 @@ def test_textured_bunny_obj_loads_as_a_mesh():
 
     surface = load_surface(pymeshlab_samples_dir() / "bunny10k_textured.obj")
     assert surface.has_faces and surface.n_points == 5051 and len(surface.faces) == 9999
+
+
+def test_a_far_junk_row_does_not_widen_the_merge_tolerance():
+    """A 12 cm part sampled every 2 mm at UTM coordinates, plus one ``0 0 0`` row 5.4e6 m away:
+    the whole bounding box's tolerance (1e-9 of its diagonal, 5.4 mm) merged 3999 of the 4000
+    points; the box of the 1st-99th percentiles does not see the junk row."""
+    g = np.arange(60) * 0.002
+    x, y = np.meshgrid(g, g)
+    part = np.c_[x.ravel() + 500000.0, y.ravel() + 5400000.0, np.full(x.size, 120.0)]
+    groups = coincident_groups(np.vstack([part, [0.0, 0.0, 0.0]]))
+    assert groups.n_merged == 0 and groups.tolerance < 1e-6

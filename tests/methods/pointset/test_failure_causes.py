@@ -280,3 +280,16 @@ def test_parts_hanging_by_a_single_point_are_named_apart_from_a_protrusion():
     assert "12 points hang on the rest by single points" in describe_causes(causes)
     assert "remove the parts that hang on by single points" in cause_advice(causes, [])[0]
     assert protrusion_shrink(disc, knn_disc, np.arange(120)) == {}
+
+
+def test_ocp_after_failed_retries_also_offers_sdp_and_isolated_points_stand_alone():
+    check = {"reason": "7 flipped triangle(s)", "failed": ["flipped", "distorted"],
+             "retry": {"params": {"k_nn": 12}, "passed": False, "first_reason": "7 flipped triangle(s)"}}
+    line = failure_line(check, {"k_nn": 8}, "ocp")
+    assert "--param k_nn=16" in line and line.endswith("or try --method sdp (the spectral Dirichlet map: no k "
+                                                         "search, less conformal)")
+    assert "--method sdp" not in failure_line({**check, "retry": {}}, {"k_nn": 8}, "ocp")
+    assert "--method sdp" not in failure_line(check, {"k_nn": 8}, "fbcp-pc")
+    far = {"reason": "1 point(s) lie far from all the others", "failed": ["isolated", "flipped"]}
+    line = failure_line(far, {"k_nn": 8}, "ocp")
+    assert line.endswith("before flattening") and "--param" not in line

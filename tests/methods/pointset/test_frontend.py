@@ -163,3 +163,32 @@ def test_inspect_surface_is_json(make_height_patch):
     assert set(back["reconstruction_error"]) >= {"mean", "max"}
     assert set(back["timings"]) == set(STAGES)
     assert back["selfcheck"]["n_unresolved"] == 0  # a flat patch: every neighbour's normal agrees
+
+
+@pytest.mark.parametrize("jitter", [0.0, 1e-9])
+def test_collinear_points_are_refused_as_a_curve(jitter):
+    """Before: "several components" or "500 of the 500 points ... sample more densely"."""
+    rng = np.random.default_rng(0)
+    t = np.sort(rng.random(500))
+    line = np.c_[t, 2 * t, -t] + jitter * rng.normal(size=(500, 3))
+    with pytest.raises(InvalidInputError, match="the points lie on a line"):
+        build_frontend(line)
+    from parambench.methods import get_method
+
+    with pytest.raises(InvalidInputError, match="sample a curve, not a surface"):
+        get_method("ocp")(Surface(points=line, name="line"))
+
+
+def test_a_long_strip_is_no_line():
+    """A 20:1 strip, ten spacings wide, is a surface: it passes the line test and its one loop is found."""
+    x, y = np.meshgrid(np.linspace(0, 20, 201), np.linspace(0, 1, 11))
+    strip = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    front = build_frontend(strip)
+    assert len(front.boundary_loops) == 1
+
+
+def test_points_that_all_coincide_say_so():
+    from parambench.methods import get_method
+
+    with pytest.raises(TooFewPointsError, match="199 of 200 points coincide .* leaving 1 distinct point"):
+        get_method("ocp")(Surface(points=np.tile([1.0, 2.0, 3.0], (200, 1)), name="same"))
