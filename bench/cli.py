@@ -222,61 +222,37 @@ def _energy_summary(diag: dict) -> str:
     return " (with the paper's energy: the Neumann energy's k search found no regular map)"
 
 
+def _k(k_nn: Any) -> int:
+    return k_nn if isinstance(k_nn, int) and k_nn > 0 else 8
+
+
+def _screened(surface, k_nn: Any):
+    """A point set without the normals its file's columns were only guessed to hold, where they do not fit."""
+    if surface.faces is not None:
+        return surface
+    from .point_repair import screened_guessed_normals
+
+    return screened_guessed_normals(surface, _k(k_nn))
+
+
 def _repaired(surface, repair: bool, k_nn: Any):
     """``surface`` itself, or with ``--repair`` its largest piece repaired, a point set's stray points dropped (one line on stderr)."""
     if not repair:
         return surface
     from parambench.datasets_gen.repair import repair_summary, repair_surface
 
-    k = k_nn if isinstance(k_nn, int) and k_nn > 0 else 8
+    from .point_repair import with_usable_normals, without_stray_points
+
+    k = _k(k_nn)
     surface, facts = repair_surface(surface, k_nn=k)
     note = repair_summary(facts)
     if surface.faces is None and surface.n_points > k + 1:
-        surface, n_stray = _without_stray_points(surface, k)
+        surface, n_stray = without_stray_points(surface, k)
         note += f"; dropped {n_stray} stray point(s) off the surface" if n_stray else ""
-        surface, normals_note = _with_usable_normals(surface, k)
+        surface, normals_note = with_usable_normals(surface, k)
         note += normals_note
     print(f"parambench: note: {note}; the output holds these vertices", file=sys.stderr)
     return surface
-
-
-def _with_usable_normals(surface, k_nn: int):
-    """A point set's given normals with the misoriented ones flipped, or dropped when far off the surface; and a note."""
-    from dataclasses import replace
-
-    from parambench.methods.pointset.neighbourhoods import knn_graph
-    from parambench.methods.pointset.normals import (MIN_NORMAL_ALIGNMENT, misoriented_normals, normal_alignment,
-                                                     pca_normals)
-
-    if surface.normals is None:
-        return surface, ""
-    # The graph the front end checks the normals on is near this one: its duplicates are
-    # merged, and its gap-aware edges differ only across narrow gaps.
-    indices = knn_graph(surface.points, k_nn).indices
-    align = normal_alignment(surface.normals, pca_normals(surface.points, indices))
-    if align < MIN_NORMAL_ALIGNMENT:
-        return (replace(surface, normals=None),
-                f"; dropped the given normals (median |cos| to the fitted ones {align:.2f}): estimated instead")
-    odd = misoriented_normals(surface.points, surface.normals, indices)
-    if not odd.any():
-        return surface, ""
-    normals = surface.normals.copy()
-    normals[odd] *= -1.0
-    return replace(surface, normals=normals), f"; flipped {int(odd.sum())} given normal(s) to agree with their neighbours"
-
-
-def _without_stray_points(surface, k_nn: int):
-    """A point set without its stray points (a scan's outliers), and how many there were."""
-    from parambench.datasets_gen.surface import Surface
-    from parambench.methods.pointset.stray_points import find_stray_points
-
-    stray = find_stray_points(surface.points, k_nn)
-    if not stray.any():
-        return surface, 0
-    keep = ~stray
-    normals = None if surface.normals is None else surface.normals[keep]
-    params = {**surface.params, "stray_points_dropped": int(stray.sum())}
-    return Surface(points=surface.points[keep], normals=normals, name=surface.name, params=params), int(stray.sum())
 
 
 @contextmanager
@@ -322,7 +298,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     surface = load_surface(args.input, points_only=args.points_only)
     method = get_method(args.method or _default_method(surface))
     params = parse_param_values(args.param or [], method.defaults)
-    surface = _repaired(surface, args.repair, params.get("k_nn", method.defaults.get("k_nn")))
+    surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
+                        params.get("k_nn", method.defaults.get("k_nn")))
     with _offer_repair(args.repair):
         result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
@@ -364,7 +341,8 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         from parambench.datasets_gen.errors import UnknownNameError
 
         raise UnknownNameError(f"unknown front-end parameter(s) {', '.join(unknown)}; accepted: {', '.join(sorted(defaults))}.")
-    surface = _repaired(surface, args.repair, params.get("k_nn", defaults["k_nn"]))
+    surface = _repaired(_screened(surface, params.get("k_nn", defaults["k_nn"])), args.repair,
+                        params.get("k_nn", defaults["k_nn"]))
     with _offer_repair(args.repair):
         report = inspect_surface(surface, **params)
     out.write_text(json.dumps(report, indent=2))

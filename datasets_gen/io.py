@@ -1,20 +1,24 @@
 """Reading user files into a :class:`~parambench.datasets_gen.surface.Surface`.
 
-Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, PTS, PLY without faces) are read by our
-own numpy readers (:mod:`parambench.datasets_gen.formats`, one module per format): no native reader
-sees the file, so a hostile file cannot crash, hang or silently alter the data. Guarantees
-that users rely on:
+Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, also named ``.txt``, ``.csv`` or
+``.asc``; PTS; PLY without faces) are read by our own numpy readers
+(:mod:`parambench.datasets_gen.formats`, one module per format): no native reader sees the
+file, so a hostile file cannot crash, hang or silently alter the data. Guarantees that
+users rely on:
 
 - Row i of ``points`` is vertex i of the file, unreferenced vertices included; a vertex
   with a NaN, infinite or unparsable coordinate is an error, never dropped (STL has no
-  vertex list: its vertices are the distinct corners in order of first appearance).
+  vertex list: its vertices are the distinct corners in order of first appearance, corners
+  closer than a millionth of the median triangle edge counting as one).
 - Every malformed file (counts that disagree with the file, truncated data, face indices
-  out of range or repeated in a face, OBJ index 0, text header lines in XYZ, ...) raises
-  InputFileError with one line: the file, the line or byte offset, the problem, what to do.
+  out of range or repeated in a face, OBJ index 0, XYZ text lines other than a header of
+  column names, polygons that cross themselves, ...) raises InputFileError with one line:
+  the file, the line or byte offset, the problem, what to do.
 - Normals are kept only when the file stores them (PLY ``nx ny nz``, OFF ``NOFF``, OBJ with
-  one ``vn`` per ``v``, XYZ/PTS text with six columns, binary Expe ``.pts`` with a normal
-  property) and they are finite and non-zero (otherwise they are ignored with a warning);
-  computed normals are never passed off as data.
+  one ``vn`` per ``v``, XYZ/PTS text columns that a header names ``nx ny nz`` or, without a
+  header, that hold normals, binary Expe ``.pts`` with a normal property) and they are
+  finite and non-zero (otherwise they are ignored with a warning); computed normals are
+  never passed off as data.
 - Duplicate points are not merged here: row i stays vertex i (the Surface decides what to do with them).
 """
 
@@ -25,14 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputFileError
-from .formats import read_file
+from .formats import READERS, read_file
 from .mesh_loops import mesh_boundary
 from .surface import Surface
 
 __all__ = ["load_surface", "SUPPORTED_EXTENSIONS"]
 
-SUPPORTED_EXTENSIONS = (".off", ".obj", ".ply", ".stl", ".xyz", ".pts")
+#: Lower-case extensions :func:`load_surface` reads (``.txt``, ``.csv``, ``.asc``: XYZ text).
+SUPPORTED_EXTENSIONS = tuple(READERS)
 
 
 def load_surface(path, *, points_only: bool = False, name: str | None = None) -> Surface:
@@ -41,7 +45,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     Parameters
     ----------
     path : str or os.PathLike
-        An ``.off``, ``.obj``, ``.ply``, ``.stl`` mesh or ``.xyz``, ``.pts``, ``.ply`` point cloud.
+        An ``.off``, ``.obj``, ``.ply``, ``.stl`` mesh or ``.xyz`` (also ``.txt``, ``.csv``,
+        ``.asc``), ``.pts``, ``.ply`` point cloud.
     points_only : bool
         Drop the faces (keep the vertices as a point set).
     name : str, optional
@@ -50,7 +55,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     Returns
     -------
     Surface
-        ``params`` holds ``source`` (the path) and ``format``; for a mesh with manifold
+        ``params`` holds ``source`` (the path) and ``format`` (and ``normals_guessed``: True
+        where the normals are columns the file does not name); for a mesh with manifold
         edges, ``boundary_loops`` (longest first, following the faces) and ``boundary_mask``.
 
     Raises
@@ -63,15 +69,14 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if ext not in SUPPORTED_EXTENSIONS:
-        raise InputFileError(f"{path}: unsupported file type {ext or '(none)'!r}; supported: "
-                             f"{', '.join(SUPPORTED_EXTENSIONS)}.")
-    raw = read_file(path)
+    raw = read_file(path)  # an extension without a reader is refused there, with the list of those it has
     normals = _file_normals(path, raw.normals)
     faces = None if points_only else raw.faces
     loops, mask = mesh_boundary(faces, len(raw.points)) if faces is not None else (None, None)
     return Surface(points=raw.points, faces=faces, normals=normals, name=name or path.stem,
-                   params={"source": str(path), "format": ext[1:]}, boundary_loops=loops, boundary_mask=mask)
+                   params={"source": str(path), "format": ext[1:],
+                           **({"normals_guessed": True} if raw.normals_guessed and normals is not None else {})},
+                   boundary_loops=loops, boundary_mask=mask)
 
 
 def _file_normals(path: Path, normals: np.ndarray | None) -> np.ndarray | None:

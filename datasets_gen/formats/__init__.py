@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import InputFileError
 from ._common import RawMesh, read_bytes
 from .obj import read_obj
 from .off import read_off
@@ -21,9 +22,10 @@ from .xyz import read_xyz
 
 __all__ = ["RawMesh", "READERS", "read_file"]
 
-#: Reader per lower-case extension: ``reader(path, data) -> RawMesh``.
+#: Reader per lower-case extension: ``reader(path, data) -> RawMesh``. ``.txt``, ``.csv`` and
+#: ``.asc`` are the names other tools give XYZ text (CloudCompare, spreadsheets, scanners).
 READERS = {".off": read_off, ".obj": read_obj, ".ply": read_ply, ".stl": read_stl, ".xyz": read_xyz,
-           ".pts": read_pts}
+           ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_xyz}
 
 
 def read_file(path: Path) -> RawMesh:
@@ -41,9 +43,11 @@ def read_file(path: Path) -> RawMesh:
     Raises
     ------
     InputFileError
-        Missing, unreadable or special file, or malformed contents.
-    KeyError
-        The suffix has no reader (callers check the extension first).
+        An extension without a reader (the message lists the accepted ones), a missing,
+        unreadable or special file, or malformed contents.
     """
-    reader = READERS[path.suffix.lower()]
-    return reader(path, read_bytes(path))
+    ext = path.suffix.lower()
+    if ext not in READERS:
+        raise InputFileError(f"{path}: unsupported file type {ext or '(none)'!r}; supported: "
+                             f"{', '.join(READERS)}.")
+    return READERS[ext](path, read_bytes(path))

@@ -1,9 +1,12 @@
-"""Shared parts of the file readers: opening, one-line errors, tokens, numbers, faces.
+"""Shared parts of the file readers: opening, text, one-line errors, tokens, numbers, faces.
 
 Every reader parses the whole file with numpy before anything is built from it, so no
-native reader ever sees an unchecked file. Text is tokenised once (``bytes.split`` plus
-the line each token starts on, found with vectorised numpy); numbers are converted in one
-numpy call and the slow per-token search runs only to name the bad token in an error.
+native reader ever sees an unchecked file. Text is first made uniform (:func:`text_of`: no
+byte-order mark, LF line breaks), then tokenised once (``bytes.split`` plus the line each
+token starts on, found with vectorised numpy); numbers are converted in one numpy call and
+the slow per-token search runs only to name the bad token in an error. Polygons are split
+into triangles by :func:`polygons_to_triangles`: a fan for convex ones, ear clipping for
+the others.
 """
 
 from __future__ import annotations
@@ -17,12 +20,21 @@ import numpy as np
 
 from ..errors import InputFileError
 
-__all__ = ["RawMesh", "read_bytes", "file_error", "show", "strip_comments", "Tokens",
-           "polygons_to_triangles", "MAX_NUMBER_CHARS"]
+__all__ = ["RawMesh", "read_bytes", "file_error", "show", "text_of", "strip_comments", "Tokens",
+           "polygons_to_triangles", "MAX_NUMBER_CHARS", "UTF8_BOM", "STRAIGHT_SINE"]
 
 #: Longer tokens are refused before conversion: a number never needs more characters, and
 #: one huge token would make numpy's fixed-width byte array as wide as itself per row.
 MAX_NUMBER_CHARS = 64
+
+#: The UTF-8 byte-order mark some Windows tools write at the start of every text file.
+UTF8_BOM = b"\xef\xbb\xbf"
+
+#: A polygon corner whose turn (the sine of the angle between its two edges) is at most
+#: this counts as straight: a fan triangle or an ear at such a corner would have (almost) no
+#: area, and the Surface refuses zero-area faces. Mid-edge corners written with 6
+#: significant digits are off their edge's line by about 1e-6 of its length.
+STRAIGHT_SINE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -39,11 +51,15 @@ class RawMesh:
     normals : (N, 3) numpy.ndarray of float64 or None
         Per-vertex normals exactly as stored (not normalised, possibly non-finite); None
         when the file stores none.
+    normals_guessed : bool
+        The file does not say these columns are normals (an XYZ file without a header):
+        the reader took them for normals by their values.
     """
 
     points: np.ndarray
     faces: np.ndarray | None = None
     normals: np.ndarray | None = None
+    normals_guessed: bool = False
 
 
 def file_error(path: Path, where: str | None, problem: str, todo: str) -> InputFileError:
@@ -102,6 +118,32 @@ def read_bytes(path: Path) -> bytes:
                          "check its permissions") from None
     if not data.strip():
         raise file_error(path, None, "the file is empty", "pass a file that holds the mesh or points")
+    return data
+
+
+def text_of(data: bytes) -> bytes:
+    """A text file's bytes as the tokeniser expects them: no byte-order mark, LF line breaks.
+
+    Only for text: a binary payload (binary STL or PLY body, Expe PTS) must never pass here.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's contents (or, for PLY, its header).
+
+    Returns
+    -------
+    bytes
+        ``data`` without a leading UTF-8 byte-order mark (it would stick to the first
+        token: OBJ lost its first vertex, ``\\ufeffv`` not being the keyword ``v``) and,
+        when ``data`` holds no LF at all, with every CR turned into LF (classic Mac OS line
+        breaks; CRLF files keep their CRs, which the tokeniser treats as spaces). Neither
+        changes the number of lines, so messages name the lines an editor shows.
+    """
+    if data.startswith(UTF8_BOM):
+        data = data[len(UTF8_BOM):]
+    if b"\r" in data and b"\n" not in data:
+        data = data.replace(b"\r", b"\n")  # byte for byte: offsets are kept too
     return data
 
 
@@ -256,9 +298,17 @@ def _first_unparsable(tokens: list, dtype) -> int:
     raise AssertionError("no unparsable token found")  # pragma: no cover - only called after a failure
 
 
-def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: int, where, path: Path,
+def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, points: np.ndarray, where, path: Path,
                           written: np.ndarray | None = None) -> np.ndarray:
-    """Check polygons and split each into a fan of triangles.
+    """Check polygons and split each into triangles that cover it exactly once.
+
+    A convex polygon (every corner turning the same way, strictly, about the polygon's
+    Newell normal, and once around in all) becomes a fan from its first corner, as it always
+    did; the test is vectorised over all polygons and triangle meshes skip it. A polygon that
+    is not convex, or has straight corners (turn at most :data:`STRAIGHT_SINE`: mid-edge
+    vertices), is ear-clipped in its Newell plane instead: a fan from a corner that cannot
+    see all others covers the notch twice with overlapping triangles, and a fan from or
+    across a straight corner makes zero-area triangles, which the Surface refuses.
 
     Parameters
     ----------
@@ -266,8 +316,8 @@ def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: in
         0-based vertex indices of all polygons, concatenated.
     sizes : (F,) numpy.ndarray of int64
         Corners per polygon (each >= 3, summing to K).
-    n_vertices : int
-        Valid indices are ``0 .. n_vertices - 1``.
+    points : (N, 3) numpy.ndarray of float64
+        The file's vertices, all finite; valid indices are ``0 .. N - 1``.
     where : callable
         ``where(f)`` gives the location string (``"line 7"``) of polygon ``f``.
     path : pathlib.Path
@@ -279,15 +329,19 @@ def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: in
     Returns
     -------
     (sum(sizes - 2), 3) numpy.ndarray of int64
-        Triangles ``(v0, v_i, v_i+1)`` in polygon order.
+        ``sizes[f] - 2`` triangles per polygon, in polygon order, each wound like its
+        polygon: for convex polygons the fan ``(v0, v_i, v_i+1)``.
 
     Raises
     ------
     InputFileError
-        A polygon with fewer than 3 corners, an index out of range, or an index repeated
-        within a polygon (readers used to drop such faces silently).
+        A polygon with fewer than 3 corners, an index out of range, an index repeated
+        within a polygon (readers used to drop such faces silently), or a polygon of 4 or
+        more corners that is not convex and has two corners at one position, no area, or
+        crosses or touches itself (no ear to clip).
     """
     sizes = np.asarray(sizes, dtype=np.int64)
+    n_vertices = len(points)
     small = np.flatnonzero(sizes < 3)
     if small.size:
         f = int(small[0])
@@ -311,4 +365,168 @@ def polygons_to_triangles(indices: np.ndarray, sizes: np.ndarray, n_vertices: in
     tri_face = np.repeat(np.arange(len(sizes)), n_tri)
     k = np.arange(int(n_tri.sum())) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
     base = starts[tri_face]
-    return np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1).astype(np.int64)
+    tris = np.stack([indices[base], indices[base + k + 1], indices[base + k + 2]], axis=1).astype(np.int64)
+    big = np.flatnonzero(sizes > 3)  # a triangle is its own fan
+    first_tri = np.cumsum(n_tri) - n_tri
+    for size in np.unique(sizes[big]).tolist():  # one (polygons, size) block per size: files hold few sizes
+        group = big[sizes[big] == size]
+        block = indices[starts[group][:, None] + np.arange(size)]
+        for f in group[~_convex(points[block])].tolist():
+            corners = indices[starts[f]:starts[f] + size]
+            tris[first_tri[f]:first_tri[f] + size - 2] = corners[_ear_clip(points[corners], where(f), path)]
+    return tris
+
+
+def _convex(corners: np.ndarray) -> np.ndarray:
+    """Which polygons of one size are strictly convex.
+
+    Parameters
+    ----------
+    corners : (P, n, 3) numpy.ndarray of float64
+        P polygons of n >= 4 corners each, in order.
+
+    Returns
+    -------
+    (P,) numpy.ndarray of bool
+        Each corner's turn is measured about its polygon's Newell normal: convex means
+        every turn is positive (sine above :data:`STRAIGHT_SINE`) and, from 5 corners on,
+        the turns add up to one revolution (a pentagram turns the same way everywhere,
+        twice round). A polygon without area, or with two corners at one position, is not
+        convex.
+    """
+    p = corners - corners[:, :1]  # relative to the first corner: no cancellation far from 0
+    # component arrays of shape (P, n): several times faster than (P, n, 3) cross products
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    xn, yn, zn = (np.roll(c, -1, axis=1) for c in (x, y, z))
+    nx = (y * zn - z * yn).sum(axis=1, keepdims=True)  # Newell normal
+    ny = (z * xn - x * zn).sum(axis=1, keepdims=True)
+    nz = (x * yn - y * xn).sum(axis=1, keepdims=True)
+    bx, by, bz = xn - x, yn - y, zn - z  # the edge leaving each corner
+    ax, ay, az = (np.roll(c, 1, axis=1) for c in (bx, by, bz))  # the edge arriving at it
+    with np.errstate(invalid="ignore", divide="ignore"):  # NaN without area or edge length: never convex
+        turn = ((ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz) \
+            / np.sqrt(nx * nx + ny * ny + nz * nz)
+        sine = turn / np.sqrt((ax * ax + ay * ay + az * az) * (bx * bx + by * by + bz * bz))
+        convex = np.all(sine > STRAIGHT_SINE, axis=1)
+        if corners.shape[1] >= 5:  # 4 corners turning the same way cannot go round twice
+            revolutions = np.arctan2(turn, ax * bx + ay * by + az * bz).sum(axis=1) / (2 * np.pi)
+            convex &= np.abs(revolutions - 1.0) < 0.5
+    return convex
+
+
+def _ear_clip(corners: np.ndarray, where: str, path: Path) -> np.ndarray:
+    """Triangulate one polygon by ear clipping in its Newell plane.
+
+    Parameters
+    ----------
+    corners : (n, 3) numpy.ndarray of float64
+        The polygon's corners in order (n >= 4).
+    where, path
+        For messages.
+
+    Returns
+    -------
+    (n - 2, 3) numpy.ndarray of int64
+        Positions in ``corners`` of each triangle, wound like the polygon, none of them
+        with a straight tip (no zero-area triangle).
+
+    Raises
+    ------
+    InputFileError
+        Two corners at the same position, no area, or the polygon crosses or touches
+        itself (no ear is left to clip).
+    """
+    n = len(corners)
+    _, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
+    if len(first) < n:  # two vertices at one position: a collapsed edge, or a polygon pinched into two
+        k = int(np.flatnonzero(first[inverse.ravel()] != np.arange(n))[0])
+        raise file_error(path, where, f"corners {int(first[inverse.ravel()[k]]) + 1} and {k + 1} of a polygon of {n} "
+                         "corners are at the same position", "merge the coincident vertices (e.g. pymeshlab "
+                         "meshing_merge_close_vertices) or remove that face")
+    rel = corners - corners[0]
+    normal = np.cross(rel, np.roll(rel, -1, axis=0)).sum(axis=0)  # Newell normal (twice the area vector)
+    size = float(np.ptp(rel, axis=0).max())
+    if not np.linalg.norm(normal) > (STRAIGHT_SINE * size) ** 2:
+        raise file_error(path, where, f"a polygon of {n} corners has no area (its corners lie on a line, or it "
+                         "folds back onto itself)", "remove that face, or triangulate it in the tool that wrote it")
+    normal /= np.linalg.norm(normal)
+    helper = np.eye(3)[np.argmin(np.abs(normal))]
+    u = np.cross(normal, helper)
+    u /= np.linalg.norm(u)
+    v = np.cross(normal, u)  # (u, v, normal) right-handed: the polygon runs counter-clockwise in (u, v)
+    xy = np.stack([rel @ u, rel @ v], axis=1)
+    if _crosses_itself(xy):  # ear clipping would cut a pentagram into overlapping triangles without noticing
+        raise _crossing(path, where, n)
+    left = list(range(n))
+    alive = np.ones(n, dtype=bool)  # the corners still in ``left``, as a mask for the numpy tests
+    out = []
+    k, misses = 0, 0
+    while len(left) > 3:
+        m = len(left)
+        k %= m
+        a, b, c = left[k - 1], left[k], left[(k + 1) % m]
+        if _is_ear(xy, a, b, c, alive):
+            out.append((a, b, c))
+            del left[k]  # the next candidate is the corner after the tip, now at position k
+            alive[b] = False
+            misses = 0
+            continue
+        k, misses = k + 1, misses + 1
+        if misses >= m:
+            raise _crossing(path, where, n)
+    a, b, c = left
+    if not max(_turn_sine(xy, a, b, c), _turn_sine(xy, b, c, a), _turn_sine(xy, c, a, b)) > STRAIGHT_SINE:
+        raise _crossing(path, where, n)  # the last triangle would have no area, or run clockwise
+    out.append(tuple(left))
+    return np.array(out, dtype=np.int64)
+
+
+def _crossing(path: Path, where: str, n: int) -> InputFileError:
+    return file_error(path, where, f"a polygon of {n} corners crosses or touches itself (it cannot be split "
+                      "into triangles that cover it once)", "split it into simple polygons, or triangulate it in "
+                      "the tool that wrote the file")
+
+
+def _crosses_itself(xy: np.ndarray) -> bool:
+    """Whether two edges of the closed polygon ``xy`` ((n, 2) float64) cross (touching is left to the ears)."""
+    n = len(xy)
+    start, end = xy, np.roll(xy, -1, axis=0)
+    for i in range(n - 2):
+        j = np.arange(i + 2, n if i else n - 1)  # the edges that do not share a corner with edge i
+        p, q = start[i], end[i]
+        d = q - p
+        side_a = d[0] * (start[j, 1] - p[1]) - d[1] * (start[j, 0] - p[0])
+        side_b = d[0] * (end[j, 1] - p[1]) - d[1] * (end[j, 0] - p[0])
+        e = end[j] - start[j]
+        side_p = e[:, 0] * (p[1] - start[j, 1]) - e[:, 1] * (p[0] - start[j, 0])
+        side_q = e[:, 0] * (q[1] - start[j, 1]) - e[:, 1] * (q[0] - start[j, 0])
+        if np.any((side_a * side_b < 0) & (side_p * side_q < 0)):
+            return True
+    return False
+
+
+def _turn_sine(xy: np.ndarray, a: int, b: int, c: int) -> float:
+    """Sine of the (counter-clockwise) turn at ``b`` on the path a -> b -> c."""
+    e1, e2 = xy[b] - xy[a], xy[c] - xy[b]
+    length = float(np.hypot(*e1) * np.hypot(*e2))
+    return float(e1[0] * e2[1] - e1[1] * e2[0]) / length if length > 0 else 0.0
+
+
+def _is_ear(xy: np.ndarray, a: int, b: int, c: int, alive: np.ndarray) -> bool:
+    """Whether a -> b -> c turns left (strictly) with no other ``alive`` corner inside or on the triangle.
+
+    Corners on the triangle's border count as inside: cutting along a diagonal through a
+    straight corner would leave a piece of zero area behind.
+    """
+    if not _turn_sine(xy, a, b, c) > STRAIGHT_SINE:
+        return False
+    others = alive.copy()
+    others[[a, b, c]] = False
+    tri = xy[[a, b, c]]
+    edges = np.roll(tri, -1, axis=0) - tri
+    lengths = np.hypot(edges[:, 0], edges[:, 1])
+    rel = xy[others][:, None, :] - tri[None, :, :]  # (others, 3 corners, 2)
+    # signed distance of each other corner from each edge's line, positive inside
+    dist = (edges[None, :, 0] * rel[:, :, 1] - edges[None, :, 1] * rel[:, :, 0]) / lengths[None, :]
+    inside = np.all(dist >= -STRAIGHT_SINE * lengths.max(), axis=1)
+    return not inside.any()

@@ -2,21 +2,30 @@
 
 ``v x y z [w | r g b]``: the first three values are the position, the rest are parsed and
 ignored. ``f`` takes ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn`` corners with 1-based or
-negative (relative: -1 is the latest ``v``) vertex indices; polygons are split into fans.
+negative (relative: -1 is the latest ``v``) vertex indices; polygons are split into
+triangles (a fan when convex, else ear clipping: :func:`._common.polygons_to_triangles`).
 Index 0, an index past the vertex list, a non-numeric value or a repeated corner is an
 error with its line number. ``vn`` rows count as per-vertex normals only when there is
-exactly one per ``v`` (they are then taken in order).
+exactly one per ``v`` (they are then taken in order). A backslash at the end of a line
+joins the next line to it (the OBJ specification allows it; ``#`` comments end at their
+line, backslash included); a leading UTF-8 byte-order mark and classic Mac OS (CR only)
+line breaks are accepted.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
-from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, strip_comments
+from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, strip_comments, text_of
 
 __all__ = ["read_obj"]
+
+#: A statement continued over several lines: lines ending in a backslash, and the line after them.
+_CONTINUED = re.compile(rb"(?m)^(?:[^\n]*\\[ \t\r]*\n)+[^\n]*")
+_BREAK = re.compile(rb"\\[ \t\r]*\n")
 
 
 def read_obj(path: Path, data: bytes) -> RawMesh:
@@ -32,16 +41,20 @@ def read_obj(path: Path, data: bytes) -> RawMesh:
     Returns
     -------
     RawMesh
-        Points in ``v`` order, fan-triangulated faces (None without ``f`` records),
+        Points in ``v`` order, triangulated faces (None without ``f`` records),
         normals when there is one ``vn`` per ``v``.
 
     Raises
     ------
     InputFileError
         No vertices, short records, non-numeric or non-finite coordinates, index 0,
-        out-of-range or non-integer face indices, a corner repeated in a face.
+        out-of-range or non-integer face indices, a corner repeated in a face, a polygon
+        without area or that crosses itself.
     """
-    t = Tokens(path, strip_comments(data))
+    data = strip_comments(text_of(data))
+    if b"\\" in data and _BREAK.search(data):  # only files that continue lines pay for the rewrite
+        data = _CONTINUED.sub(_join, data)
+    t = Tokens(path, data)
     kind = t.keywords()
     v_lines = np.flatnonzero(kind == b"v")
     if v_lines.size == 0:
@@ -52,8 +65,14 @@ def read_obj(path: Path, data: bytes) -> RawMesh:
     if normals is not None and len(normals) != len(points):
         normals = None
     f_lines = np.flatnonzero(kind == b"f")
-    faces = _faces(t, f_lines, v_lines) if f_lines.size else None
+    faces = _faces(t, f_lines, v_lines, points) if f_lines.size else None
     return RawMesh(points=points, faces=faces, normals=normals)
+
+
+def _join(match: re.Match) -> bytes:
+    """One continued statement on one line, then as many empty lines as it lost (line numbers stay right)."""
+    text, breaks = _BREAK.subn(b" ", match.group())
+    return text + b"\n" * breaks
 
 
 def _rows(t: Tokens, lines: np.ndarray, what: str, finite: bool) -> np.ndarray:
@@ -72,7 +91,7 @@ def _rows(t: Tokens, lines: np.ndarray, what: str, finite: bool) -> np.ndarray:
     return values.reshape(-1, 3)
 
 
-def _faces(t: Tokens, lines: np.ndarray, v_lines: np.ndarray) -> np.ndarray:
+def _faces(t: Tokens, lines: np.ndarray, v_lines: np.ndarray, points: np.ndarray) -> np.ndarray:
     sizes = t.count[lines] - 1
     corners = t.spans(lines, 1, sizes)
     # only the vertex part of "v/vt/vn" matters; texture and normal references are ignored
@@ -85,5 +104,5 @@ def _faces(t: Tokens, lines: np.ndarray, v_lines: np.ndarray) -> np.ndarray:
     # a negative index counts back from the vertices defined before its face line
     defined = np.repeat(np.searchsorted(v_lines, lines), sizes)
     indices = np.where(raw > 0, raw - 1, defined + raw)
-    return polygons_to_triangles(indices, sizes, len(v_lines), lambda f: f"line {int(t.line_no[lines[f]])}", t.path,
+    return polygons_to_triangles(indices, sizes, points, lambda f: f"line {int(t.line_no[lines[f]])}", t.path,
                                  written=raw)

@@ -3,8 +3,10 @@
 Vertex lines hold ``x y z`` then, when the keyword says so, ``nx ny nz`` (``N``) and any
 colour or texture values (``C``, ``ST``: parsed, ignored); ``NCOFF`` (VCG's writer) puts the
 colour before the normal. Face lines hold ``n i_1 .. i_n``
-(0-based) optionally followed by a colour. ``#`` starts a comment. The 4-D, n-D and binary
-variants are refused with a message.
+(0-based) optionally followed by a colour; polygons are split into triangles (a fan when
+convex, else ear clipping). ``#`` starts a comment. A leading UTF-8 byte-order mark and
+classic Mac OS (CR only) line breaks are accepted. The 4-D, n-D and binary variants are
+refused with a message.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, show, strip_comments
+from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, show, strip_comments, text_of
 
 __all__ = ["read_off"]
 
@@ -34,7 +36,7 @@ def read_off(path: Path, data: bytes) -> RawMesh:
     Returns
     -------
     RawMesh
-        Points in file order, fan-triangulated faces (None when the file declares 0
+        Points in file order, triangulated faces (None when the file declares 0
         faces), normals for ``NOFF``.
 
     Raises
@@ -42,9 +44,10 @@ def read_off(path: Path, data: bytes) -> RawMesh:
     InputFileError
         Missing or unsupported keyword, counts that are missing, negative or disagree with
         the lines that follow, short vertex or face lines, non-numeric or non-finite
-        values, face indices out of range or repeated in a face.
+        values, face indices out of range or repeated in a face, a polygon without area or
+        that crosses itself.
     """
-    t = Tokens(path, strip_comments(data))
+    t = Tokens(path, strip_comments(text_of(data)))
     if t.n_lines == 0:
         raise file_error(path, None, "only comments or blank lines", "pass an OFF file with a mesh")
     keyword = t.tok[0]
@@ -82,7 +85,7 @@ def read_off(path: Path, data: bytes) -> RawMesh:
         raise t.line_error(body + nv + nf, f"more lines than the {nv} vertices and {nf} faces declared",
                            "fix the counts or remove the extra lines")
     points, normals = _vertices(t, np.arange(body, body + nv), has_normals, normals_last)
-    faces = _faces(t, np.arange(body + nv, body + nv + nf), nv) if nf else None
+    faces = _faces(t, np.arange(body + nv, body + nv + nf), points) if nf else None
     return RawMesh(points=points, faces=faces, normals=normals)
 
 
@@ -108,7 +111,7 @@ def _vertices(t: Tokens, lines: np.ndarray, has_normals: bool, normals_last: boo
     return points, normals
 
 
-def _faces(t: Tokens, lines: np.ndarray, nv: int) -> np.ndarray:
+def _faces(t: Tokens, lines: np.ndarray, points: np.ndarray) -> np.ndarray:
     sizes = t.numbers(t.first[lines], "face size", integer=True)
     bad = np.flatnonzero((sizes < 3) | (t.count[lines] < sizes + 1))
     if bad.size:
@@ -117,4 +120,4 @@ def _faces(t: Tokens, lines: np.ndarray, nv: int) -> np.ndarray:
                            f"{int(t.count[i]) - 1} value(s) after it", "each face line is 'n i_1 .. i_n' with n >= 3")
     indices = t.numbers(t.spans(lines, 1, sizes), "face index", integer=True)
     t.numbers(t.spans(lines, 1 + sizes, t.count[lines] - 1 - sizes), "face colour value", finite=False)
-    return polygons_to_triangles(indices, sizes, nv, lambda f: f"line {int(t.line_no[lines[f]])}", t.path)
+    return polygons_to_triangles(indices, sizes, points, lambda f: f"line {int(t.line_no[lines[f]])}", t.path)

@@ -3,9 +3,15 @@
 The header is parsed first and every count is checked against what the body can hold
 before anything is allocated. The ``vertex`` element needs ``x y z`` and may carry
 ``nx ny nz`` and any other properties (parsed, ignored); the ``face`` element needs a list
-``vertex_indices`` (or ``vertex_index``) of integers; other elements are parsed and skipped.
-Binary elements are read with one ``numpy.frombuffer`` call when their lists all have the
-first record's lengths (triangle meshes), record by record otherwise.
+``vertex_indices`` (or ``vertex_index``) of integers, its polygons split into triangles (a
+fan when convex, else ear clipping). Stanford's ``tristrips`` element (a list
+``vertex_indices`` of triangle strips, ``-1`` starting a new strip) is read into triangles
+too; a file whose only connectivity is another element with such a list is refused rather
+than read as a point cloud. Other elements are parsed and skipped. Binary elements are read
+with one ``numpy.frombuffer`` call when their lists all have the first record's lengths
+(triangle meshes), record by record otherwise. The header (and an ASCII body) may start
+with a UTF-8 byte-order mark and use classic Mac OS (CR only) line breaks; byte offsets in
+messages are always those of the file as stored.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, show
+from ._common import UTF8_BOM, RawMesh, Tokens, file_error, polygons_to_triangles, show, text_of
 
 __all__ = ["read_ply"]
 
@@ -24,7 +30,11 @@ _TYPES = {b"char": "i1", b"int8": "i1", b"uchar": "u1", b"uint8": "u1", b"short"
           b"ushort": "u2", b"uint16": "u2", b"int": "i4", b"int32": "i4", b"uint": "u4", b"uint32": "u4",
           b"float": "f4", b"float32": "f4", b"double": "f8", b"float64": "f8"}
 _FORMATS = {b"ascii": None, b"binary_little_endian": "<", b"binary_big_endian": ">"}
+_MAGIC = re.compile(rb"ply[ \t]*(?:\r?\n|\r|\Z)")
 _END_HEADER = re.compile(rb"(?m)^end_header[ \t\r]*(?:\n|\Z)")
+_END_HEADER_CR = re.compile(rb"(?<=\r)end_header[ \t]*(?:\r|\Z)")  # a classic Mac OS header
+#: List properties that hold a connectivity (Stanford names; other tools vary the case).
+_INDEX_LIST = re.compile(r"(?i)vertex_ind(ices|ex)")
 
 
 @dataclass
@@ -55,8 +65,8 @@ def read_ply(path: Path, data: bytes) -> RawMesh:
     Returns
     -------
     RawMesh
-        Points in vertex-element order, fan-triangulated faces (None without a face
-        element or with 0 faces), normals when ``nx ny nz`` are stored.
+        Points in vertex-element order, triangulated faces and triangle strips (None
+        without either, or with 0 of them), normals when ``nx ny nz`` are stored.
 
     Raises
     ------
@@ -64,18 +74,21 @@ def read_ply(path: Path, data: bytes) -> RawMesh:
         Missing magic or ``end_header``, malformed header lines (counts that are missing,
         negative or not integers, unknown property types), counts the body cannot hold,
         truncated or extra data, non-numeric or non-finite coordinates, face indices out
-        of range or repeated in a face.
+        of range or repeated in a face, a polygon without area or that crosses itself,
+        connectivity in an element other than ``face`` or ``tristrips``.
     """
-    if data.split(b"\n", 1)[0].rstrip(b"\r \t") != b"ply":
+    magic = _MAGIC.match(data, len(UTF8_BOM) if data.startswith(UTF8_BOM) else 0)
+    if magic is None:
         raise file_error(path, "line 1", "no 'ply' magic line", "this is not a PLY file; check its format")
-    end = _END_HEADER.search(data)
+    mac = magic.group().endswith(b"\r")  # lines end in a lone CR: only the header is converted
+    end = (_END_HEADER_CR if mac else _END_HEADER).search(data)
     if end is None:
         raise file_error(path, None, "no 'end_header' line", "the PLY header is truncated or corrupt")
-    header = data[:end.start()].split(b"\n")
+    header = text_of(data[:end.start()]).split(b"\n")
     order, elements = _parse_header(path, header)
     body_line = len(header) + 1
     if order is None:
-        values = _ascii_body(path, data[end.end():], body_line, elements)
+        values = _ascii_body(path, text_of(data[end.end():]), body_line, elements)
     else:
         values = _binary_body(path, data, end.end(), order, elements)
     return _build(path, elements, values)
@@ -322,16 +335,94 @@ def _build(path: Path, elements: list, values: list) -> RawMesh:
     normals = None
     if all(c in v and v[c][1] is None for c in ("nx", "ny", "nz")):
         normals = np.stack([np.asarray(v[c][0], dtype=np.float64) for c in ("nx", "ny", "nz")], axis=1)
-    faces = None
+    return RawMesh(points=points, faces=_connectivity(path, elements, by_name, points), normals=normals)
+
+
+def _connectivity(path: Path, elements: list, by_name: dict, points: np.ndarray) -> np.ndarray | None:
+    """Triangles of the ``face`` and ``tristrips`` elements, or None when there are none."""
+    parts = []
     if "face" in by_name and by_name["face"][0].count:
         fe, fv = by_name["face"]
-        key = next((k for k in ("vertex_indices", "vertex_index") if k in fv and fv[k][1] is not None), None)
-        if key is None:
-            raise file_error(path, f"line {fe.line}", "the face element has no list 'vertex_indices'",
-                             "declare 'property list uchar int vertex_indices'")
-        flat, sizes = fv[key]
-        if flat.dtype.kind == "f":
-            raise file_error(path, f"line {fe.line}", "face indices of floating-point type",
-                             "declare them as an integer type, e.g. 'property list uchar int vertex_indices'")
-        faces = polygons_to_triangles(flat.astype(np.int64), sizes, len(points), fv["where"], path)
-    return RawMesh(points=points, faces=faces, normals=normals)
+        flat, sizes = _index_list(path, fe, fv, "face", "uchar int")
+        parts.append(polygons_to_triangles(flat.astype(np.int64), sizes, points, fv["where"], path))
+    if "tristrips" in by_name and by_name["tristrips"][0].count:
+        parts.append(_tristrips(path, *by_name["tristrips"], points))
+    if "face" not in by_name and "tristrips" not in by_name:
+        # e.g. 'element polygon' or 'element triangle': read as a point cloud, the mesh would be lost silently
+        for e in elements:
+            lists = [p.name for p in e.props if p.count_type is not None and _INDEX_LIST.fullmatch(p.name)]
+            if e.name != "vertex" and lists:
+                raise file_error(path, f"line {e.line}", f"the mesh's faces are in an element named {e.name!r} "
+                                 f"(list {lists[0]!r}), which is not read as faces",
+                                 "save the mesh with a 'face' element (e.g. re-export it with MeshLab)")
+    return np.concatenate(parts) if parts else None
+
+
+def _index_list(path: Path, e: _Element, values: dict, what: str, types: str) -> tuple[np.ndarray, np.ndarray]:
+    """An element's list of vertex indices (``vertex_indices`` or ``vertex_index``, any case): (flat values, lengths).
+
+    Raises
+    ------
+    InputFileError
+        No such list, or indices of floating-point type.
+    """
+    key = next((p.name for p in e.props if p.count_type is not None and _INDEX_LIST.fullmatch(p.name)), None)
+    if key is None:
+        raise file_error(path, f"line {e.line}", f"the {e.name} element has no list 'vertex_indices'",
+                         f"declare 'property list {types} vertex_indices'")
+    flat, sizes = values[key]
+    if flat.dtype.kind == "f":
+        raise file_error(path, f"line {e.line}", f"{what} indices of floating-point type",
+                         f"declare them as an integer type, e.g. 'property list {types} vertex_indices'")
+    return flat, sizes
+
+
+def _tristrips(path: Path, e: _Element, values: dict, points: np.ndarray) -> np.ndarray:
+    """Triangles of Stanford's ``tristrips`` element.
+
+    Each record is a list of vertex indices forming triangle strips; ``-1`` (or, for an
+    unsigned type, its largest value) ends a strip, and so does the end of a record.
+    Triangle ``k`` of a strip is ``(s_k, s_k+1, s_k+2)`` for even ``k`` and
+    ``(s_k+1, s_k, s_k+2)`` for odd ``k``, so that all keep one winding. Triangles with a
+    repeated index are the zero-area ones that stitch strips together: they are skipped
+    (and still count for the alternation, as in every strip reader).
+
+    Returns
+    -------
+    (M, 3) numpy.ndarray of int64
+
+    Raises
+    ------
+    InputFileError
+        No list ``vertex_indices``, indices of floating-point type, an index other than
+        ``-1`` out of range, no triangle at all.
+    """
+    flat, sizes = _index_list(path, e, values, "strip", "int int")
+    index = flat.astype(np.int64)
+    if flat.dtype.kind == "u" and flat.size:
+        index[flat == np.iinfo(flat.dtype).max] = -1
+    record = np.repeat(np.arange(len(sizes)), sizes)
+    stop = index == -1
+    out = np.flatnonzero(~stop & ((index < 0) | (index >= len(points))))
+    if out.size:
+        raise file_error(path, values["where"](int(record[out[0]])), f"strip index {int(index[out[0]])} is out of "
+                         f"range (the file has {len(points)} vertices)", "repair or remove that strip")
+    new = np.zeros(len(index), dtype=bool)
+    new[(np.cumsum(sizes) - sizes)[sizes > 0]] = True  # each record starts a strip
+    new[1:] |= stop[:-1]  # and so does the index after a -1
+    strip = np.cumsum(new)[~stop]
+    index, record = index[~stop], record[~stop]
+    pos = np.arange(len(index))
+    head = np.ones(len(index), dtype=bool)
+    head[1:] = strip[1:] != strip[:-1]
+    k = pos - np.maximum.accumulate(np.where(head, pos, 0)) - 2  # triangle number within the strip
+    third = np.flatnonzero(k >= 0)
+    odd = (k[third] % 2).astype(bool)
+    a = np.where(odd, index[third - 1], index[third - 2])
+    b = np.where(odd, index[third - 2], index[third - 1])
+    c = index[third]
+    real = (a != b) & (b != c) & (a != c)
+    if not real.any():
+        raise file_error(path, f"line {e.line}", "the tristrips element holds no triangle (every strip has fewer "
+                         "than 3 distinct corners)", "repair the strips, or save the mesh with a 'face' element")
+    return np.stack([a[real], b[real], c[real]], axis=1)

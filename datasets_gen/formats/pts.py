@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import RawMesh, file_error, show
+from ._common import RawMesh, file_error, show, text_of
 from .xyz import read_xyz
 
 __all__ = ["read_pts"]
@@ -45,11 +45,12 @@ def read_pts(path: Path, data: bytes) -> RawMesh:
         NaN or infinite coordinates.
     """
     if data.startswith(_EXPE):
-        return _expe(path, data)
-    if data.lstrip().startswith(b"["):
-        raise file_error(path, "line 1", f"unsupported PTS variant {show(data.split(None, 1)[0])}",
+        return _expe(path, data)  # binary: never through text_of
+    text = text_of(data)
+    if text.lstrip().startswith(b"["):
+        raise file_error(path, "line 1", f"unsupported PTS variant {show(text.split(None, 1)[0])}",
                          "save the points as text x y z [nx ny nz] rows or binary Expe")
-    return read_xyz(path, data)
+    return read_xyz(path, text)
 
 
 def _expe(path: Path, data: bytes) -> RawMesh:

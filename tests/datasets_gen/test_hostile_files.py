@@ -84,7 +84,9 @@ CASES = [
     ("nan.xyz", "0 0 0\nnan 1 2\n1 1 0\n0 1 0\n0.5 0.5 0.2\n", "line 2"),
     ("inf.xyz", XYZ_OK + "inf 0 0\n", "line 6"),
     ("neginf.xyz", "0 0 0\n1 0 0\n1 -inf 0\n0 1 0\n0.5 0.5 0.2\n", "line 3"),
-    ("header.xyz", "x y z\n" + XYZ_OK, "line 1"),
+    ("header.xyz", "points: 5\n" + XYZ_OK, "line 1"),  # a header of names ("x y z") is read, not this
+    ("header_count.xyz", "x y z w\n" + XYZ_OK, "line 1"),
+    ("header_order.xyz", "y x z\n" + XYZ_OK, "line 1"),
     ("ragged_short.xyz", "0 0 0\n1 0\n1 1 0\n0 1 0\n0.5 0.5 0.2\n", "line 2"),
     ("ragged_long.xyz", "0 0 0\n1 0 0 5\n1 1 0\n0 1 0\n0.5 0.5 0.2\n", "line 2"),
     ("word.xyz", "0 0 0\n1 0 0\n1 1 abc\n0 1 0\n0.5 0.5 0.2\n", "line 3"),
@@ -187,12 +189,20 @@ CASES = [
     # --- more OFF / OBJ
     ("huge_face_size.off", "OFF\n5 4 0\n" + OFF_V + "4000000000 0 1 2\n" + OFF_F[8:], "line 8"),
     ("negative_face_size.off", "OFF\n5 4 0\n" + OFF_V + "-3 0 1 2\n" + OFF_F[8:], "line 8"),
-    ("continuation.obj", OBJ_V + "f 1 2 \\\n 5\n", "line 6"),
+    ("continuation.obj", OBJ_V + "f 1 2 \\\n 5\nf 1 2 9\n", "line 8"),  # the joined face is read
+    ("crossing_polygon.obj", "v 0 0 0\nv 1 1 0\nv 1 0 0\nv 0 1 0\nv 0.5 2 0\nf 1 2 3 4 5\n", "line 6"),
+    ("flat_polygon.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 0\n4 0 1 2 3\n", "line 7"),
+    ("pinched_polygon.ply", PLY_HEAD.replace("face 4", "face 1") + OFF_V.replace("0.5 0.5 0.2", "1 1 0")
+     + "5 0 1 2 4 3\n", "line 15"),
+    ("strips_elsewhere.ply", PLY_HEAD.replace("element face", "element polygon") + OFF_V + OFF_F, "line 7"),
+    ("strips_out_of_range.ply", PLY_HEAD.replace("face 4", "tristrips 1").replace("uchar int", "int int")
+     + OFF_V + "5 0 1 3 2 7\n", "line 15"),
     # --- STL
     ("count_more.stl", stl_binary(TRIS, count=5), "byte 80"),
     ("count_less.stl", stl_binary(TRIS, count=2), "byte 80"),
     ("count_max.stl", stl_binary(TRIS, count=2 ** 32 - 1), "byte 80"),
     ("truncated.stl", stl_binary(TRIS, cut=10), "byte 80"),
+    ("one_triangle_more.stl", stl_binary(TRIS) + b"\0" * 50, "byte 80"),
     ("short.stl", b"\x07" * 50, None),
     ("ascii_truncated.stl", stl_ascii(TRIS)[:-len("endsolid s\n")], "line"),
     ("ascii_word.stl", stl_ascii(TRIS).replace("vertex 1.0 1.0 0.0", "vertex 1.0 one 0.0", 1), "line"),
