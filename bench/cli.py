@@ -244,8 +244,10 @@ def _repaired(surface, repair: bool, k_nn: Any):
     from .point_repair import with_usable_normals, without_stray_points
 
     k = _k(k_nn)
+    dropped = surface.params.get("degenerate_faces_dropped", 0)
     surface, facts = repair_surface(surface, k_nn=k)
-    note = repair_summary(facts)
+    note = repair_summary(facts) + (f"; dropped {dropped} degenerate face(s) (a repeated vertex or no area)"
+                                    if dropped else "")
     if surface.faces is None and surface.n_points > k + 1:
         surface, n_stray = without_stray_points(surface, k)
         note += f"; dropped {n_stray} stray point(s) off the surface" if n_stray else ""
@@ -295,7 +297,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in UV_FORMATS:
         raise InputFileError(f"cannot write {out.name!r}: output must end in {', '.join(UV_FORMATS)}.")
     _check_output_path(out, Path(args.input))
-    surface = load_surface(args.input, points_only=args.points_only)
+    with _offer_repair(args.repair):
+        surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)
     method = get_method(args.method or _default_method(surface))
     params = parse_param_values(args.param or [], method.defaults)
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
@@ -333,7 +336,8 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 
     out = Path(args.output)
     _check_output_path(out, Path(args.input))
-    surface = load_surface(args.input, points_only=args.points_only)
+    with _offer_repair(args.repair):
+        surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)
     defaults = {f.name: f.default for f in fields(FrontEndParams)}
     params = parse_param_values(args.param or [], defaults)
     unknown = sorted(set(params) - set(defaults))

@@ -31,7 +31,7 @@ import numpy as np
 
 from .formats import READERS, read_file
 from .mesh_loops import mesh_boundary
-from .surface import Surface
+from .surface import Surface, degenerate_faces
 
 __all__ = ["load_surface", "SUPPORTED_EXTENSIONS"]
 
@@ -39,7 +39,8 @@ __all__ = ["load_surface", "SUPPORTED_EXTENSIONS"]
 SUPPORTED_EXTENSIONS = tuple(READERS)
 
 
-def load_surface(path, *, points_only: bool = False, name: str | None = None) -> Surface:
+def load_surface(path, *, points_only: bool = False, name: str | None = None,
+                 drop_degenerate_faces: bool = False) -> Surface:
     """Read a mesh or point cloud.
 
     Parameters
@@ -51,6 +52,10 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
         Drop the faces (keep the vertices as a point set).
     name : str, optional
         Surface name; default: the file name without extension.
+    drop_degenerate_faces : bool
+        Drop faces that repeat a vertex or have zero area (``--repair``; CAD exports' STL
+        null facets) instead of refusing the mesh; their count goes to
+        ``params["degenerate_faces_dropped"]``.
 
     Returns
     -------
@@ -72,9 +77,14 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None) ->
     raw = read_file(path)  # an extension without a reader is refused there, with the list of those it has
     normals = _file_normals(path, raw.normals)
     faces = None if points_only else raw.faces
+    params = {"source": str(path), "format": ext[1:]}
+    if faces is not None and drop_degenerate_faces:
+        keep = ~(degenerate_faces(raw.points, faces))
+        if not keep.all():
+            faces, params["degenerate_faces_dropped"] = faces[keep], int((~keep).sum())
     loops, mask = mesh_boundary(faces, len(raw.points)) if faces is not None else (None, None)
     return Surface(points=raw.points, faces=faces, normals=normals, name=name or path.stem,
-                   params={"source": str(path), "format": ext[1:],
+                   params={**params,
                            **({"normals_guessed": True} if raw.normals_guessed and normals is not None else {})},
                    boundary_loops=loops, boundary_mask=mask)
 

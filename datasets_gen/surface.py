@@ -28,11 +28,16 @@ from .errors import (
     DuplicatePointsError,
     InvalidInputError,
     TooFewPointsError,
+    repairable,
 )
 
 __all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "flat_faces", "circumradii", "validate_normals",
            "find_duplicate_points", "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "core_box",
+           "degenerate_faces",
            "MIN_POINTS"]
+
+#: What ``--repair`` does about degenerate faces (completes "pass --repair to ...").
+DROP_DEGENERATE_ACTION = "drop them (a mesh with a hole where they were)"
 
 #: Fewer points than this cannot define a surface patch with an interior.
 MIN_POINTS = 4
@@ -216,6 +221,12 @@ def flat_faces(points: np.ndarray, faces: np.ndarray, rel_tol: float = DEGENERAT
     return area2 <= rel_tol * max(scale, np.finfo(float).tiny)
 
 
+def degenerate_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(M,) bool: the faces :func:`validate_faces` refuses a mesh for (a repeated vertex, or zero area)."""
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    return repeated | flat_faces(points, faces)
+
+
 def circumradii(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(M,) float64: each face's circumradius in 3D, ``abc / (4 area)``; inf for a face without area."""
     a, b, c = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
@@ -266,17 +277,18 @@ def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) 
         )
     repeated = (arr[:, 0] == arr[:, 1]) | (arr[:, 1] == arr[:, 2]) | (arr[:, 0] == arr[:, 2])
     if repeated.any():
-        raise DegenerateFacesError(
+        raise repairable(DegenerateFacesError(
             f"{int(repeated.sum())} face(s) repeat a vertex (first: face {int(np.flatnonzero(repeated)[0])}); "
             "remove degenerate faces (e.g. pymeshlab meshing_remove_null_faces) and retry."
-        )
+        ), DROP_DEGENERATE_ACTION)
     if points is not None:
         flat = flat_faces(points, arr)
         if flat.any():
-            raise DegenerateFacesError(
-                f"{int(flat.sum())} face(s) have zero area (first: face {int(np.flatnonzero(flat)[0])}); "
-                "remove null faces or collapse their short edges before flattening."
-            )
+            raise repairable(DegenerateFacesError(
+                f"{int(flat.sum())} face(s) have zero area (first: face {int(np.flatnonzero(flat)[0])}, vertices "
+                f"{', '.join(str(int(v)) for v in arr[np.flatnonzero(flat)[0]])}); remove null faces or collapse "
+                "their short edges before flattening."
+            ), DROP_DEGENERATE_ACTION)
     return arr
 
 

@@ -147,3 +147,26 @@ def test_repair_reverses_faces_wound_against_their_neighbours(tmp_path, capsys):
     z, w = z - z.mean(), w - w.mean()
     fit = np.vdot(z, w) / np.vdot(z, z) * z
     assert np.abs(fit - w).max() < 1e-6 * np.abs(w).max()
+
+
+def test_repair_drops_zero_area_faces_that_the_check_refuses(tmp_path, capsys):
+    """A CAD export's null facet: a face over three collinear vertices of the grid's first row.
+    Refused with --repair offered (before: no way through but another tool); repaired, the
+    grid's map is the exact one."""
+    points, faces = _grid(6)
+    faces = np.r_[faces, [[0, 2, 1]]]
+    src = tmp_path / "null.obj"
+    src.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in points)
+                   + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    out = tmp_path / "uv.obj"
+    assert main(["flatten", str(src), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "DegenerateFacesError: 1 face(s) have zero area" in err and "pass --repair to drop them" in err
+    assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
+    assert "dropped 1 degenerate face(s)" in capsys.readouterr().err
+    uv = np.array([[float(t) for t in line.split()[1:3]] for line in out.read_text().splitlines()
+                   if line.startswith("vt ")])
+    z, w = uv[:, 0] + 1j * uv[:, 1], points[:, 0] + 1j * points[:, 1]
+    z, w = z - z.mean(), w - w.mean()
+    fit = np.vdot(z, w) / np.vdot(z, z) * z
+    assert np.abs(fit - w).max() < 1e-6 * np.abs(w).max()
