@@ -22,6 +22,21 @@ def _grid(n, offset=(0.0, 0.0)):
     return pts, faces
 
 
+def _write_obj(path, points, faces):
+    path.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in points)
+                    + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+
+
+def _assert_the_plane_s_exact_map(out, points):
+    """The uv written to ``out`` (OBJ) is the planar ``points``' own (x, y) up to a similarity."""
+    uv = np.array([[float(t) for t in line.split()[1:3]] for line in out.read_text().splitlines()
+                   if line.startswith("vt ")])
+    z, w = uv[:, 0] + 1j * uv[:, 1], points[:, 0] + 1j * points[:, 1]
+    z, w = z - z.mean(), w - w.mean()
+    fit = np.vdot(z, w) / np.vdot(z, z) * z
+    assert np.abs(fit - w).max() < 1e-6 * np.abs(w).max()
+
+
 def _scan_like():
     """A 10 x 10 grid, a 3 x 3 speck far away, and a bowtie: a second 3 x 3 grid touching
     the first at its corner vertex only (a non-manifold vertex)."""
@@ -72,8 +87,7 @@ def test_flatten_offers_repair_and_repair_gives_the_exact_map(tmp_path, capsys):
 
     points, faces = _scan_like()
     src = tmp_path / "scan.obj"
-    src.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in points)
-                   + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    _write_obj(src, points, faces)
     out = tmp_path / "uv.obj"
     assert main(["flatten", str(src), "-o", str(out)]) == 2
     assert "pass --repair" in capsys.readouterr().err and not out.exists()
@@ -82,12 +96,7 @@ def test_flatten_offers_repair_and_repair_gives_the_exact_map(tmp_path, capsys):
     assert "kept the largest of 2 piece(s), 162 of 178 faces and 100 of 117 vertices" in err
     mesh = read_file(out)
     assert len(mesh.points) == 100 and len(mesh.faces) == 162
-    uv = np.array([[float(t) for t in line.split()[1:3]] for line in out.read_text().splitlines()
-                   if line.startswith("vt ")])
-    z, w = uv[:, 0] + 1j * uv[:, 1], mesh.points[:, 0] + 1j * mesh.points[:, 1]
-    z, w = z - z.mean(), w - w.mean()
-    fit = np.vdot(z, w) / np.vdot(z, z) * z
-    assert np.abs(fit - w).max() < 1e-6 * np.abs(w).max()
+    _assert_the_plane_s_exact_map(out, mesh.points)
 
 
 def test_points_only_offers_repair_for_a_disconnected_point_set(tmp_path, capsys):
@@ -133,20 +142,14 @@ def test_repair_reverses_faces_wound_against_their_neighbours(tmp_path, capsys):
     points, faces = _grid(9)
     faces[5:25] = faces[5:25, ::-1]
     src = tmp_path / "mixed.obj"
-    src.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in points)
-                   + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    _write_obj(src, points, faces)
     out = tmp_path / "uv.obj"
     assert main(["flatten", str(src), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "20 face(s) are wound against their neighbours" in err and "pass --repair to reverse them" in err
     assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
     assert "20 face(s) reversed to match their neighbours' winding" in capsys.readouterr().err
-    uv = np.array([[float(t) for t in line.split()[1:3]] for line in out.read_text().splitlines()
-                   if line.startswith("vt ")])
-    z, w = uv[:, 0] + 1j * uv[:, 1], points[:, 0] + 1j * points[:, 1]
-    z, w = z - z.mean(), w - w.mean()
-    fit = np.vdot(z, w) / np.vdot(z, z) * z
-    assert np.abs(fit - w).max() < 1e-6 * np.abs(w).max()
+    _assert_the_plane_s_exact_map(out, points)
 
 
 def test_repair_drops_zero_area_faces_that_the_check_refuses(tmp_path, capsys):
@@ -156,17 +159,11 @@ def test_repair_drops_zero_area_faces_that_the_check_refuses(tmp_path, capsys):
     points, faces = _grid(6)
     faces = np.r_[faces, [[0, 2, 1]]]
     src = tmp_path / "null.obj"
-    src.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in points)
-                   + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    _write_obj(src, points, faces)
     out = tmp_path / "uv.obj"
     assert main(["flatten", str(src), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "DegenerateFacesError: 1 face(s) have zero area" in err and "pass --repair to drop them" in err
     assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
     assert "dropped 1 degenerate face(s)" in capsys.readouterr().err
-    uv = np.array([[float(t) for t in line.split()[1:3]] for line in out.read_text().splitlines()
-                   if line.startswith("vt ")])
-    z, w = uv[:, 0] + 1j * uv[:, 1], points[:, 0] + 1j * points[:, 1]
-    z, w = z - z.mean(), w - w.mean()
-    fit = np.vdot(z, w) / np.vdot(z, z) * z
-    assert np.abs(fit - w).max() < 1e-6 * np.abs(w).max()
+    _assert_the_plane_s_exact_map(out, points)
