@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import igl
 import numpy as np
 import scipy.sparse as sp
@@ -52,29 +54,39 @@ def duplicate_faces(faces: np.ndarray) -> np.ndarray:
     return np.column_stack([repeat[by_repeat], first[by_repeat]]).astype(np.int64)
 
 
-def _half_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per half-edge ``3 f + k``: start corner (= its index), end corner, undirected-edge id.
+class _HalfEdges(NamedTuple):
+    """Per half-edge ``3 f + k`` (corner ``3 f + k`` is vertex ``faces[f, k]`` in face f): its
+    start corner (= its index), end corner and undirected-edge id; the half-edges ordered by
+    edge id (stable), and each edge's number of half-edges."""
 
-    Corner ``3 f + k`` is vertex ``faces[f, k]`` in face f.
-    """
+    start: np.ndarray
+    end: np.ndarray
+    edge_id: np.ndarray
+    order: np.ndarray
+    counts: np.ndarray
+
+    def pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The two half-edges (h1, h2) of each edge on exactly two faces, h1 the earlier."""
+        ptr = np.concatenate([[0], np.cumsum(self.counts)])
+        two = np.flatnonzero(self.counts == 2)
+        return self.order[ptr[two]], self.order[ptr[two] + 1]
+
+
+def _half_edges(faces: np.ndarray) -> _HalfEdges:
+    """The half-edges of ``faces`` (one sort of their undirected keys serves every check)."""
     m = faces.shape[0]
     start = np.arange(3 * m)
     end = (3 * np.arange(m)[:, None] + (np.arange(3) + 1) % 3).ravel()
     flat = faces.ravel()
     lo, hi = np.minimum(flat[start], flat[end]), np.maximum(flat[start], flat[end])
-    # one int64 per undirected edge: a 1-D unique is several times faster than unique(axis=0)
-    _, edge_id = np.unique(lo * (int(flat.max()) + 1) + hi, return_inverse=True)
-    return start, end, edge_id.ravel()
-
-
-def _paired_half_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Start and end corners of every half-edge, and the two half-edges (h1, h2) of each edge on exactly two faces."""
-    start, end, edge_id = _half_edges(faces)
-    order = np.argsort(edge_id, kind="stable")
-    counts = np.bincount(edge_id)
-    ptr = np.concatenate([[0], np.cumsum(counts)])
-    two = np.flatnonzero(counts == 2)
-    return start, end, order[ptr[two]], order[ptr[two] + 1]
+    # one int64 per undirected edge: a 1-D sort is several times faster than unique(axis=0)
+    key = lo * (int(flat.max()) + 1) + hi if m else lo
+    order = np.argsort(key, kind="stable")
+    ordered = key[order]
+    new_edge = np.concatenate([[True], ordered[1:] != ordered[:-1]]) if m else np.zeros(0, dtype=bool)
+    edge_id = np.empty(3 * m, dtype=np.int64)
+    edge_id[order] = np.cumsum(new_edge) - 1
+    return _HalfEdges(start, end, edge_id, order, np.bincount(edge_id))
 
 
 def interior_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,19 +111,23 @@ def interior_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
         empty = np.empty((0, 2), dtype=np.int64)
         return empty, empty, empty
     flat = faces.ravel()
-    _, end, first, second = _paired_half_edges(faces)
+    he = _half_edges(faces)
+    end = he.end
+    first, second = he.pairs()
     third = (3 * (first // 3) + (first % 3 + 2) % 3, 3 * (second // 3) + (second % 3 + 2) % 3)
     return (np.column_stack([flat[first], flat[end[first]]]).astype(np.int64),
             np.column_stack([first // 3, second // 3]).astype(np.int64),
             np.column_stack([flat[third[0]], flat[third[1]]]).astype(np.int64))
 
 
-def non_manifold_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def non_manifold_edges(faces: np.ndarray, half_edges: _HalfEdges | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Edges shared by more than two faces.
 
     Parameters
     ----------
     faces : (M, 3) numpy.ndarray of int64
+    half_edges : optional
+        ``_half_edges(faces)``, when already computed.
 
     Returns
     -------
@@ -121,8 +137,7 @@ def non_manifold_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Number of faces on each.
     """
     flat = faces.ravel()
-    start, end, edge_id = _half_edges(faces)
-    counts = np.bincount(edge_id)
+    start, end, edge_id, _, counts = _half_edges(faces) if half_edges is None else half_edges
     bad = np.flatnonzero(counts > 2)
     # one half-edge per bad edge gives its vertices
     first = np.full(counts.size, -1, dtype=np.int64)
@@ -132,7 +147,7 @@ def non_manifold_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return edges.astype(np.int64), counts[bad].astype(np.int64)
 
 
-def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+def non_manifold_vertices(faces: np.ndarray, n_vertices: int, half_edges: _HalfEdges | None = None) -> np.ndarray:
     """Vertices whose faces form more than one fan (e.g. two cones touching at a tip: a bowtie).
 
     Faces around a vertex belong to one fan when they are linked through edges at that
@@ -143,6 +158,8 @@ def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     ----------
     faces : (M, 3) numpy.ndarray of int64
     n_vertices : int
+    half_edges : optional
+        ``_half_edges(faces)``, when already computed.
 
     Returns
     -------
@@ -150,7 +167,9 @@ def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
         Sorted vertex indices.
     """
     flat = faces.ravel()
-    start, end, h1, h2 = _paired_half_edges(faces)
+    he = _half_edges(faces) if half_edges is None else half_edges
+    start, end = he.start, he.end
+    h1, h2 = he.pairs()
     # link the corners of the two faces that sit at the same vertex, at both ends of the edge
     h2_at_start_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], start[h2], end[h2])
     h2_at_end_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], end[h2], start[h2])
@@ -164,7 +183,7 @@ def non_manifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return np.flatnonzero(fans_per_vertex > 1).astype(np.int64)
 
 
-def coherent_flips(faces: np.ndarray) -> tuple[np.ndarray | None, int]:
+def coherent_flips(faces: np.ndarray, half_edges: _HalfEdges | None = None) -> tuple[np.ndarray | None, int]:
     """Faces to reverse so that every interior edge runs opposite ways in its two faces.
 
     Two faces on an edge are wound alike when they run it in opposite directions. Faces
@@ -176,6 +195,8 @@ def coherent_flips(faces: np.ndarray) -> tuple[np.ndarray | None, int]:
     ----------
     faces : (M, 3) numpy.ndarray of int64
         Call on an edge-manifold mesh (:func:`non_manifold_edges`).
+    half_edges : optional
+        ``_half_edges(faces)``, when already computed.
 
     Returns
     -------
@@ -189,8 +210,11 @@ def coherent_flips(faces: np.ndarray) -> tuple[np.ndarray | None, int]:
     if m == 0:
         return np.zeros(0, dtype=bool), 0
     flat = faces.ravel()
-    start, _, h1, h2 = _paired_half_edges(faces)
-    alike = flat[start[h1]] == flat[start[h2]]  # both faces run the edge the same way
+    he = _half_edges(faces) if half_edges is None else half_edges
+    h1, h2 = he.pairs()
+    alike = flat[he.start[h1]] == flat[he.start[h2]]  # both faces run the edge the same way
+    if not alike.any():  # coherent as given: no graph to build
+        return np.zeros(m, dtype=bool), 0
     f1, f2 = h1 // 3, h2 // 3
     # The orientation double cover: node f is face f as given, node f + m face f reversed.
     # A conflicting edge joins each face to the other's reversal.
@@ -233,15 +257,16 @@ def require_manifold(faces: np.ndarray, n_vertices: int) -> None:
             f"the mesh has {len(dup)} duplicate face(s) over the same three vertices ({_examples(pairs)}); "
             "remove them (pymeshlab meshing_remove_duplicate_faces) or use --points-only."
         ))
-    edges, counts = non_manifold_edges(faces)
+    half_edges = _half_edges(faces)
+    edges, counts = non_manifold_edges(faces, half_edges)
     if edges.size:
         shown = [f"{int(a)}-{int(b)} on {int(c)} faces" for (a, b), c in zip(edges, counts)]
         raise repairable(NotADiskError(
             f"the mesh has {len(edges)} non-manifold edge(s) shared by more than two faces (vertices {_examples(shown)}); "
             "repair them (pymeshlab meshing_repair_non_manifold_edges) or use --points-only."
         ))
-    require_oriented(faces)
-    verts = non_manifold_vertices(faces, n_vertices)
+    require_oriented(faces, half_edges)
+    verts = non_manifold_vertices(faces, n_vertices, half_edges)
     if verts.size:
         raise repairable(NotADiskError(
             f"the mesh has {verts.size} non-manifold vertex/vertices where separate fans of faces meet "
@@ -250,7 +275,7 @@ def require_manifold(faces: np.ndarray, n_vertices: int) -> None:
         ))
 
 
-def require_oriented(faces: np.ndarray) -> None:
+def require_oriented(faces: np.ndarray, half_edges: _HalfEdges | None = None) -> None:
     """Raise unless the faces are wound coherently (see :func:`coherent_flips`).
 
     Files merged from tools that wind faces differently, or with faces reversed by hand,
@@ -265,7 +290,7 @@ def require_oriented(faces: np.ndarray) -> None:
         or some faces are wound against their neighbours (repairable: ``--repair``
         reverses them).
     """
-    flips, n_conflicts = coherent_flips(faces)
+    flips, n_conflicts = coherent_flips(faces, half_edges)
     if flips is None:
         raise NotADiskError(
             f"the surface is not orientable ({n_conflicts} edge(s) where going round it brings a face back reversed, "
