@@ -70,7 +70,8 @@ def _fit(surface: Surface, k_nn: int) -> tuple[float, np.ndarray]:
 
 
 def with_usable_normals(surface: Surface, k_nn: int) -> tuple[Surface, str]:
-    """A point set's given normals with the misoriented ones flipped, or dropped when far off the surface; and a note."""
+    """A point set's given normals with the misoriented ones flipped, or dropped when far off the surface, and a
+    note."""
     if surface.normals is None:
         return surface, ""
     align, indices = _fit(surface, k_nn)
@@ -82,7 +83,8 @@ def with_usable_normals(surface: Surface, k_nn: int) -> tuple[Surface, str]:
         return surface, ""
     normals = surface.normals.copy()
     normals[odd] *= -1.0
-    return replace(surface, normals=normals), f"; flipped {int(odd.sum())} given normal(s) to agree with their neighbours"
+    note = f"; flipped {int(odd.sum())} given normal(s) to agree with their neighbours"
+    return replace(surface, normals=normals), note
 
 
 def without_stray_points(surface: Surface, k_nn: int) -> tuple[Surface, int]:

@@ -7,8 +7,9 @@ triangles (a fan when convex, else ear clipping: :func:`._common.polygons_to_tri
 Index 0, an index past the vertex list, a non-numeric value or a repeated corner is an
 error with its line number. ``vn`` rows count as per-vertex normals only when there is
 exactly one per ``v`` (they are then taken in order). A backslash at the end of a line
-joins the next line to it (the OBJ specification allows it; ``#`` comments end at their
-line, backslash included); a leading UTF-8 byte-order mark and classic Mac OS (CR only)
+of a data statement (``v``, ``f``, ...) joins the next line to it (the OBJ specification
+allows it; ``#`` comments end at their line, backslash included; names such as ``g C:\\temp\\``
+are never continued); a leading UTF-8 byte-order mark and classic Mac OS (CR only)
 line breaks are accepted.
 """
 
@@ -23,8 +24,10 @@ from ._common import RawMesh, Tokens, file_error, polygons_to_triangles, strip_c
 
 __all__ = ["read_obj"]
 
-#: A statement continued over several lines: lines ending in a backslash, and the line after them.
-_CONTINUED = re.compile(rb"(?m)^(?:[^\n]*\\[ \t\r]*\n)+[^\n]*")
+#: A data statement (``v``, ``vt``, ``vn``, ``vp``, ``f``, ``l``, ``p``) continued over several
+#: lines: lines ending in a backslash, and the line after them. Names are never continued: a
+#: group named after a Windows folder (``g C:\\temp\\``) swallowed the next line's vertex.
+_CONTINUED = re.compile(rb"(?m)^[ \t]*(?:vt|vn|vp|v|f|l|p)[ \t](?:[^\n]*\\[ \t\r]*\n)+[^\n]*")
 _BREAK = re.compile(rb"\\[ \t\r]*\n")
 
 

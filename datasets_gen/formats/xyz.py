@@ -2,7 +2,9 @@
 
 Also read for ``.txt``, ``.csv`` and ``.asc`` files. Values are separated by spaces, tabs,
 commas or semicolons; in a file separated by semicolons (European CSV), commas are decimal
-marks (``1,5;2,25;3`` is ``1.5 2.25 3``). ``#`` starts a comment, and so does ``//`` at the
+marks (``1,5;2,25;3`` is ``1.5 2.25 3``), and so they are in a file separated by spaces or
+tabs whose numbers hold commas and no point (``1,5 2,25 3``, :func:`_decimal_commas`);
+double quotes around fields are dropped. ``#`` starts a comment, and so does ``//`` at the
 start of a line (CloudCompare's ASCII header, ``//X,Y,Z,R,G,B``); blank lines are skipped;
 a leading UTF-8 byte-order mark and classic Mac OS (CR only) line breaks are accepted. A
 first line holding one whole number is Leica's PTS point count, checked against the rows
@@ -79,11 +81,16 @@ def read_xyz(path: Path, data: bytes) -> RawMesh:
         if first is not None and not data[:first.start()].strip():  # a comment before any row may name the columns
             slash = first.group().strip()[2:]
         data = _SLASH_COMMENT.sub(b"", data)
+    if b'"' in data:
+        data = data.replace(b'"', b" ")  # quoted fields (R's write.csv quotes its header)
     separators = b","
     if b";" in data:
         separators = b";"
         if b"," in data:
             data = data.replace(b",", b".")  # semicolons separate, so commas are decimal marks
+    elif _decimal_commas(data):
+        separators = b""
+        data = data.replace(b",", b".")
     t = Tokens(path, data, separators=separators)
     if t.n_lines == 0:
         raise file_error(path, None, "no points (only comments or blank lines)", "pass a file with x y z rows")
@@ -115,6 +122,28 @@ def read_xyz(path: Path, data: bytes) -> RawMesh:
     normals = None if start is None else values[:, start:start + 3].copy()
     return RawMesh(points=np.ascontiguousarray(values[:, :3]), normals=normals,
                    normals_guessed=normals is not None and names is None)
+
+
+#: A number written with a decimal comma: digits on both sides of the comma, no space.
+_DECIMAL_COMMA = re.compile(rb"^-?\d+,\d+(?:[eE][-+]?\d+)?$")
+
+
+def _decimal_commas(data: bytes) -> bool:
+    """Whether commas are decimal marks in a file whose values are separated by spaces or tabs.
+
+    ``1,5<TAB>2,25<TAB>3`` (a European export) was split at the commas into six values a
+    row, silently. Read so when the file holds no decimal point and the first row with a
+    comma splits at its whitespace into three values or more, each a whole number or one
+    with a decimal comma; ``1,2,3`` (no whitespace) and ``1, 2, 3`` (commas before spaces)
+    keep their commas as separators.
+    """
+    if b"," not in data or b"." in data:
+        return False
+    for line in data.splitlines():
+        if b"," in line:
+            values = line.split()
+            return len(values) >= 3 and all(_DECIMAL_COMMA.match(v) or v.lstrip(b"-").isdigit() for v in values)
+    return False
 
 
 def _is_name(token: bytes) -> bool:

@@ -135,7 +135,7 @@ from ..geometry2d import triangle_signed_areas, turning_number
 from .failure_causes import describe_causes, failure_causes
 from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation, unresolved_points
 from .row_chunks import for_each_chunk
-from .stray_points import ISOLATED_FACTOR, isolated_mask
+from .stray_points import ISOLATED_BOX_SHARE, isolated_mask
 from .uv_triangulation import loop_winding_numbers, triangulate_uv
 
 __all__ = ["check_pointset_map", "coherent_beltrami", "coherent_limit", "loop_coverage", "normal_tolerance_deg",
@@ -176,7 +176,8 @@ THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENER
               "max_uncovered_fraction": MAX_UNCOVERED_FRACTION, "max_coherent_beltrami": MAX_COHERENT_BELTRAMI,
               "max_coherent_beltrami_clean": MAX_COHERENT_BELTRAMI_CLEAN, "clean_tol_deg": CLEAN_TOL_DEG,
               "max_outside_depth": MAX_OUTSIDE_DEPTH, "max_ring_flipped": MAX_RING_FLIPPED,
-              "ring_quality": RING_QUALITY, "ring_normal_deg": RING_NORMAL_DEG, "isolated_factor": ISOLATED_FACTOR}
+              "ring_quality": RING_QUALITY, "ring_normal_deg": RING_NORMAL_DEG,
+              "isolated_box_share": ISOLATED_BOX_SHARE}
 
 #: Most cells per side of the uv bounding box over which :func:`coherent_beltrami` averages ...
 _MAX_CELLS = 8
@@ -612,8 +613,8 @@ def _reason(facts: dict) -> str:
         parts.append(f"{facts['n_outside']} point(s) lie outside the boundary loops, up to "
                      f"{facts['outside_depth']:.2g} spacings deep (a loop cuts across the surface)")
     if facts.get("n_isolated"):
-        parts.append(f"{facts['n_isolated']} point(s) lie far from all the others (their neighbours more than "
-                     f"{ISOLATED_FACTOR:g} times farther than those neighbours' own): not samples of the surface, "
+        parts.append(f"{facts['n_isolated']} point(s) lie far from all the others (their third-nearest neighbour "
+                     f"more than {ISOLATED_BOX_SHARE:g} of the point set's extent away): not samples of the surface, "
                      "and their uv means nothing")
     cov = facts.get("coverage")
     if cov and not cov["passed"]:
@@ -681,7 +682,7 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     spacing_pt = _local_spacing(points, knn)
     l_mean = float(spacing_pt.mean()) if spacing is None else float(spacing)
     facts: dict[str, Any] = {"conformal_judged": bool(conformal),
-                             "n_isolated": int(isolated_mask(spacing_pt, knn).sum())}
+                             "n_isolated": int(isolated_mask(points, knn).sum())}
     failing = None
     if not np.all(np.isfinite(uv)):
         facts.update(triangulation="none", n_triangles=0, reason_override="the map has non-finite uv coordinates")

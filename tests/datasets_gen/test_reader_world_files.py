@@ -418,3 +418,54 @@ def test_warnings_are_not_raised_for_ordinary_files(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_file(_write(tmp_path, "ok.stl", _stl_binary(PTS[TRI].astype(np.float32))))
+
+
+def test_many_polygons_with_one_bent_corner_are_fanned_from_it():
+    """Darts (one notch) and squares with a vertex in mid-edge, 200 of each at random
+    starting corners in one file: each fanned from its bent corner in one vectorised pass
+    (ear clipping them one by one took 0.6 ms a polygon), every triangle wound like its
+    polygon with area, and the areas summing to the polygon's."""
+    rng = np.random.default_rng(0)
+    dart = np.array([[0, 0, 0], [2, 1, 0], [0, 2, 0], [0.6, 1, 0]], float)  # the notch at (0.6, 1)
+    square = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], float)  # (1, 0) in mid-edge
+    points, indices, sizes, expected = [], [], [], []
+    for shape, area in [(dart, 1.4), (square, 4.0)] * 200:
+        offset = len(points) and sum(len(p) for p in points)
+        corners = np.roll(np.arange(len(shape)), -rng.integers(len(shape))) + offset
+        points.append(shape + rng.normal(size=3) * 10)
+        indices.append(corners)
+        sizes.append(len(shape))
+        expected.append(area)
+    pts = np.vstack(points)
+    tris = polygons_to_triangles(np.concatenate(indices), np.array(sizes), pts, lambda f: f"face {f}", "x.obj")
+    areas = _signed_areas(pts, tris)
+    per_polygon = np.add.reduceat(areas, np.concatenate([[0], np.cumsum(np.array(sizes) - 2)[:-1]]))
+    assert np.all(areas > 0.05) and np.allclose(per_polygon, expected)
+
+
+def test_a_name_ending_in_a_backslash_continues_nothing(tmp_path):
+    """``g C:\\temp\\`` (a group named after a Windows folder) swallowed the next line's vertex."""
+    path = _write(tmp_path, "g.obj", b"g C:\\temp\\\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 \\\n 2 3\n")
+    mesh = read_file(path)
+    assert len(mesh.points) == 3 and mesh.faces.tolist() == [[0, 1, 2]]
+
+
+@pytest.mark.parametrize("sep", [b"\t", b" "])
+def test_decimal_commas_between_spaces_or_tabs(tmp_path, sep):
+    """``1,5<TAB>2,25<TAB>3``: each value was split at its comma into two, six values a row,
+    silently. Commas as separators (with or without spaces after them) stay separators."""
+    rows = [[0.5, 1.25, -3.0], [2.0, 0.75, 1.5], [1.0, 2.0, 0.0], [0.25, 0.5, 4.0]]
+    text = b"\n".join(sep.join(f"{v:g}".replace(".", ",").encode() for v in row) for row in rows) + b"\n"
+    assert np.allclose(read_file(_write(tmp_path, "p.txt", text)).points, rows)
+    for joiner in (b",", b", "):
+        ints = b"\n".join(joiner.join(str(int(v)).encode() for v in row) for row in [[1, 2, 3], [4, 5, 6], [7, 8, 9],
+                                                                                      [1, 0, 2]]) + b"\n"
+        assert read_file(_write(tmp_path, "i.csv", ints)).points.tolist()[0] == [1.0, 2.0, 3.0]
+
+
+def test_quoted_header_and_mixed_line_breaks(tmp_path):
+    """R's write.csv quotes its header; a CR-only file whose last line ends in CRLF."""
+    path = _write(tmp_path, "q.csv", b'"x","y","z"\n0,0,0\n1,0,0\n0,1,0\n1,1,0.5\n')
+    assert read_file(path).points.shape == (4, 3)
+    mixed = b"v 0 0 0\rv 1 0 0\rv 0 1 0\r\nf 1 2 3\r\n"
+    assert read_file(_write(tmp_path, "m.obj", mixed)).faces.tolist() == [[0, 1, 2]]

@@ -59,16 +59,28 @@ def test_clean_samplings_have_no_stray_point(name, sampling):
 
 @pytest.mark.parametrize("sampling", ["random", "graded"])
 def test_isolated_points_are_far_ones_only(sampling):
-    """A graded sampling's density varies 10-20x, smoothly: no point is isolated (measured: the
-    largest ratio over the generated surfaces and real meshes 7.9, camelhead's density jumps).
-    A point far off, even in the surface's own plane, is."""
+    """A graded sampling (density varying 10-20x), a tight cluster of 30 repeated measurements
+    within 1e-4 of a point of a 50 x 50 grid, and a corner sampled 10000 times more densely:
+    no point is isolated (the first rule, against the neighbours' own spacing, flagged the
+    sparse points beside the cluster). One point far off, even in the surface's own plane, is,
+    and so are two junk rows side by side."""
     from scipy.spatial import cKDTree
 
     from parambench.methods.pointset.stray_points import isolated_mask
 
+    def isolated(pts):
+        return isolated_mask(pts, cKDTree(pts).query(pts, 9)[1][:, 1:])
+
     points = make_surface("holes", 2000, sampling=sampling, seed=1).points
+    assert not isolated(points).any()
     far = np.vstack([points, points.mean(axis=0) + [1e3, 0.0, 0.0]])
-    for pts, expected in ((points, 0), (far, 1)):
-        dist, idx = cKDTree(pts).query(pts, 9)
-        found = isolated_mask(dist[:, 1:].mean(axis=1), idx[:, 1:])
-        assert found.sum() == expected and (expected == 0 or found[-1])
+    assert np.flatnonzero(isolated(far)).tolist() == [len(points)]
+    pair = np.vstack([points, [[0.0, 0.0, 50.0], [0.0, 0.01, 50.0]]])
+    assert np.flatnonzero(isolated(pair)).tolist() == [len(points), len(points) + 1]
+    rng = np.random.default_rng(0)
+    g = np.linspace(0.0, 1.0, 50)
+    grid = np.c_[np.stack(np.meshgrid(g, g), -1).reshape(-1, 2), np.zeros(2500)]
+    cluster = grid[1250] + rng.uniform(-1e-4, 1e-4, (30, 3)) * [1, 1, 0]
+    corner = np.c_[rng.random((3500, 2)) * 0.01, np.zeros(3500)]
+    for pts in (np.vstack([grid, cluster]), np.vstack([grid, corner])):
+        assert not isolated(pts).any()
