@@ -73,12 +73,18 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
 def mesh_advice(check: dict, params: dict, method: str) -> str:
     """What to try after a mesh map failed its check (:func:`~parambench.methods.mesh.map_check.check_mesh_map`).
 
-    Where every flipped face sits at a fold of the mesh itself, no weights help. Otherwise
-    the hybrid weights (Sec. 5), made to remove folds, then ``scp`` with them, then remeshing.
+    Where every flipped face sits at a fold of the mesh itself, no weights help; a non-finite
+    uv is a failed solve; collapsed triangles alone are a protrusion the conformal map
+    shrank. Otherwise the hybrid weights (Sec. 5), made to remove folds, then ``scp`` with
+    them, then remeshing.
     """
     n_flipped = int(check.get("n_flipped") or 0)
     if n_flipped and check.get("n_folded_3d") == n_flipped:
         return "the mesh folds back on itself at those faces: repair its geometry there"
+    if check.get("n_nonfinite"):
+        return "the solve gave no uv at some vertices: try another method (parambench list)"
+    if not n_flipped:  # collapsed triangles alone: a conformal map shrinks a protrusion exponentially
+        return "cut the shrunk protrusion off, or cut a seam along it, before flattening"
     if "weights" in params and params["weights"] != "hybrid":
         return "try --param weights=hybrid"
     if method != "scp":

@@ -95,3 +95,16 @@ def test_a_clean_mesh_map_passes_and_flatten_says_so(tmp_path, capsys):
     out = tmp_path / "uv.obj"
     assert main(["flatten", str(real_mesh_path("lilium")), "-o", str(out)]) == 0
     assert "self-check ok: 0 flipped, 0 degenerate" in capsys.readouterr().out
+
+
+def test_the_advice_follows_what_failed():
+    from parambench.methods.pointset.selfcheck_advice import mesh_advice
+
+    flips = {"n_flipped": 2, "n_folded_3d": 0, "n_nonfinite": 0}
+    assert mesh_advice(flips, {"weights": "uniform"}, "scp") == "try --param weights=hybrid"
+    assert mesh_advice(flips, {}, "lscm-igl") == "try --method scp --param weights=hybrid"
+    assert "remesh" in mesh_advice(flips, {"weights": "hybrid"}, "scp")
+    assert "folds back on itself" in mesh_advice({**flips, "n_folded_3d": 2}, {"weights": "uniform"}, "scp")
+    shrunk = {"n_flipped": 0, "n_folded_3d": 0, "n_nonfinite": 0, "n_degenerate": 40}
+    assert "protrusion" in mesh_advice(shrunk, {"weights": "cotangent"}, "scp")
+    assert "no uv" in mesh_advice({**shrunk, "n_nonfinite": 1}, {}, "scp-igl")
