@@ -74,14 +74,22 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     mesh = ms.current_mesh()
     v = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
     f = np.asarray(mesh.face_matrix(), dtype=np.int64)
-    n_reversed = _reversed_faces(before, f) if len(f) == n_faces else 0
+    # pymeshlab leaves a non-orientable piece (a Moebius band) half re-oriented: not a repair.
+    orientable = _runs_each_edge_once(f)
+    n_reversed = _reversed_faces(before, f) if len(f) == n_faces and orientable else 0
     f, n_after = largest_piece(f, len(v))
     v, f = compact(v, f)
     facts = {"kind": "mesh", "pieces": n_pieces, "pieces_after_repair": n_after,
              "points_in": int(len(points)), "faces_in": int(len(faces)), "points_out": int(len(v)),
              "faces_out": int(len(f)), "faces_removed_in_repair": int(kept_faces - len(f)),
-             "vertices_split": int(n_split), "faces_reversed": int(n_reversed)}
+             "vertices_split": int(n_split), "faces_reversed": int(n_reversed), "orientable": bool(orientable)}
     return v, f, facts
+
+
+def _runs_each_edge_once(faces: np.ndarray) -> bool:
+    """Whether no directed edge appears in two faces (the faces are wound alike across every edge)."""
+    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=-1).reshape(-1, 2)
+    return len(np.unique(directed, axis=0)) == len(directed)
 
 
 def _reversed_faces(before: np.ndarray, after: np.ndarray) -> int:
@@ -127,7 +135,8 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
         ``kind`` ("mesh" or "points"), ``pieces`` (components found), ``points_in``,
         ``points_out``; for meshes also ``faces_in``, ``faces_out``,
         ``faces_removed_in_repair``, ``vertices_split``, ``pieces_after_repair``,
-        ``faces_reversed`` (faces whose winding the re-orientation changed).
+        ``faces_reversed`` (faces whose winding the re-orientation changed), ``orientable``
+        (False when no winding of the faces is coherent).
 
     Raises
     ------
@@ -159,5 +168,7 @@ def repair_summary(facts: dict) -> str:
             "pieces the split cut off)"
             + (f", {facts['faces_reversed']} face(s) reversed to match their neighbours' winding"
                if facts.get("faces_reversed") else "")
+            + ("; its faces cannot all be wound alike (a non-orientable surface)"
+               if facts.get("orientable") is False else "")
             + (f", {facts['pieces_after_repair']} pieces after the split (the largest kept)"
                if facts["pieces_after_repair"] > 1 else ""))

@@ -188,3 +188,18 @@ def test_faces_wound_against_their_neighbours_are_refused_with_the_repair(method
         get_method(method)(Surface(pts, faces, name="mixed"))
     assert getattr(err.value, "repairable", False)
     assert "meshing_re_orient_faces_coherently" in str(err.value)
+
+
+def test_repair_says_a_moebius_band_cannot_be_wound_alike():
+    """pymeshlab's re-orientation turns some of its faces and stops; the note said "N face(s)
+    reversed to match their neighbours' winding", and the methods then refused the surface."""
+    from parambench.datasets_gen.repair import repair_summary, repair_surface
+
+    pts, faces = _moebius()
+    repaired, facts = repair_surface(Surface(pts, faces, name="moebius"))
+    assert facts["orientable"] is False and facts["faces_reversed"] == 0
+    assert "cannot all be wound alike" in repair_summary(facts)
+    pts, faces = _grid(8)
+    faces[:10] = faces[:10, ::-1]
+    _, facts = repair_surface(Surface(pts, faces, name="mixed"))
+    assert facts["orientable"] is True and facts["faces_reversed"] == 10
