@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import warnings
 from contextlib import contextmanager
@@ -65,11 +66,29 @@ def parse_param_values(pairs: Sequence[str], defaults: dict) -> dict:
 
 
 def _check_benchmark_files(paths: Sequence[str] | None) -> None:
-    """Refuse missing ``--benchmark-json`` files now rather than after the sweep."""
+    """Refuse missing or unreadable ``--benchmark-json`` files now rather than after the sweep."""
     missing = [p for p in paths or () if not Path(p).is_file()]
     if missing:
         raise InputFileError(f"--benchmark-json: no such file {', '.join(map(repr, missing))}; "
                              f"give files written by pytest --benchmark-json.")
+    if paths:
+        from parambench.reports.benchmarks import load_benchmarks
+
+        try:
+            load_benchmarks(paths)  # the report's own reader: a file that is no benchmark JSON is refused here
+        except InputFileError as exc:
+            raise InputFileError(f"--benchmark-json: {exc}") from None
+
+
+#: A Dask scheduler address: ``host:port``, optionally with a protocol (``tcp://10.0.0.5:8786``).
+_SCHEDULER_ADDRESS = re.compile(r"(?:[a-z]+://)?[^\s:/]+:\d+")
+
+
+def _check_scheduler(address: str | None) -> None:
+    """Refuse a scheduler address that is none before any folder is created."""
+    if address is not None and not _SCHEDULER_ADDRESS.fullmatch(address):
+        raise InvalidInputError(f"--scheduler: {address!r} is not a scheduler address; give host:port, e.g. "
+                                "tcp://127.0.0.1:8786.")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -81,6 +100,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         methods=args.methods, datasets=args.datasets, sizes=args.sizes, seeds=args.seeds,
         samplings=args.samplings, noise=args.noise)
     check_workers(args.workers)
+    _check_scheduler(args.scheduler)
     _check_benchmark_files(args.benchmark_json)
     table = run_sweep(suite, args.out, scheduler=args.scheduler, workers=args.workers,
                       progress=not args.no_progress, isolate=args.isolate,
@@ -375,7 +395,21 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_report_out(out: str | None) -> None:
+    """Refuse an ``--out`` of ``report`` that cannot be a folder before rendering anything."""
+    if out is None:
+        return
+    path = Path(out)
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputFileError(f"--out: {str(existing)!r} is a file, so {str(path)!r} cannot be the report's folder; "
+                             "give a folder path.")
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
+    _check_report_out(args.out)
     if args.other_dir:
         return _cmd_compare(args)
     from parambench.reports.build import build_report
@@ -552,6 +586,9 @@ def _dispatch(args: argparse.Namespace) -> int:
         return args.func(args)
     except ParambenchError as exc:
         print(f"parambench: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a folder the checks could not foresee (/proc as root, a disk full): one line
+        print(f"parambench: error: {type(exc).__name__}: {exc}; check the path and its permissions.", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("parambench: interrupted; finished cells are kept, run again to resume.", file=sys.stderr)

@@ -85,6 +85,8 @@ def store_missing_diagnostics(store: ResultStore, cells: list[Cell]) -> list[str
             if surface.n_points > MAX_POINTS:
                 continue
             store.write_arrays(key, surface_diagnostics(surface), folder="datasets")
-        except ParambenchError as exc:
+        except (ParambenchError, ArithmeticError, MemoryError, ValueError) as exc:
+            # Optional pictures: a surface that cannot be rebuilt (its cells already say why)
+            # must not stop the sweep before its table and report are written.
             problems.append(f"{key}: {type(exc).__name__}: {exc}")
     return problems

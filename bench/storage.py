@@ -23,7 +23,7 @@ import pandas as pd
 
 from parambench.datasets_gen.errors import InputFileError
 
-from .schema import STATUS_FAILED
+from .schema import NUMERIC_COLUMNS, STATUS_FAILED
 
 __all__ = ["ResultStore", "StoredCells", "check_output_dir", "FAILED", "UNREADABLE_SUFFIX"]
 
@@ -128,7 +128,16 @@ def _read_row(path: Path) -> tuple[dict | None, str]:
         return None, f"names cell {row.get('cell_id')!r}, not {path.stem!r}"
     if not isinstance(row.get("status"), str):
         return None, "has no status"
+    # A value edited by hand ("qc_mean": "abc") made the results table unwritable and the
+    # report count it as a failure: such a row is unreadable, and its cell is recomputed.
+    bad = [c for c in NUMERIC_COLUMNS if not _is_number_or_null(row.get(c))]
+    if bad:
+        return None, f"holds a value that is not a number in {', '.join(bad[:3])}"
     return row, ""
+
+
+def _is_number_or_null(value) -> bool:
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
 
 
 class ResultStore:
@@ -171,13 +180,18 @@ class ResultStore:
         return self.scan().finished()
 
     def quarantine(self, cell_id: str) -> Path:
-        """Move an unreadable cell file aside (``<cell_id>.json.unreadable``) so it is recomputed.
+        """Move an unreadable cell file aside (``<cell_id>.json.unreadable``, then ``.unreadable.1``, ...)
+        so it is recomputed.
 
         The bytes are kept for inspection; the report and later sweeps no longer see them.
         Returns the new path.
         """
         path = self.cells_dir / f"{cell_id}.json"
         target = path.with_name(path.name + UNREADABLE_SUFFIX)
+        copies = 1
+        while target.exists():  # an earlier unreadable copy of the same cell stays as evidence too
+            target = path.with_name(f"{path.name}{UNREADABLE_SUFFIX}.{copies}")
+            copies += 1
         os.replace(path, target)
         return target
 

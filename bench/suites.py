@@ -108,6 +108,16 @@ def get_suite(name: str) -> Suite:
         raise UnknownNameError(f"--suite: unknown suite {name!r}; available: {', '.join(SUITES)}.") from None
 
 
+#: Largest requested size: the scale suite's largest is a million points, which takes about
+#: 3 GB in ``ocp``; far larger sizes ran out of memory while the surface was generated.
+MAX_SIZE = 20_000_000
+#: Largest seed: the results table stores seeds as 64-bit integers (a 20-digit seed ran
+#: every cell, then failed to write results.parquet).
+MAX_SEED = 2**63 - 1
+#: Largest normal noise, in mean spacings: past a few spacings no surface is left to flatten.
+MAX_NOISE = 10.0
+
+
 def _is_whole(value) -> bool:
     return (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
             and float(value).is_integer())
@@ -144,8 +154,9 @@ def validate_suite(suite: Suite) -> Suite:
     TooFewPointsError
         A size below the generators' minimum (:data:`parambench.datasets_gen.build.MIN_GENERATED_POINTS`).
     InvalidInputError
-        An empty list, a size or seed that is not a whole number, a negative seed, or
-        noise that is negative, NaN or infinite.
+        An empty list, a size or seed that is not a whole number, a size above
+        ``MAX_SIZE``, a seed outside 0 to ``MAX_SEED``, or noise outside 0 to ``MAX_NOISE``
+        (or NaN).
     """
     from parambench.datasets_gen.registry import dataset_names
 
@@ -157,6 +168,9 @@ def validate_suite(suite: Suite) -> Suite:
                            ("noise", suite.noise)):
         _require(option, values)
     for size in suite.sizes:
+        if _is_whole(size) and size > MAX_SIZE:
+            raise InvalidInputError(f"--sizes: {size!r} is too large; at most {MAX_SIZE:,} points (a million-point "
+                                    "surface takes about 3 GB in ocp).")
         if not _is_whole(size):
             raise InvalidInputError(f"--sizes: {size!r} is not a whole number; sizes are point counts, "
                                     f"at least {MIN_GENERATED_POINTS}.")
@@ -165,14 +179,17 @@ def validate_suite(suite: Suite) -> Suite:
                                     f"at least {MIN_GENERATED_POINTS}.")
     _check_names("samplings", suite.samplings, SAMPLINGS + REAL_SAMPLINGS, "sampling")
     for seed in suite.seeds:
-        if not _is_whole(seed) or seed < 0:
-            raise InvalidInputError(f"--seeds: {seed!r} is not allowed; seeds are whole numbers >= 0.")
+        if not _is_whole(seed) or seed < 0 or seed > MAX_SEED:
+            raise InvalidInputError(f"--seeds: {seed!r} is not allowed; seeds are whole numbers >= 0 and at most "
+                                    f"{MAX_SEED} (the results table stores them as 64-bit integers).")
     for noise in suite.noise:
         try:
             check_noise(noise)
+            if noise > MAX_NOISE:
+                raise InvalidInputError("too noisy")
         except InvalidInputError:
-            raise InvalidInputError(f"--noise: {noise!r} is not allowed; noise is a finite fraction of the "
-                                    f"mean spacing, >= 0 (e.g. 0 or 0.05).") from None
+            raise InvalidInputError(f"--noise: {noise!r} is not allowed; noise is a finite fraction of the mean "
+                                    f"spacing, >= 0 and at most {MAX_NOISE:g} (e.g. 0 or 0.05).") from None
     return suite
 
 
@@ -230,7 +247,10 @@ def expand_cells(suite: Suite) -> list[Cell]:
                 combos = _param_combinations(registered[method], suite.param_grids)
                 combos += [tuple(sorted(p)) for m, p in suite.variants if m == method and tuple(sorted(p)) not in combos]
                 for params in combos:
-                    cells.append(Cell(dataset, int(size), sampling, float(noise), int(seed), method, params))
+                    # + 0.0: "--noise -0" is the noise-free surface, not a cell of its own (n-0)
+                    cells.append(Cell(dataset, int(size), sampling, float(noise) + 0.0, int(seed), method, params))
+    # A value given twice ("--seeds 0 0", "--methods ocp ocp") names the same cell twice: run it once.
+    cells = list(dict.fromkeys(cells))
     if not cells:  # only samplings of real meshes, and no real mesh to sample
         raise InvalidInputError(f"the suite has no cell: sampling {', '.join(suite.samplings)} applies to real "
                                 f"meshes only (e.g. --datasets real/lilium); generated surfaces take "

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,6 +40,10 @@ __all__ = [
     "load_dataset_arrays",
     "dataset_key_candidates",
 ]
+
+#: What numpy raises on a damaged ``.npz``: a truncated zip is a BadZipFile or EOFError
+#: (it stopped the report, and every run after it, as the cell's JSON said "finished").
+NPZ_READ_ERRORS = (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile)
 
 
 @dataclass
@@ -270,7 +275,7 @@ def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:
                 landscape = {k: np.asarray(data[f"landscape_{k}"], dtype=np.float64) for k in "kEt"}
     except InputFileError as exc:
         raise InputFileError(f"{artifact}: {exc}") from exc
-    except (OSError, KeyError, ValueError) as exc:
+    except NPZ_READ_ERRORS as exc:
         raise InputFileError(f"{artifact}: unreadable cell arrays ({exc}).") from exc
     if (points.ndim != 2 or points.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3
             or uv.shape != (len(points), 2) or qc.shape != (len(faces),) or flipped.shape != (len(faces),)):
@@ -335,7 +340,7 @@ def load_dataset_arrays(root: Path, candidates: list[str]) -> dict | None:
         try:
             with np.load(path, allow_pickle=False) as data:
                 out = {name: np.asarray(data[name]) for name in data.files}
-        except (OSError, ValueError) as exc:
+        except NPZ_READ_ERRORS as exc:
             raise InputFileError(f"datasets/{key}.npz: unreadable ({exc}).") from exc
         n = len(out["points"]) if "points" in out else None
         try:

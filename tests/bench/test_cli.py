@@ -180,6 +180,13 @@ RUN_CASES = {
     "unknown-suite": (["--suite", "huge"], "--suite", "quick"),
     "missing-benchmark-json": (["--benchmark-json", "{tmp}/none.json"], "--benchmark-json", "pytest"),
     "out-under-a-file": (["--out", "{tmp}/file.txt/r"], "--out", "folder"),
+    # The second sweep tester's: each ran every cell and then failed with a traceback, or
+    # failed with a traceback after creating the folder.
+    "huge-noise": (["--noise", "1e308"], "--noise", "at most 10"),
+    "huge-size": (["--sizes", "100000000000"], "--sizes", "at most 20,000,000"),
+    "huge-seed": (["--seeds", "99999999999999999999"], "--seeds", "64-bit"),
+    "scheduler-not-an-address": (["--scheduler", "garbage"], "--scheduler", "host:port"),
+    "benchmark-json-not-json": (["--benchmark-json", "{tmp}/file.txt"], "--benchmark-json", "not readable JSON"),
 }
 
 
@@ -269,3 +276,24 @@ def test_ocp_start_up_leaves_plotting_and_tables_unimported():
             "get_method('ocp'); print(sorted(m for m in ('matplotlib', 'pandas') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_report_out_that_is_a_file_and_filesystem_errors_are_one_line(tmp_path, capsys, monkeypatch):
+    """``report --out FILE`` rendered the whole report, then died with FileExistsError; an
+    OSError no check foresaw (``--out /proc/x`` as root) was a traceback too."""
+    (tmp_path / "file.txt").write_text("x")
+    assert main(["report", str(tmp_path), "--out", str(tmp_path / "file.txt")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--out" in err and "is a file" in err
+
+    import parambench.bench.sweep as sweep
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied", "/sys/x")
+
+    monkeypatch.setattr(sweep, "run_sweep", refused)
+    argv = ["run", "--datasets", "plane", "--sizes", "500", "--methods", "scp", "--out", str(tmp_path / "r"),
+            "--no-report", "--no-progress"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "PermissionError" in err and "/sys/x" in err

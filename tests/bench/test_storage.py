@@ -65,6 +65,23 @@ def test_quarantine_moves_the_bytes_aside(tmp_path):
     moved = store.quarantine(cell.cell_id)
     assert not path.exists() and moved.read_text() == '{"cell_id": '
     assert store.scan() == StoredCells()
+    # The same cell unreadable again: the earlier evidence is kept beside the new one.
+    path.write_text("garbage")
+    again = store.quarantine(cell.cell_id)
+    assert again != moved and again.read_text() == "garbage" and moved.read_text() == '{"cell_id": '
+
+
+def test_a_number_field_edited_into_text_makes_the_row_unreadable(tmp_path):
+    """ "qc_mean": "abc" made results.parquet unwritable (pyarrow) and the report count a NaN
+    as a failure; such a row is now unreadable, so its cell is recomputed."""
+    store = ResultStore(tmp_path)
+    cell = Cell("plane", 500, "grid", 0.0, 0, "scp", ())
+    path = store.write_row(_row(cell))
+    row = json.loads(path.read_text())
+    row["qc_mean"] = "abc"
+    path.write_text(json.dumps(row))
+    assert "qc_mean" in store.scan().unreadable[cell.cell_id]
+    assert store.consolidate().empty
 
 
 def test_stale_temporaries_are_removed_and_results_kept(tmp_path):

@@ -33,6 +33,29 @@ def test_expand_cells_is_deterministic_and_complete():
     assert len(real) == 2 and all(c.size == 0 for c in real)  # real data ignores sizes
 
 
+def test_a_value_given_twice_is_one_cell():
+    """--seeds 0 0 0 computed one cell three times; --noise -0 got a cell id of its own (n-0)."""
+    twice = TINY.with_overrides(methods=["scp-igl", "scp-igl"], seeds=[0, 0, 0], noise=[-0.0, 0.0])
+    cells = expand_cells(twice)
+    assert cells == expand_cells(TINY.with_overrides(methods=["scp-igl"]))
+    assert all(str(c.noise) == "0.0" for c in cells)
+
+
+def test_a_surface_that_cannot_be_rebuilt_for_its_pictures_does_not_stop_the_sweep(monkeypatch, tmp_path):
+    """Its cells already failed and say why; the pass that stores the surfaces' diagnostics
+    rebuilt it and died with a traceback (a MemoryError, an overflow), before the table and
+    the report were written, on every run."""
+    import parambench.bench.dataset_diagnostics as diagnostics
+    from parambench.bench.dataset_diagnostics import store_missing_diagnostics
+
+    def broken(*args, **kwargs):
+        raise MemoryError("cannot allocate")
+
+    monkeypatch.setattr(diagnostics, "surface_for", broken)
+    problems = store_missing_diagnostics(ResultStore(tmp_path), expand_cells(TINY))
+    assert len(problems) == 2 and all("MemoryError: cannot allocate" in p for p in problems)
+
+
 def test_scattered_sampling_reaches_real_meshes_only_and_their_cells_run(tmp_path):
     suite = TINY.with_overrides(datasets=["real/lilium", "plane", "real/bunny10k"], sizes=[800],
                                 samplings=["jittered", "scattered"], methods=["scp-igl", "ocp"])

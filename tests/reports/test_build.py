@@ -135,9 +135,12 @@ def test_missing_arrays_and_unreadable_files_are_noted(tmp_path, make_results, s
     npz.unlink()  # big cells keep no arrays
     bad = sorted((root / "cells").glob("*scp*.npz"))[0]
     bad.write_bytes(b"garbage")
+    # A truncated zip (an interrupted copy) raised BadZipFile, which stopped the report.
+    cut = sorted((root / "datasets").glob("*.npz"))[0]
+    cut.write_bytes(cut.read_bytes()[:1000])
     html = build_report(root, formats=("html",))["html"].read_text()
     assert "lscm (no stored arrays)" in html
-    assert "no picture from" in html and bad.name in html
+    assert "no picture from" in html and bad.name in html and cut.name in html
     assert "run.json is missing" in html
     assert "uv layouts" in section_titles(html)  # ocp still drawn
 

@@ -211,3 +211,17 @@ def test_figures_need_panels():
         uv_layout_figure([], "x")
     with pytest.raises(ValueError):
         landscape_figure([], "x")
+
+
+def test_seeds_of_one_requested_size_are_one_size():
+    """A 500-point bump sampled with two seeds has 492 and 493 points: two "sizes" to a fit of
+    the measured counts, exponent in the hundreds, and the report stopped on an overflow."""
+    base = {"dataset": "bump", "sampling": "jittered", "noise": 0.0, "variant": "ocp", "status": "ok"}
+    one = pd.DataFrame([{**base, "size": 500, "n_points": 492, "time_total": 0.31},
+                        {**base, "size": 500, "n_points": 493, "time_total": 0.02}])
+    assert scaling_fits(one).empty and scaling_figure(one) is None
+    two = pd.concat([one, pd.DataFrame([{**base, "size": 2000, "n_points": 1990, "time_total": 0.66},
+                                        {**base, "size": 2000, "n_points": 2004, "time_total": 0.66}])])
+    fit = scaling_fits(two).iloc[0]
+    assert fit["n_sizes"] == 2 and fit["n_min"] == 492.5 and fit["n_max"] == 1997.0
+    assert fit["exponent"] == pytest.approx(np.log(0.66 / 0.165) / np.log(1997.0 / 492.5))
