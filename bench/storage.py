@@ -25,7 +25,7 @@ from parambench.datasets_gen.errors import InputFileError
 
 from .schema import NUMERIC_COLUMNS, STATUS_FAILED
 
-__all__ = ["ResultStore", "StoredCells", "check_output_dir", "FAILED", "UNREADABLE_SUFFIX"]
+__all__ = ["ResultStore", "StoredCells", "check_output_dir", "atomic_write_bytes", "FAILED", "UNREADABLE_SUFFIX"]
 
 #: The one status that does not count as finished: a rerun retries such cells by default.
 FAILED = STATUS_FAILED
@@ -33,7 +33,12 @@ FAILED = STATUS_FAILED
 UNREADABLE_SUFFIX = ".unreadable"
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a uniquely named temporary file beside it and a rename.
+
+    Readers never see a half-written file, and two writers of one path (a report rebuilt by a
+    second sweep while the first's is still being written) never share a temporary file.
+    """
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -210,7 +215,7 @@ class ResultStore:
     def write_row(self, row: dict) -> Path:
         """Write one cell's row atomically; returns its path."""
         path = self.cells_dir / f"{row['cell_id']}.json"
-        _atomic_write_bytes(path, json.dumps(row, default=_json_default, sort_keys=True).encode())
+        atomic_write_bytes(path, json.dumps(row, default=_json_default, sort_keys=True).encode())
         return path
 
     def write_arrays(self, name: str, arrays: dict, *, folder: str = "cells") -> str:
@@ -245,4 +250,4 @@ class ResultStore:
         return table
 
     def write_metadata(self, meta: dict) -> None:
-        _atomic_write_bytes(self.root / "run.json", json.dumps(meta, indent=2, default=_json_default).encode())
+        atomic_write_bytes(self.root / "run.json", json.dumps(meta, indent=2, default=_json_default).encode())

@@ -9,13 +9,13 @@ and failed cells are reported, not dropped.
 from __future__ import annotations
 
 import importlib
-import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from parambench.bench.schema import ANGLE_HIST_EDGES_DEG
+from parambench.bench.storage import atomic_write_bytes
 from parambench.datasets_gen.errors import InputFileError
 
 from .benchmarks import load_benchmarks
@@ -474,9 +474,7 @@ def build_report(results_dir, *, benchmark_json=(), out_dir=None, formats=FORMAT
     written: dict[str, Path] = {}
     if "html" in formats:
         path = out / "report.html"
-        tmp = out / ".report.html.tmp"
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
+        atomic_write_bytes(path, text.encode("utf-8"))
         written["html"] = path
     if "pdf" in formats:
         written["pdf"] = write_pdf(text, out / "report.pdf")

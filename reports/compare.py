@@ -14,11 +14,12 @@ Improvements are the mirror image; everything else is unchanged.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from parambench.bench.storage import atomic_write_bytes
 
 from .build import check_out_dir
 from .html import Note, Section, render_report
@@ -191,9 +192,7 @@ def build_comparison(dir_a, dir_b, *, out_dir=None, formats=("html",)) -> tuple[
     paths = {}
     if "html" in formats:
         path = out / "compare.html"
-        tmp = out / ".compare.html.tmp"
-        tmp.write_text(page, encoding="utf-8")
-        os.replace(tmp, path)
+        atomic_write_bytes(path, page.encode("utf-8"))
         paths["html"] = path
     if "pdf" in formats:
         from .pdf import write_pdf

@@ -5,6 +5,8 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from parambench.bench.storage import atomic_write_bytes
+
 __all__ = ["write_pdf"]
 
 
@@ -33,7 +35,8 @@ def write_pdf(html_text: str, path: Path, base_url: Path | None = None) -> Path:
     level = logger.level
     logger.setLevel(logging.ERROR)
     try:
-        HTML(string=html_text, base_url=str(base_url or path.parent)).write_pdf(str(path))
+        pdf = HTML(string=html_text, base_url=str(base_url or path.parent)).write_pdf()
     finally:
         logger.setLevel(level)
+    atomic_write_bytes(path, pdf)  # never a half-written PDF, nor one shared with a second writer
     return path
