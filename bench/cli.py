@@ -84,11 +84,17 @@ def _check_benchmark_files(paths: Sequence[str] | None) -> None:
 _SCHEDULER_ADDRESS = re.compile(r"(?:[a-z]+://)?[^\s:/]+:\d+")
 
 
-def _check_scheduler(address: str | None) -> None:
-    """Refuse a scheduler address that is none before any folder is created."""
+def _check_scheduler(address: str | None, workers: int | None, isolate: bool) -> None:
+    """Refuse a scheduler address that is none, and options that would be ignored, before any folder is created."""
     if address is not None and not _SCHEDULER_ADDRESS.fullmatch(address):
         raise InvalidInputError(f"--scheduler: {address!r} is not a scheduler address; give host:port, e.g. "
                                 "tcp://127.0.0.1:8786.")
+    if address is not None and workers is not None:
+        raise InvalidInputError("--workers: a local cluster's size, but --scheduler names a running cluster whose "
+                                "workers run the cells; give one of the two.")
+    if isolate and (address is not None or workers is not None):
+        raise InvalidInputError("--isolate: runs each cell in a fresh process, one after another, to measure its "
+                                "memory; it does not combine with --workers or --scheduler.")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -100,7 +106,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         methods=args.methods, datasets=args.datasets, sizes=args.sizes, seeds=args.seeds,
         samplings=args.samplings, noise=args.noise)
     check_workers(args.workers)
-    _check_scheduler(args.scheduler)
+    _check_scheduler(args.scheduler, args.workers, args.isolate)
     _check_benchmark_files(args.benchmark_json)
     table = run_sweep(suite, args.out, scheduler=args.scheduler, workers=args.workers,
                       progress=not args.no_progress, isolate=args.isolate,

@@ -23,7 +23,7 @@ import pandas as pd
 
 from parambench.datasets_gen.errors import InputFileError
 
-from .schema import NUMERIC_COLUMNS, STATUS_FAILED
+from .schema import NUMERIC_COLUMNS, STATUS_FAILED, STATUS_OK, STATUS_SUSPECT
 
 __all__ = ["ResultStore", "StoredCells", "check_output_dir", "atomic_write_bytes", "FAILED", "UNREADABLE_SUFFIX"]
 
@@ -131,8 +131,9 @@ def _read_row(path: Path) -> tuple[dict | None, str]:
         return None, f"holds a JSON {type(row).__name__}, not a row object"
     if row.get("cell_id") != path.stem:
         return None, f"names cell {row.get('cell_id')!r}, not {path.stem!r}"
-    if not isinstance(row.get("status"), str):
-        return None, "has no status"
+    if row.get("status") not in (STATUS_OK, STATUS_SUSPECT, STATUS_FAILED):
+        # an unknown status counted as finished forever, and the report called it failed
+        return None, f"has no known status ({row.get('status')!r})"
     # A value edited by hand ("qc_mean": "abc") made the results table unwritable and the
     # report count it as a failure: such a row is unreadable, and its cell is recomputed.
     bad = [c for c in NUMERIC_COLUMNS if not _is_number_or_null(row.get(c))]

@@ -276,6 +276,20 @@ def _qc_pivot(mapped: pd.DataFrame) -> pd.DataFrame:
     return text
 
 
+def _where(row) -> str:
+    """A cell's surface in a summary line: dataset, size, sampling, noise, seed (so two lines differ)."""
+    parts = [str(row["dataset"])]
+    if pd.notna(row.get("size")) and row.get("size"):
+        parts.append(f"{int(row['size'])} pts")
+    if isinstance(row.get("sampling"), str) and row["sampling"]:
+        parts.append(row["sampling"])
+    if pd.notna(row.get("noise")) and row.get("noise"):
+        parts.append(f"noise {float(row['noise']):g}")
+    if pd.notna(row.get("seed")):
+        parts.append(f"seed {int(row['seed'])}")
+    return " · ".join(parts)
+
+
 def summary_table(table: pd.DataFrame) -> str:
     """A compact text table for the terminal: per method variant, mean QC per dataset plus failures.
 
@@ -322,9 +336,9 @@ def summary_table(table: pd.DataFrame) -> str:
     for _, r in others.head(10).iterrows():
         why = r.get("error")
         why = f": {str(why)[:150]}" if isinstance(why, str) and why else ""
-        lines.append(f"  {str(r['status']).upper()} {r['dataset']} / {r['variant']}{why}")
+        lines.append(f"  {str(r['status']).upper()} {_where(r)} / {r['variant']}{why}")
     for _, r in failed.head(10).iterrows():
-        lines.append(f"  FAILED {r['dataset']} / {r['variant']}: {r['error_type']}: {str(r['error'])[:150]}")
+        lines.append(f"  FAILED {_where(r)} / {r['variant']}: {r['error_type']}: {str(r['error'])[:150]}")
     if len(failed) > 10:
         lines.append(f"  ... and {len(failed) - 10} more (see results.csv)")
     if len(failed):

@@ -186,6 +186,8 @@ RUN_CASES = {
     "huge-size": (["--sizes", "100000000000"], "--sizes", "at most 20,000,000"),
     "huge-seed": (["--seeds", "99999999999999999999"], "--seeds", "64-bit"),
     "scheduler-not-an-address": (["--scheduler", "garbage"], "--scheduler", "host:port"),
+    "workers-and-scheduler": (["--workers", "2", "--scheduler", "tcp://127.0.0.1:8786"], "--workers", "one of"),
+    "isolate-and-workers": (["--workers", "2", "--isolate"], "--isolate", "does not combine"),
     "benchmark-json-not-json": (["--benchmark-json", "{tmp}/file.txt"], "--benchmark-json", "not readable JSON"),
 }
 

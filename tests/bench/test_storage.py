@@ -82,6 +82,9 @@ def test_a_number_field_edited_into_text_makes_the_row_unreadable(tmp_path):
     path.write_text(json.dumps(row))
     assert "qc_mean" in store.scan().unreadable[cell.cell_id]
     assert store.consolidate().empty
+    row["qc_mean"], row["status"] = 1.0, "bogus"  # an unknown status counted as finished forever
+    path.write_text(json.dumps(row))
+    assert "status" in store.scan().unreadable[cell.cell_id] and not store.finished_ids()
 
 
 def test_stale_temporaries_are_removed_and_results_kept(tmp_path):

@@ -264,7 +264,9 @@ def test_progress_and_summary_label_variants_as_the_report(tmp_path, capsys):
     rows = table.assign(status=["suspect", "failed"], error_type=["", "SolverError"], error=["", "boom"])
     text = summary_table(rows)
     assert "0 ok, 1 suspect, 1 failed of 2 cells" in text
-    assert "SUSPECT plane / scp" in text and "FAILED plane / scp [b_matrix=mass]: SolverError: boom" in text
+    # Each line names the cell's surface: lines of different seeds or samplings looked the same.
+    assert "SUSPECT plane · 500 pts · jittered · seed 0 / scp" in text
+    assert "FAILED plane · 500 pts · jittered · seed 0 / scp [b_matrix=mass]: SolverError: boom" in text
 
 
 def test_summary_shows_suspect_cells_figures_marked():
