@@ -9,7 +9,8 @@ start of a line (CloudCompare's ASCII header, ``//X,Y,Z,R,G,B``); blank lines ar
 a leading UTF-8 byte-order mark and classic Mac OS (CR only) line breaks are accepted. A
 first line holding one whole number is Leica's PTS point count, checked against the rows
 that follow. A first line of column names (every token a name: a letter, then letters,
-digits or underscores, e.g. ``x y z`` or ``X,Y,Z,R,G,B``) is a header: it must name as many
+digits or underscores, e.g. ``x y z`` or ``X,Y,Z,R,G,B``, units in brackets after them
+dropped: ``x [m]``) is a header: it must name as many
 columns as the rows hold, and when it names x y z they must be the first three. Every row
 must have the same number of columns (at least 3). Normals are the columns a header names
 ``nx ny nz`` (or ``normal_x`` ...; a header that names none means there are none); without
@@ -83,6 +84,7 @@ def read_xyz(path: Path, data: bytes) -> RawMesh:
         data = _SLASH_COMMENT.sub(b"", data)
     if b'"' in data:
         data = data.replace(b'"', b" ")  # quoted fields (R's write.csv quotes its header)
+    data = _without_header_units(data)
     separators = b","
     if b";" in data:
         separators = b";"
@@ -144,6 +146,30 @@ def _decimal_commas(data: bytes) -> bool:
             values = line.split()
             return len(values) >= 3 and all(_DECIMAL_COMMA.match(v) or v.lstrip(b"-").isdigit() for v in values)
     return False
+
+
+#: A unit after a column name in a header: ``x [m]``, ``z (mm)``.
+_UNIT = re.compile(rb"[ \t]*[\[(][^\])\n]*[\])]")
+
+
+def _without_header_units(data: bytes) -> bytes:
+    """``data`` with the units dropped from a header row of names (``x [m],y [m],z [m]``).
+
+    A header with units was split into names and units, twice as many values as the rows
+    hold, and refused with a confusing count. Only a first line that becomes names alone
+    is changed; its line number stays.
+    """
+    start = len(data) - len(data.lstrip())
+    end = data.find(b"\n", start)
+    end = len(data) if end < 0 else end
+    first = data[start:end]
+    if not (b"[" in first or b"(" in first):
+        return data
+    names = _UNIT.sub(b"", first)
+    tokens = names.replace(b",", b" ").replace(b";", b" ").split()
+    if not tokens or not all(_is_name(t) for t in tokens):
+        return data
+    return data[:start] + names + data[end:]
 
 
 def _is_name(token: bytes) -> bool:

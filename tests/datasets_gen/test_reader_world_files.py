@@ -469,3 +469,12 @@ def test_quoted_header_and_mixed_line_breaks(tmp_path):
     assert read_file(path).points.shape == (4, 3)
     mixed = b"v 0 0 0\rv 1 0 0\rv 0 1 0\r\nf 1 2 3\r\n"
     assert read_file(_write(tmp_path, "m.obj", mixed)).faces.tolist() == [[0, 1, 2]]
+
+
+def test_header_with_units(tmp_path):
+    """``x [m],y [m],z [m]`` was six header values over rows of three ("3 value(s) where line 1 has 6")."""
+    path = _write(tmp_path, "u.csv", b"x [m],y [m],z (mm),intensity\n0,0,0,5\n1,0,0,6\n0,1,0,7\n1,1,0.5,8\n")
+    cloud = read_file(path)
+    assert cloud.points.shape == (4, 3) and cloud.normals is None
+    with pytest.raises(InputFileError, match="line 2"):  # rows keep their line numbers
+        read_file(_write(tmp_path, "v.csv", b"x [m],y [m],z [m]\n0,zero,0\n"))
