@@ -10,7 +10,9 @@ when the user asks for them: it never runs unasked, because dropping pieces is a
 decision about the data.
 
 For a mesh: the largest piece by face count (faces joined through shared vertices), then
-pymeshlab's duplicate-face removal, non-manifold edge repair (faces removed), non-manifold
+pymeshlab's duplicate-face removal, on each edge of more than two faces the two faces that
+continue each other across it kept (a fin or a folded flap dropped), pymeshlab's
+non-manifold edge repair for what is left (faces removed), non-manifold
 vertex repair (the fans split into copies of the vertex), unreferenced-vertex removal and
 coherent re-orientation of the faces (the minority winding of a piece reversed), then the
 largest piece again (a split vertex can disconnect what it joined). pymeshlab
@@ -60,6 +62,15 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(points, dtype=np.float64),
                                face_matrix=np.asarray(piece, dtype=np.int32)))
     ms.meshing_remove_duplicate_faces()
+    # Before pymeshlab's own repair, which removes faces on a non-manifold edge in file order
+    # (it took a grid's face instead of the fin standing on it): keep on each such edge the
+    # two faces that continue each other across it.
+    mesh = ms.current_mesh()
+    v_now, f_now = np.asarray(mesh.vertex_matrix(), dtype=np.float64), np.asarray(mesh.face_matrix(), dtype=np.int64)
+    fins = _fin_faces(v_now, f_now)
+    if fins.any():
+        ms.clear()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v_now, face_matrix=f_now[~fins].astype(np.int32)))
     ms.meshing_repair_non_manifold_edges()
     n_before_split = ms.current_mesh().vertex_number()
     ms.meshing_repair_non_manifold_vertices()
@@ -84,6 +95,32 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
              "faces_out": int(len(f)), "faces_removed_in_repair": int(kept_faces - len(f)),
              "vertices_split": int(n_split), "faces_reversed": int(n_reversed), "orientable": bool(orientable)}
     return v, f, facts
+
+
+def _fin_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(M,) bool: the faces to drop so that each edge on more than two faces keeps two.
+
+    On such an edge, the two faces kept are those whose third corners lie most nearly
+    opposite each other seen along the edge (the surface continuing across it); the others
+    (a fin standing on the surface, a flap folded back onto it) are dropped.
+    """
+    drop = np.zeros(len(faces), dtype=bool)
+    corners = np.stack([faces, np.roll(faces, -1, axis=1), np.roll(faces, -2, axis=1)], axis=-1).reshape(-1, 3)
+    lo, hi = np.minimum(corners[:, 0], corners[:, 1]), np.maximum(corners[:, 0], corners[:, 1])
+    _, edge, counts = np.unique(lo * (int(faces.max()) + 1) + hi, return_inverse=True, return_counts=True)
+    edge = edge.ravel()
+    for e in np.flatnonzero(counts > 2):  # few: a repair of a handful of edges
+        rows = np.flatnonzero(edge == e)
+        a, b, c = (points[corners[rows, k]] for k in range(3))
+        axis = (b - a)[0] / np.linalg.norm((b - a)[0])
+        wing = (c - a) - np.outer((c - a) @ axis, axis)
+        wing /= np.maximum(np.linalg.norm(wing, axis=1, keepdims=True), np.finfo(float).tiny)
+        facing = wing @ wing.T
+        np.fill_diagonal(facing, np.inf)
+        i, j = np.unravel_index(np.argmin(facing), facing.shape)  # the most nearly opposite pair
+        others = np.setdiff1d(np.arange(rows.size), [i, j])
+        drop[rows[others] // 3] = True
+    return drop
 
 
 def _runs_each_edge_once(faces: np.ndarray) -> bool:

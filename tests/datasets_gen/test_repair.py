@@ -167,3 +167,20 @@ def test_repair_drops_zero_area_faces_that_the_check_refuses(tmp_path, capsys):
     assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
     assert "dropped 1 degenerate face(s)" in capsys.readouterr().err
     _assert_the_plane_s_exact_map(out, points)
+
+
+@pytest.mark.parametrize("fin_first", [False, True])
+def test_repair_drops_the_fin_on_a_non_manifold_edge_not_the_surface(fin_first):
+    """A triangle standing on an interior edge of a grid: pymeshlab's repair removed, in file
+    order, the grid's face instead (the map then had a hole and the fin, QC 1.18 against
+    1.01); the two faces that continue each other across the edge are kept."""
+    points, faces = _grid(6)
+    a, b = faces[12, 0], faces[12, 1]  # an interior edge of the grid's rows
+    fin = [[a, b, len(points)]]
+    points = np.r_[points, [points[a] + [0.0, 0.0, 1.0]]]
+    mixed = np.r_[fin, faces] if fin_first else np.r_[faces, fin]
+    repaired, facts = repair_surface(Surface(points=points, faces=mixed, name="fin"))
+    assert facts["faces_out"] == len(faces) and facts["points_out"] == len(points) - 1
+    kept = {tuple(sorted(map(tuple, repaired.points[f].round(9)))) for f in repaired.faces}
+    grid = {tuple(sorted(map(tuple, points[f].round(9)))) for f in faces}
+    assert kept == grid
