@@ -261,6 +261,8 @@ class Method:
         for key, allowed in self.choices.items():
             if params[key] not in allowed:
                 raise UnknownNameError(f"unknown {key} {params[key]!r}; choose one of {', '.join(allowed)}.")
+        for key, default in self.defaults.items():
+            _check_number_type(key, default, params[key])
         self.check_params(params)
 
     def check_params(self, params: dict[str, Any]) -> None:
@@ -533,6 +535,36 @@ class Method:
         MethodOutput
         """
         raise NotImplementedError(f"{type(self).__qualname__} implements neither solve nor run")
+
+
+def _check_number_type(key: str, default: Any, value: Any) -> None:
+    """Refuse a value of the wrong kind for a parameter whose default is a number or a bool.
+
+    From Python, ``k_nn=None`` or ``reg_eps="abc"`` reached the numerics and raised a bare
+    TypeError or ValueError there, while ``reg_eps="0.01"`` was quietly converted and
+    ``k_nn="8"`` refused with "got 8". Parameters whose default is None or a string are left
+    to ``choices`` and :meth:`Method.check_params`.
+
+    Raises
+    ------
+    InvalidInputError
+        A bool parameter given anything but a bool; a whole-number parameter given anything
+        but a whole number; a real parameter given anything but a finite real number.
+    """
+    if isinstance(default, bool):
+        ok, kind = isinstance(value, (bool, np.bool_)), "true or false"
+    elif isinstance(default, (int, np.integer)):
+        ok = (isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_))
+              and np.isfinite(value) and float(value).is_integer())
+        kind = "a whole number"
+    elif isinstance(default, (float, np.floating)):
+        ok = (isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_))
+              and bool(np.isfinite(value)))
+        kind = "a finite number"
+    else:
+        return
+    if not ok:
+        raise InvalidInputError(f"parameter {key} expects {kind}, got {value!r} ({type(value).__name__}).")
 
 
 #: The memo of the checked run in progress (:meth:`Method._run_and_check`), None outside one.

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -103,3 +105,22 @@ def test_every_builtin_plugin_implements_solve_only(name):
     assert set(cls.choices) <= set(cls.defaults)
     for key, allowed in cls.choices.items():
         assert cls.defaults[key] in allowed, f"{name}: default {key}={cls.defaults[key]!r} not in its choices"
+
+
+@pytest.mark.parametrize("params, words", [
+    ({"k_nn": None}, "k_nn expects a whole number, got None"),
+    ({"k_nn": "8"}, "k_nn expects a whole number, got '8' (str)"),
+    ({"k_nn": 8.5}, "k_nn expects a whole number"),
+    ({"reg_eps": "abc"}, "reg_eps expects a finite number, got 'abc'"),
+    ({"reg_eps": float("inf")}, "reg_eps expects a finite number"),
+    ({"area_factor": "x"}, "area_factor expects a finite number"),
+])
+def test_parameters_of_the_wrong_kind_are_refused_by_name(params, words):
+    """From Python these reached the numerics (a bare TypeError or ValueError deep in the front
+    end), or were converted quietly ("0.01") while others were refused ("got 8")."""
+    from parambench.datasets_gen.registry import make_surface
+
+    surface = make_surface("bump", 300, sampling="jittered", seed=0).method_input(False)
+    with pytest.raises(InvalidInputError, match=re.escape(words)):
+        get_method("ocp")(surface, **params)
+    assert get_method("ocp")(surface, k_nn=8.0, reg_eps=np.float32(0.01)).uv.shape == (surface.n_points, 2)
