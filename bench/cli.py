@@ -353,6 +353,22 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     return 0
 
 
+def _in_input_rows(report: dict, input_rows) -> None:
+    """Loops of a point set ``--repair`` shrank renumbered to the input file's rows, and ``input_rows`` added.
+
+    The JSON holds no points, so indices into the repaired set (rows dropped before them
+    shifted every one) could not be traced back to the file: on 3000 points with 6 junk rows
+    only 10.5 % of the loop indices named boundary rows of the input.
+    """
+    if input_rows is None:
+        return
+    import numpy as np
+
+    rows = np.asarray(input_rows, dtype=np.int64)
+    report["boundary_loops"] = [rows[np.asarray(loop, dtype=np.int64)].tolist() for loop in report["boundary_loops"]]
+    report["input_rows"] = rows.tolist()
+
+
 def _cmd_inspect(args: argparse.Namespace) -> int:
     from dataclasses import fields
 
@@ -375,6 +391,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
                         params.get("k_nn", defaults["k_nn"]))
     with _offer_repair(args.repair):
         report = inspect_surface(surface, **params)
+    _in_input_rows(report, surface.params.get("input_rows"))
     out.write_text(json.dumps(report, indent=2))
     loops = report.get("boundary_loops", [])
     cov = (report.get("selfcheck") or {}).get("coverage")

@@ -88,11 +88,16 @@ def with_usable_normals(surface: Surface, k_nn: int) -> tuple[Surface, str]:
 
 
 def without_stray_points(surface: Surface, k_nn: int) -> tuple[Surface, int]:
-    """A point set without its stray points (a scan's outliers), and how many there were."""
+    """A point set without its stray points (a scan's outliers), and how many there were.
+
+    ``params["input_rows"]`` follows: the input row of each point kept.
+    """
     stray = find_stray_points(surface.points, k_nn)
     if not stray.any():
         return surface, 0
     keep = ~stray
     normals = None if surface.normals is None else surface.normals[keep]
-    params = {**surface.params, "stray_points_dropped": int(stray.sum())}
+    rows = surface.params.get("input_rows")
+    kept_rows = np.flatnonzero(keep) if rows is None else np.asarray(rows)[keep]
+    params = {**surface.params, "stray_points_dropped": int(stray.sum()), "input_rows": kept_rows}
     return Surface(points=surface.points[keep], normals=normals, name=surface.name, params=params), int(stray.sum())

@@ -167,7 +167,8 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
     -------
     repaired : Surface
         Same name and ``params`` (plus ``repaired``: the facts); a point set keeps its
-        normals, a mesh drops them (its vertices are renumbered and split).
+        normals and gets ``params["input_rows"]`` ((R,) int64: the input row of each point
+        kept), a mesh drops them (its vertices are renumbered and split).
     facts : dict
         ``kind`` ("mesh" or "points"), ``pieces`` (components found), ``points_in``,
         ``points_out``; for meshes also ``faces_in``, ``faces_out``,
@@ -190,7 +191,7 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
              "points_out": int(keep.size)}
     normals = None if surface.normals is None else surface.normals[keep]
     return Surface(points=points[keep], normals=normals, name=surface.name,
-                   params={**surface.params, "repaired": facts}), facts
+                   params={**surface.params, "repaired": facts, "input_rows": keep}), facts
 
 
 def repair_summary(facts: dict) -> str:

@@ -184,3 +184,23 @@ def test_repair_drops_the_fin_on_a_non_manifold_edge_not_the_surface(fin_first):
     kept = {tuple(sorted(map(tuple, repaired.points[f].round(9)))) for f in repaired.faces}
     grid = {tuple(sorted(map(tuple, points[f].round(9)))) for f in faces}
     assert kept == grid
+
+
+def test_inspect_with_repair_gives_loops_in_the_input_file_s_rows(tmp_path, capsys):
+    """Junk rows before and after a point set: the loops indexed the repaired set, shifted by
+    the rows dropped before them (10.5 % landed on boundary rows of the input)."""
+    import json
+
+    from parambench.datasets_gen.registry import make_surface
+
+    surface = make_surface("holes", 3000, sampling="jittered", seed=0)
+    rows = np.r_[np.full((5, 3), 100.0), surface.points, [[50.0, 50.0, 50.0]]]  # a scanner's repeated junk return
+    src, out = tmp_path / "scan.xyz", tmp_path / "front.json"
+    np.savetxt(src, rows, fmt="%.17g")
+    assert main(["inspect", str(src), "--repair", "-o", str(out)]) in (0, 3)
+    report = json.loads(out.read_text())
+    assert report["input_rows"] == list(range(5, 5 + len(surface.points)))
+    on_boundary = np.zeros(len(rows), dtype=bool)
+    on_boundary[5:5 + len(surface.points)] = surface.boundary_mask
+    found = np.concatenate([np.asarray(loop) for loop in report["boundary_loops"]])
+    assert on_boundary[found].mean() > 0.9
