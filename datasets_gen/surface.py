@@ -72,7 +72,11 @@ def validate_points(points: Any, *, name: str = "points", min_points: int = MIN_
     TooFewPointsError
         N < ``min_points``.
     """
-    arr = np.asarray(points)
+    try:
+        arr = np.asarray(points)
+    except ValueError as exc:  # ragged rows: numpy's "inhomogeneous shape"
+        raise InvalidInputError(f"{name} must be an (N, 3) array; rows of different lengths were given "
+                                f"({exc}).") from None
     if arr.dtype.kind not in "fiu":
         raise InvalidInputError(f"{name} must be a numeric array, got dtype {arr.dtype}; pass float coordinates.")
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -319,10 +323,23 @@ def validate_normals(normals: Any, n_points: int) -> np.ndarray:
 
 
 def _validate_loops(loops: Any) -> list | None:
-    """Boundary loops as a list of int64 arrays (None stays None)."""
+    """Boundary loops as a list of int64 arrays (None stays None).
+
+    Raises
+    ------
+    InvalidInputError
+        A loop that is not a flat list of whole numbers (0.5 was silently truncated to 0).
+    """
     if loops is None:
         return None
-    return [np.asarray(loop, dtype=np.int64) for loop in loops]
+    out = []
+    for i, loop in enumerate(loops):
+        arr = np.asarray(loop)
+        if arr.ndim != 1 or not (arr.dtype.kind in "iu" or (arr.dtype.kind == "f" and np.all(np.mod(arr, 1) == 0))):
+            raise InvalidInputError(f"boundary loop {i} must be a flat list of whole point indices, got "
+                                    f"{np.asarray(loop).tolist()[:5]!r}...")
+        out.append(arr.astype(np.int64))
+    return out
 
 
 class _PointData:

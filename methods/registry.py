@@ -56,7 +56,7 @@ def get_method(name: str) -> Method:
     _load()
     try:
         return _REGISTRY[name]()
-    except KeyError:
+    except (KeyError, TypeError):  # TypeError: an unhashable name, e.g. a list
         raise UnknownNameError(
             f"unknown method {name!r}; available: {', '.join(sorted(_REGISTRY))}. Run 'parambench list'."
         ) from None

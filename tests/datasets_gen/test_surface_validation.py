@@ -124,3 +124,13 @@ def test_normals_are_normalised_and_checked():
     np.testing.assert_allclose(np.linalg.norm(s.normals, axis=1), 1.0)
     with pytest.raises(InvalidInputError, match="zero-length"):
         Surface(pts, faces, normals=np.zeros((5, 3)))
+
+
+def test_ragged_rows_and_fractional_loops_are_refused_by_name():
+    """A ragged list raised numpy's "inhomogeneous shape"; loops of 0.5, 1.2, 2.7 became 0, 1, 2."""
+    with pytest.raises(InvalidInputError, match="rows of different lengths"):
+        MethodInput([[0.0, 0.0, 0.0], [1.0, 2.0]])
+    points = np.random.default_rng(0).random((20, 3))
+    with pytest.raises(InvalidInputError, match="whole point indices"):
+        MethodInput(points, boundary_loops=[[0.5, 1.2, 2.7]])
+    assert MethodInput(points, boundary_loops=[[0.0, 1.0, 2.0]]).boundary_loops[0].tolist() == [0, 1, 2]

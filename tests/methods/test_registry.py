@@ -77,3 +77,10 @@ def test_registered_plugin_runs_and_is_timed(clean_registry):
     pose = surface_pose(pts)
     np.testing.assert_allclose(result.uv, pose.to_unit(pts)[:, :2] * pose.scale * 2.0)
     assert result.params == {"scale": 2.0} and result.timings["total"] >= 0
+
+
+def test_a_method_name_that_is_no_string_is_an_unknown_name():
+    from parambench.datasets_gen.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError, match="unknown method"):
+        get_method(["ocp"])
