@@ -215,6 +215,9 @@ class Method:
     conformal_map : bool
         A point-set method that promises a conformal map: its self-check also fails a map
         that stretches whole regions one way ("distorted").
+    nullable : frozenset of str
+        Parameters with a number as default that also take None (e.g. ``ocp``'s
+        ``polish_spread``: null = never); any other number parameter refuses None.
     """
 
     name: ClassVar[str] = ""
@@ -223,6 +226,7 @@ class Method:
     defaults: ClassVar[dict[str, Any]] = {}
     param_grid: ClassVar[dict[str, list]] = {}
     choices: ClassVar[dict[str, tuple]] = {}
+    nullable: ClassVar[frozenset[str]] = frozenset()
     conformal_map: ClassVar[bool] = False
 
     def resolve_params(self, params: dict[str, Any]) -> dict[str, Any]:
@@ -262,7 +266,8 @@ class Method:
             if params[key] not in allowed:
                 raise UnknownNameError(f"unknown {key} {params[key]!r}; choose one of {', '.join(allowed)}.")
         for key, default in self.defaults.items():
-            _check_number_type(key, default, params[key])
+            if not (key in self.nullable and params[key] is None):
+                _check_number_type(key, default, params[key])
         self.check_params(params)
 
     def check_params(self, params: dict[str, Any]) -> None:

@@ -205,6 +205,7 @@ class Ocp(Method):
     name = "ocp"
     description = "optimized conformal parameterization, k line search (points only; Sec. 4.2)"
     conformal_map = True
+    nullable = frozenset({"polish_spread"})  # null: never polish whatever the spread
     defaults = {**FRONTEND_DEFAULTS, "k_search": "line", "energy": "neumann", "area_factor": DEFAULT_AREA_FACTOR,
                 "solver": "auto", "fine_solver": "twogrid", "map_error": None, "polish_residual": None,
                 "polish_spread": POLISH_SPREAD, "retry_k_nn": RETRY_K_NN,
