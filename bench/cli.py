@@ -108,17 +108,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
     check_workers(args.workers)
     _check_scheduler(args.scheduler, args.workers, args.isolate)
     _check_benchmark_files(args.benchmark_json)
+    paths: dict = {}
+
+    def report(_table) -> None:
+        # Built while the sweep still holds the folder: a second sweep waiting for it (--wait)
+        # started before, and wrote the same report files at the same time.
+        if not args.no_report:
+            from parambench.reports.build import build_report
+
+            paths.update(build_report(args.out, benchmark_json=args.benchmark_json or ()))
+
     table = run_sweep(suite, args.out, scheduler=args.scheduler, workers=args.workers,
                       progress=not args.no_progress, isolate=args.isolate,
-                      retry_failed=not args.keep_failed, wait=args.wait)
+                      retry_failed=not args.keep_failed, wait=args.wait, then=report)
     print(summary_table(table))
     print(f"\nresults: {Path(args.out) / 'results.parquet'} and results.csv")
-    if not args.no_report:
-        from parambench.reports.build import build_report
-
-        paths = build_report(args.out, benchmark_json=args.benchmark_json or ())
-        for kind, path in paths.items():
-            print(f"report ({kind}): {path}")
+    for kind, path in paths.items():
+        print(f"report ({kind}): {path}")
     return 0
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sys
 from dataclasses import asdict, dataclass
-from typing import Iterable, Iterator
+from typing import Callable, Iterable, Iterator
 
 import pandas as pd
 from tqdm import tqdm
@@ -171,7 +171,8 @@ def _dask(cells: list[Cell], scheduler: str | None, workers: int | None) -> Iter
 
 def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, workers: int | None = None,
               progress: bool = True, diagnostics: bool = True, isolate: bool = False,
-              retry_failed: bool = True, wait: bool = False) -> pd.DataFrame:
+              retry_failed: bool = True, wait: bool = False,
+              then: Callable[[pd.DataFrame], None] | None = None) -> pd.DataFrame:
     """Run the cells of ``suite`` that ``results_dir`` does not hold finished yet.
 
     Each finished cell is written at once (see :class:`parambench.bench.storage.ResultStore`); a
@@ -198,6 +199,9 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
         Compute cells stored as ``failed`` again (default). False skips them.
     wait : bool
         When another sweep holds ``results_dir``, wait for it instead of refusing.
+    then : callable, optional
+        Called with the consolidated table while the folder is still held (the command
+        line builds the report there, so a sweep waiting for the folder starts after it).
 
     Returns
     -------
@@ -234,7 +238,10 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
         if diagnostics:
             for problem in store_missing_diagnostics(store, cells):
                 _note(f"note: no surface diagnostics for {problem}")
-        return store.consolidate()
+        table = store.consolidate()
+        if then is not None:
+            then(table)
+        return table
 
 
 def _run_cells(store: ResultStore, todo: list[Cell], labels: dict[str, str], name: str, *,

@@ -302,3 +302,21 @@ def test_summary_shows_suspect_cells_figures_marked():
     ocp_counts = next(line for line in counts.splitlines() if line.startswith("ocp")).split()
     assert ocp_counts[1:] == ["3", "1.5", "1"]  # foldovers over ok + suspect, median time, 1 suspect cell
     assert "1 ok, 2 suspect, 1 failed of 4 cells" in text
+
+
+def test_the_report_step_runs_while_the_folder_is_still_held(tmp_path):
+    """The command line built the report after the lock was released, so a sweep waiting on
+    the folder (--wait) ran alongside it and wrote the same report files."""
+    from parambench.bench.folder_lock import hold_folder
+    from parambench.datasets_gen.errors import ResultsInUseError
+
+    held = []
+
+    def then(table):
+        with pytest.raises(ResultsInUseError):
+            with hold_folder(Path(tmp_path)):
+                pass
+        held.append(len(table))
+
+    run_sweep(replace(TINY, datasets=("plane",)), str(tmp_path), progress=False, diagnostics=False, then=then)
+    assert held == [2]
