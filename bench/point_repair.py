@@ -52,7 +52,11 @@ def screened_guessed_normals(surface: Surface, k_nn: int) -> Surface:
     """
     if surface.normals is None or not surface.params.get("normals_guessed") or surface.n_points <= k_nn:
         return surface
-    align = max(_fit(surface, k)[0] for k in (k_nn, min(3 * k_nn, surface.n_points - 1)))
+    # One graph of the larger neighbourhood; its rows are sorted by distance, so the first
+    # k_nn columns are the smaller one.
+    indices = knn_graph(surface.points, min(3 * k_nn, surface.n_points - 1)).indices
+    align = max(normal_alignment(surface.normals, pca_normals(surface.points, indices[:, :k])) for k in
+                (k_nn, indices.shape[1]))
     if align >= GUESSED_NORMAL_ALIGNMENT:
         return surface
     warnings.warn(f"{surface.name}: the columns after x y z were taken for normals but do not fit the points (median "

@@ -108,9 +108,10 @@ def _fin_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     corners = np.stack([faces, np.roll(faces, -1, axis=1), np.roll(faces, -2, axis=1)], axis=-1).reshape(-1, 3)
     lo, hi = np.minimum(corners[:, 0], corners[:, 1]), np.maximum(corners[:, 0], corners[:, 1])
     _, edge, counts = np.unique(lo * (int(faces.max()) + 1) + hi, return_inverse=True, return_counts=True)
-    edge = edge.ravel()
-    for e in np.flatnonzero(counts > 2):  # few: a repair of a handful of edges
-        rows = np.flatnonzero(edge == e)
+    order = np.argsort(edge.ravel(), kind="stable")  # the corners of each edge next to each other
+    start = np.concatenate([[0], np.cumsum(counts)])
+    for e in np.flatnonzero(counts > 2):
+        rows = order[start[e]:start[e + 1]]
         a, b, c = (points[corners[rows, k]] for k in range(3))
         axis = (b - a)[0] / np.linalg.norm((b - a)[0])
         wing = (c - a) - np.outer((c - a) @ axis, axis)
