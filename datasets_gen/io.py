@@ -1,7 +1,8 @@
 """Reading user files into a :class:`~parambench.datasets_gen.surface.Surface`.
 
 Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, also named ``.txt``, ``.csv`` or
-``.asc``; PTS; PLY without faces) are read by our own numpy readers
+``.asc``; PTS; PLY without faces; ESRI ASCII grids, ``.asc`` with an ``ncols`` header, whose
+point i is the centre of the i-th cell with data, row by row from the north) are read by our own numpy readers
 (:mod:`parambench.datasets_gen.formats`, one module per format): no native reader sees the
 file, so a hostile file cannot crash, hang or silently alter the data. Guarantees that
 users rely on:
@@ -35,7 +36,8 @@ from .surface import Surface, degenerate_faces
 
 __all__ = ["load_surface", "SUPPORTED_EXTENSIONS"]
 
-#: Lower-case extensions :func:`load_surface` reads (``.txt``, ``.csv``, ``.asc``: XYZ text).
+#: Lower-case extensions :func:`load_surface` reads (``.txt``, ``.csv``, ``.asc``: XYZ text; ``.asc``
+#: with an ``ncols`` header: an ESRI ASCII grid).
 SUPPORTED_EXTENSIONS = tuple(READERS)
 
 

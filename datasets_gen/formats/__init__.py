@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..errors import InputFileError
 from ._common import RawMesh, read_bytes
+from .esri_grid import read_asc
 from .obj import read_obj
 from .off import read_off
 from .ply import read_ply
@@ -23,9 +24,10 @@ from .xyz import read_xyz
 __all__ = ["RawMesh", "READERS", "read_file"]
 
 #: Reader per lower-case extension: ``reader(path, data) -> RawMesh``. ``.txt``, ``.csv`` and
-#: ``.asc`` are the names other tools give XYZ text (CloudCompare, spreadsheets, scanners).
+#: ``.asc`` are the names other tools give XYZ text (CloudCompare, spreadsheets, scanners);
+#: a ``.asc`` with an ``ncols`` / ``nrows`` header is an ESRI ASCII grid (GIS elevation models).
 READERS = {".off": read_off, ".obj": read_obj, ".ply": read_ply, ".stl": read_stl, ".xyz": read_xyz,
-           ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_xyz}
+           ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_asc}
 
 
 def read_file(path: Path) -> RawMesh:
