@@ -267,8 +267,18 @@ def _screened(surface, k_nn: Any):
     return screened_guessed_normals(surface, _k(k_nn))
 
 
-def _repaired(surface, repair: bool, k_nn: Any):
-    """``surface`` itself, or with ``--repair`` its largest piece repaired, a point set's stray points dropped (one line on stderr)."""
+_VERTICES_NOTE = "the output holds these vertices"
+
+#: What a ``.csv`` of a repaired point set holds: it has no coordinates to match its rows to
+#: the input by, so it keeps one row per input row.
+_CSV_ROWS_NOTE = "the .csv has one row per input row, the {n_dropped} dropped ones nan,nan"
+
+
+def _repaired(surface, repair: bool, k_nn: Any, output_note: str = _VERTICES_NOTE):
+    """``surface`` itself, or with ``--repair`` its largest piece repaired, a point set's stray points dropped.
+
+    One line on stderr says what changed, ending in ``output_note`` (what the output holds).
+    """
     if not repair:
         return surface
     from parambench.datasets_gen.repair import repair_summary, repair_surface
@@ -285,7 +295,10 @@ def _repaired(surface, repair: bool, k_nn: Any):
         note += f"; dropped {n_stray} stray point(s) off the surface" if n_stray else ""
         surface, normals_note = with_usable_normals(surface, k)
         note += normals_note
-    print(f"parambench: note: {note}; the output holds these vertices", file=sys.stderr)
+    n_dropped = facts["points_in"] - surface.n_points
+    is_points = surface.faces is None and "input_rows" in surface.params
+    output_note = output_note.format(n_dropped=n_dropped) if is_points and n_dropped else _VERTICES_NOTE
+    print(f"parambench: note: {note}; {output_note}", file=sys.stderr)
     return surface
 
 
@@ -333,8 +346,10 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)
     method = get_method(args.method or _default_method(surface))
     params = parse_param_values(args.param or [], method.defaults)
+    n_input_rows = surface.n_points
+    csv = out.suffix.lower() == ".csv"
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
-                        params.get("k_nn", method.defaults.get("k_nn")))
+                        params.get("k_nn", method.defaults.get("k_nn")), _CSV_ROWS_NOTE if csv else _VERTICES_NOTE)
     with _offer_repair(args.repair):
         result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
@@ -348,15 +363,27 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         print(f"parambench: error: {failure_line(check, result.params, method.name)} "
               f"({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
-    faces = surface.faces
-    if faces is None and out.suffix.lower() != ".csv":
+    faces, points, uv = surface.faces, surface.points, result.uv
+    if faces is None and not csv:
         faces = pointset_faces(surface.points, result.uv, result.diagnostics.get("boundary_loops"))
-    write_uv(out, surface.points, result.uv, faces)
+    if csv and faces is None and "input_rows" in surface.params:
+        points, uv = _in_every_input_row(surface.points, uv, surface.params["input_rows"], n_input_rows)
+    write_uv(out, points, uv, faces)
     print(f"{summary}{_selfcheck_summary(check)} -> {out}")
     if failed:
         print(f"parambench: warning: {failure_line(check, result.params, method.name)} (written anyway: --force)",
               file=sys.stderr)
     return 0
+
+
+def _in_every_input_row(points, uv, input_rows, n_rows: int):
+    """``points`` and ``uv`` spread to ``n_rows`` rows: row ``input_rows[i]`` gets row i, the others NaN."""
+    import numpy as np
+
+    rows = np.asarray(input_rows, dtype=np.int64)
+    full_points, full_uv = np.full((n_rows, 3), np.nan), np.full((n_rows, 2), np.nan)
+    full_points[rows], full_uv[rows] = points, uv
+    return full_points, full_uv
 
 
 def _in_input_rows(report: dict, input_rows) -> None:

@@ -301,3 +301,25 @@ def test_a_junk_row_far_from_the_scan_fails_the_check_and_repair_drops_it(tmp_pa
     assert "dropped 1 stray point(s)" in capsys.readouterr().err
     kept = np.array([line.split()[1:] for line in out.read_text().splitlines() if line.startswith("v ")], float)
     assert len(kept) == len(patch)
+
+
+def test_a_repaired_point_set_csv_keeps_one_row_per_input_row(tmp_path, capsys):
+    """A ``.csv`` holds no coordinates, so after ``--repair`` dropped a junk row its rows could not be
+    matched to the input any more (1500 rows for a 1501-row file): each input row now keeps its
+    row, the dropped one ``nan,nan``, and the rest are the map of the clean file."""
+    from parambench.datasets_gen.registry import make_surface
+
+    patch = make_surface("bump", 1500, sampling="jittered", seed=0).points
+    rows = np.vstack([patch[:700], [0.0, 0.0, 50.0], patch[700:]])
+    src, clean = tmp_path / "scan.xyz", tmp_path / "clean.xyz"
+    np.savetxt(src, rows, fmt="%.17g")
+    np.savetxt(clean, patch, fmt="%.17g")
+    assert main(["flatten", str(src), "--repair", "-o", str(tmp_path / "scan.csv")]) == 0
+    assert "the .csv has one row per input row, the 1 dropped ones nan,nan" in capsys.readouterr().err
+    assert main(["flatten", str(clean), "-o", str(tmp_path / "clean.csv")]) == 0
+    uv = np.loadtxt(tmp_path / "scan.csv", delimiter=",", skiprows=1)
+    assert uv.shape == (len(rows), 2) and np.isnan(uv[700]).all() and np.isfinite(np.delete(uv, 700, 0)).all()
+    np.testing.assert_allclose(np.delete(uv, 700, 0), np.loadtxt(tmp_path / "clean.csv", delimiter=",", skiprows=1),
+                               rtol=0, atol=1e-9)
+    assert main(["flatten", str(src), "--repair", "-o", str(tmp_path / "scan.obj")]) == 0
+    assert "the output holds these vertices" in capsys.readouterr().err
