@@ -266,19 +266,17 @@ def validate_faces(faces: Any, n_points: int, points: np.ndarray | None = None) 
     arr = np.asarray(faces)
     if arr.size == 0:
         raise InvalidInputError("faces is empty; pass None for a point set without faces.")
-    if arr.dtype.kind not in "iu":
-        if arr.dtype.kind == "f" and np.all(np.mod(arr, 1) == 0):
-            arr = arr.astype(np.int64)
-        else:
-            raise InvalidInputError(f"faces must be an integer array, got dtype {arr.dtype}.")
+    if arr.dtype.kind not in "iu" and not (arr.dtype.kind == "f" and np.all(np.mod(arr, 1) == 0)):
+        raise InvalidInputError(f"faces must be an integer array, got dtype {arr.dtype}.")
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise InvalidInputError(f"faces must have shape (M, 3) (triangles only), got {arr.shape}; triangulate first.")
-    arr = np.ascontiguousarray(arr, dtype=np.int64)
-    lo, hi = int(arr.min()), int(arr.max())
+    # the range is read before the cast: uint64 above 2**63 and huge whole floats wrapped to negatives
+    lo, hi = (x if isinstance(x, int) or abs(x) >= 2**64 else int(x) for x in (arr.min().item(), arr.max().item()))
     if lo < 0 or hi >= n_points:
         raise InvalidInputError(
             f"face indices must lie in [0, {n_points - 1}], found range [{lo}, {hi}]; indices are 0-based."
         )
+    arr = np.ascontiguousarray(arr, dtype=np.int64)
     repeated = (arr[:, 0] == arr[:, 1]) | (arr[:, 1] == arr[:, 2]) | (arr[:, 0] == arr[:, 2])
     if repeated.any():
         raise repairable(DegenerateFacesError(

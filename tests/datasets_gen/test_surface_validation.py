@@ -1,5 +1,7 @@
 """Surface validation: every bad input raises its specific error with a helpful message."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -104,6 +106,17 @@ def test_face_index_out_of_range():
     pts, faces = _square()
     faces[0, 0] = 5
     with pytest.raises(InvalidInputError, match="0-based"):
+        Surface(pts, faces)
+
+
+@pytest.mark.parametrize("dtype, bad, shown", [(np.uint64, 2**63 + 5, "[0, 9223372036854775813]"),
+                                               (np.float64, 1e300, "[0, 1e+300]"), (np.int64, -3, "[-3, 4]")])
+def test_out_of_range_faces_are_named_as_given_not_wrapped(dtype, bad, shown):
+    """uint64 indices above 2**63 and huge whole floats were cast first and reported as negatives."""
+    pts, faces = _square()
+    faces = faces.astype(dtype)
+    faces[0, 0] = bad
+    with pytest.raises(InvalidInputError, match=re.escape(f"found range {shown}")):
         Surface(pts, faces)
 
 
