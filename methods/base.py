@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import gc
 import time
+import warnings
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -42,7 +43,7 @@ from parambench.datasets_gen.surface import MethodInput, Surface
 from .hints import fit_hints, hinted, method_hints
 from .pose import run_in_unit_pose
 
-__all__ = ["Parameterization", "MethodOutput", "Method", "as_method_input", "StageTimer", "active_stage", "add_stage_hook",
+__all__ = ["Parameterization", "MethodOutput", "Method", "InertParameterWarning", "as_method_input", "StageTimer", "active_stage", "add_stage_hook",
            "remove_stage_hook", "retry_memo", "selfcheck_doubt"]
 
 
@@ -190,6 +191,10 @@ class StageTimer:
             self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - start
 
 
+class InertParameterWarning(UserWarning):
+    """A parameter was passed that has no effect under the method's other parameters."""
+
+
 class Method:
     """Base class of method plugins.
 
@@ -270,6 +275,23 @@ class Method:
                 _check_number_type(key, default, params[key])
         self.check_params(params)
 
+    def inert_params(self, params: dict[str, Any]) -> dict[str, str]:
+        """Parameters that do not shape the map under the other values of ``params`` (none by default).
+
+        Parameters
+        ----------
+        params : dict
+            Resolved parameters.
+
+        Returns
+        -------
+        dict of str to str
+            Name -> what it does not act on and what would make it act (a phrase after
+            ``"<name>=<value> "``). :meth:`__call__` warns
+            (:class:`InertParameterWarning`) for those the caller passed.
+        """
+        return {}
+
     def check_params(self, params: dict[str, Any]) -> None:
         """Checks of a plugin's parameters beyond ``choices`` (none by default).
 
@@ -310,6 +332,9 @@ class Method:
         -----
         CoincidentPointsWarning
             A point-set method's input had coincident points (they were merged).
+        InertParameterWarning
+            A parameter the caller passed does not act under the other values
+            (:meth:`inert_params`).
 
         Raises
         ------
@@ -332,6 +357,7 @@ class Method:
         # Error hints name only this method's parameters (methods/hints.py).
         with method_hints(self.defaults, resolved):
             self.check_values(resolved)
+            self._warn_inert(params, resolved)
             result = self._run_point_or_mesh(surface, **resolved)
         # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
         check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)
@@ -343,6 +369,12 @@ class Method:
                 f"method {self.name!r} returned {result.uv.shape[0]} uv rows for {surface.n_points} points (a bug)."
             )
         return result
+
+    def _warn_inert(self, given: dict[str, Any], resolved: dict[str, Any]) -> None:
+        for key, why in self.inert_params(resolved).items():
+            if key in given:
+                warnings.warn(InertParameterWarning(f"{self.name}: {key}={given[key]!r} {why}"),
+                              stacklevel=3)
 
     def _run_point_or_mesh(self, surface: MethodInput, **params: Any) -> Parameterization:
         """Mesh methods: :meth:`run` in unit pose, its map checked on the mesh's faces

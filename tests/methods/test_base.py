@@ -9,7 +9,7 @@ import pytest
 
 from parambench.datasets_gen.errors import InvalidInputError, UnknownNameError
 from parambench.datasets_gen.surface import Surface
-from parambench.methods.base import Method, MethodOutput, Parameterization, StageTimer
+from parambench.methods.base import InertParameterWarning, Method, MethodOutput, Parameterization, StageTimer
 from parambench.methods.registry import all_methods, get_method
 
 
@@ -72,6 +72,25 @@ def test_value_outside_choices_is_refused_before_solve():
     assert method.solved == [] and method.checked == []
 
 
+class _FlatInertScale(_Flat):
+    name = "test-flat-inert"
+
+    def inert_params(self, params: dict) -> dict:
+        return {"scale": "does nothing in yx mode"} if params["mode"] == "yx" else {}
+
+
+def test_a_parameter_passed_where_it_does_not_act_is_warned_about_only_when_passed():
+    import warnings
+
+    method = _FlatInertScale()
+    with pytest.warns(InertParameterWarning, match=r"test-flat-inert: scale=2\.0 does nothing in yx mode"):
+        method(_mesh(), mode="yx", scale=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        method(_mesh(), mode="yx")  # the default is not the user's choice
+        method(_mesh(), mode="xy", scale=2.0)
+
+
 def test_plugin_checks_run_before_solve():
     method = _Flat()
     with pytest.raises(InvalidInputError, match="scale must be positive"):
@@ -123,4 +142,4 @@ def test_parameters_of_the_wrong_kind_are_refused_by_name(params, words):
     surface = make_surface("bump", 300, sampling="jittered", seed=0).method_input(False)
     with pytest.raises(InvalidInputError, match=re.escape(words)):
         get_method("ocp")(surface, **params)
-    assert get_method("ocp")(surface, k_nn=8.0, reg_eps=np.float32(0.01)).uv.shape == (surface.n_points, 2)
+    assert get_method("ocp")(surface, k_nn=8.0, ball_eps_factor=np.float32(2.5)).uv.shape == (surface.n_points, 2)

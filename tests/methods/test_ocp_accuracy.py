@@ -106,3 +106,28 @@ def test_ocp_on_graded_and_random_samplings(shape, sampling):
     ev_old = evaluate(surf.points, surf.faces, scale_to_spacing(sol.uv, front))
     assert sol.k > 1.05 and ev_old["qc_mean"] > ref["qc_mean"] * 1.03
     assert np.isfinite(ev_old["qc_mean"])
+
+
+def test_reg_eps_does_not_act_on_the_default_energy_and_says_so():
+    """``reg_eps`` regularises W^tan, which the Neumann energy's moment rows do not use: passed with the
+    default energy it changed no map, silently. Now it warns; with the paper's energy it acts and does not."""
+    import warnings
+
+    import numpy as np
+
+    from parambench.methods.base import InertParameterWarning
+
+    surface = make_surface("bump", 800, sampling="jittered", seed=0).points_only()
+    ocp = get_method("ocp")
+    plain = ocp(surface)
+    with pytest.warns(InertParameterWarning, match="reg_eps=0.3 does not act on the default energy"):
+        given = ocp(surface, reg_eps=0.3)
+    assert given.diagnostics.get("energy_used", "neumann") == "neumann"
+    np.testing.assert_array_equal(given.uv, plain.uv)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InertParameterWarning)
+        paper = ocp(surface, energy="paper")
+        paper_eps = ocp(surface, energy="paper", reg_eps=0.3)
+    assert np.abs(paper_eps.uv - paper.uv).max() > 1e-6 * np.ptp(paper.uv)
+    with pytest.warns(InertParameterWarning, match="area_factor=2.0 has no effect"):
+        ocp(surface, energy="paper", area_factor=2.0)
