@@ -613,9 +613,9 @@ def _reason(facts: dict) -> str:
         parts.append(f"{facts['n_outside']} point(s) lie outside the boundary loops, up to "
                      f"{facts['outside_depth']:.2g} spacings deep (a loop cuts across the surface)")
     if facts.get("n_isolated"):
-        parts.append(f"{facts['n_isolated']} point(s) lie far from all the others (their third-nearest neighbour "
-                     f"more than {ISOLATED_BOX_SHARE:g} of the point set's extent away): not samples of the surface, "
-                     "and their uv means nothing")
+        parts.append(f"{facts['n_isolated']} point(s) lie far from all the others (alone or in a small group, more "
+                     f"than {ISOLATED_BOX_SHARE:g} of the point set's extent from the rest): not samples of the "
+                     "surface, and their uv means nothing")
     cov = facts.get("coverage")
     if cov and not cov["passed"]:
         parts.append(f"{cov['largest_uncovered_group']} boundary candidates lie on no detected loop (a missed hole?)")

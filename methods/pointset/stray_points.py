@@ -47,7 +47,8 @@ STRAY_NOISE_FACTOR = 4.0
 #: surface the rest sample, wherever it lies: a junk row of a scan (``0 0 0`` in a
 #: georeferenced file; 3.8e4 of the box there), which may even lie in the surface's own
 #: plane, where no tangent-plane offset sees it. The third neighbour, so that two or three
-#: junk rows side by side are found too. Measured without junk rows: at most 0.046 on the
+#: junk rows side by side are found too, and groups of up to K of them cut off by that far
+#: (:func:`isolated_mask`). Measured without junk rows: at most 0.046 on the
 #: shipped meshes, 0.034-0.065 on random and graded samplings of the generated surfaces at
 #: 2k points, 0.09-0.22 at 200 points. A first rule against the neighbours' own spacing
 #: (50 times) also took for junk the sparse points beside a tight cluster of repeated
@@ -97,8 +98,14 @@ def stray_mask(offsets: np.ndarray) -> np.ndarray:
 
 
 def isolated_mask(points: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
-    """(N,) bool: points whose third-nearest neighbour is farther than ``ISOLATED_BOX_SHARE`` of the core box's
-    diagonal.
+    """(N,) bool: points far from the surface the rest sample (``ISOLATED_BOX_SHARE`` of the core box's diagonal).
+
+    A point is isolated when its third-nearest neighbour is that far, or when it belongs to
+    a group of at most K points (joined by neighbour edges shorter than that) that the rest
+    lie that far from: four to eight junk rows together have each other as their nearest
+    neighbours, and reach the surface only by their longest neighbour edges (more than K
+    such points make a piece of the neighbour graph of their own, refused as several
+    components before any map is made).
 
     Parameters
     ----------
@@ -113,18 +120,40 @@ def isolated_mask(points: np.ndarray, knn_indices: np.ndarray) -> np.ndarray:
     """
     lo, hi = core_box(points)
     limit = ISOLATED_BOX_SHARE * float(np.linalg.norm(hi - lo))
-    out = np.zeros(points.shape[0], dtype=bool)
-    if limit <= 0.0 or knn_indices.shape[1] == 0:
+    n, k = knn_indices.shape
+    out = np.zeros(n, dtype=bool)
+    if limit <= 0.0 or k == 0:
         return out
-    rank = min(2, knn_indices.shape[1] - 1)
+    rank = min(2, k - 1)
+    long_edge = np.zeros(n, dtype=bool)
 
     def rows_of(rows: slice) -> None:
         d = np.linalg.norm(points[knn_indices[rows]] - points[rows, None, :], axis=2)
         d[d == 0.0] = np.inf  # the point itself
         out[rows] = np.partition(d, rank, axis=1)[:, rank] > limit
+        long_edge[rows] = ((d > limit) & np.isfinite(d)).any(axis=1)
 
-    for_each_chunk(rows_of, points.shape[0], _CHUNK)
+    for_each_chunk(rows_of, n, _CHUNK)
+    if long_edge.any():  # a group cut off by long edges has one on every member
+        out |= _small_far_groups(points, knn_indices, limit)
     return out
+
+
+def _small_far_groups(points: np.ndarray, knn_indices: np.ndarray, limit: float) -> np.ndarray:
+    """(N,) bool: members of groups of at most K points joined by neighbour edges up to ``limit``, not the largest."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n, k = knn_indices.shape
+    rows = np.repeat(np.arange(n), k)
+    cols = knn_indices.ravel()
+    short = np.linalg.norm(points[rows] - points[cols], axis=1) <= limit
+    graph = csr_matrix((np.ones(int(short.sum())), (rows[short], cols[short])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    size = np.bincount(label)
+    small = size <= k
+    small[np.argmax(size)] = False
+    return small[label]
 
 
 def find_stray_points(points: np.ndarray, k_nn: int = 8, passes: int = 3) -> np.ndarray:

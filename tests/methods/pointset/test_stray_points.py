@@ -77,6 +77,12 @@ def test_isolated_points_are_far_ones_only(sampling):
     assert np.flatnonzero(isolated(far)).tolist() == [len(points)]
     pair = np.vstack([points, [[0.0, 0.0, 50.0], [0.0, 0.01, 50.0]]])
     assert np.flatnonzero(isolated(pair)).tolist() == [len(points), len(points) + 1]
+    # four to eight junk rows together are each other's nearest neighbours: the third-nearest
+    # rule alone passed them (and the map failed on loops crossing, or points outside them)
+    for n_junk in (4, 6, 8):
+        junk = np.random.default_rng(n_junk).normal(scale=0.01, size=(n_junk, 3)) + [0.0, 0.0, 50.0]
+        assert np.flatnonzero(isolated(np.vstack([points, junk]))).tolist() == list(range(len(points),
+                                                                                      len(points) + n_junk))
     rng = np.random.default_rng(0)
     g = np.linspace(0.0, 1.0, 50)
     grid = np.c_[np.stack(np.meshgrid(g, g), -1).reshape(-1, 2), np.zeros(2500)]
