@@ -105,6 +105,23 @@ def test_uniform_random_points_on_a_tile_lie_inside_their_rim(seed):
     assert fe.diagnostics["boundary"]["n_wrapped"] >= 1
 
 
+def test_a_loop_that_cuts_a_corner_gets_the_corner_back():
+    """4000 uniform random points on a unit square turned in space (seed 5): the loop cut the
+    corner (0.997, 0.004) off, and the corner's one edge into the surface crossed the loop's
+    edge before the shortcut, where its foot lay at 1.69 of the edge's length: it stayed
+    outside (0.26 of its spacing deep in uv) and ``ocp`` failed its check, its map 3.6e-3 of
+    the square off the exact one. The edges next to a crossed one are tried too now."""
+    rng = np.random.default_rng(5)
+    uv = rng.random((4000, 2))
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    points = np.c_[uv, np.zeros(len(uv))] @ rotation.T
+    fe = build_frontend(points)
+    flat = (fe.points @ rotation)[:, :2]
+    assert _outside_2d(flat, fe.boundary_loops).size == 0
+    corner = np.argmin(np.linalg.norm(flat - [0.99687172, 0.00422386], axis=1))
+    assert corner in fe.boundary_loops[0]
+
+
 def test_points_outside_counts_points_the_map_leaves_beyond_its_loops():
     x, y = np.meshgrid(np.linspace(0, 1, 11), np.linspace(0, 1, 11))
     uv = np.c_[x.ravel(), y.ravel()]
