@@ -33,13 +33,34 @@ FAILED = STATUS_FAILED
 UNREADABLE_SUFFIX = ".unreadable"
 
 
+def _process_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+#: Mode of the files written here: what ``open`` would give under the process's umask.
+#: ``tempfile.mkstemp`` makes its files owner-only (0600), and the rename kept that: reports,
+#: ``run.json`` and the cell files came out unreadable to the group where ``results.csv``
+#: (written by pandas) did not.
+FILE_MODE = 0o666 & ~_process_umask()
+
+
+def _temporary_beside(path: Path, suffix: str) -> tuple[int, str]:
+    """A new, uniquely named file beside ``path`` with :data:`FILE_MODE`: (descriptor, name)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    os.fchmod(fd, FILE_MODE)
+    return fd, tmp
+
+
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a uniquely named temporary file beside it and a rename.
 
     Readers never see a half-written file, and two writers of one path (a report rebuilt by a
-    second sweep while the first's is still being written) never share a temporary file.
+    second sweep while the first's is still being written) never share a temporary file. The
+    file gets :data:`FILE_MODE`, as a plain ``open`` would give it.
     """
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = _temporary_beside(path, ".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -224,7 +245,7 @@ class ResultStore:
         target_dir = self.root / folder
         target_dir.mkdir(parents=True, exist_ok=True)
         path = target_dir / f"{name}.npz"
-        fd, tmp = tempfile.mkstemp(dir=target_dir, prefix=f".{name}.", suffix=".npz")
+        fd, tmp = _temporary_beside(path, ".npz")
         os.close(fd)
         try:
             np.savez_compressed(tmp, **arrays)

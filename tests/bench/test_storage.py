@@ -118,3 +118,21 @@ def test_output_dir_check_refuses_a_read_only_folder(tmp_path):
             check_output_dir(ro / "results")
     finally:
         ro.chmod(0o755)
+
+
+def test_written_files_follow_the_umask_not_owner_only(tmp_path):
+    """mkstemp's files are 0600 and the rename kept that: reports, run.json and cell files were
+    unreadable to the group under umask 022 while results.csv (pandas) was not."""
+    from parambench.bench.storage import FILE_MODE, atomic_write_bytes
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert FILE_MODE == 0o666 & ~mask
+    store = ResultStore(tmp_path / "out")
+    atomic_write_bytes(tmp_path / "report.html", b"<html></html>")
+    row = store.write_row({"cell_id": "c1", "status": "ok"})
+    arrays = tmp_path / "out" / store.write_arrays("c1", {"uv": np.zeros((3, 2))})
+    plain = tmp_path / "plain.txt"
+    plain.write_text("x")
+    for path in (tmp_path / "report.html", row, arrays):
+        assert path.stat().st_mode & 0o777 == plain.stat().st_mode & 0o777
