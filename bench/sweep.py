@@ -344,6 +344,8 @@ def summary_table(table: pd.DataFrame) -> str:
         why = r.get("error")
         why = f": {str(why)[:150]}" if isinstance(why, str) and why else ""
         lines.append(f"  {str(r['status']).upper()} {_where(r)} / {r['variant']}{why}")
+    if len(others) > 10:
+        lines.append(f"  ... and {len(others) - 10} more (see results.csv)")
     for _, r in failed.head(10).iterrows():
         lines.append(f"  FAILED {_where(r)} / {r['variant']}: {r['error_type']}: {str(r['error'])[:150]}")
     if len(failed) > 10:

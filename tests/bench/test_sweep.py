@@ -320,3 +320,18 @@ def test_the_report_step_runs_while_the_folder_is_still_held(tmp_path):
 
     run_sweep(replace(TINY, datasets=("plane",)), str(tmp_path), progress=False, diagnostics=False, then=then)
     assert held == [2]
+
+
+def test_summary_says_how_many_suspect_cells_it_left_unlisted():
+    """Twelve suspect cells printed ten lines and nothing more (failed cells had "... and N more")."""
+    import pandas as pd
+
+    from parambench.bench.sweep import summary_table
+
+    rows = pd.DataFrame({"method": ["lem"] * 12, "params": ["{}"] * 12, "dataset": ["bump"] * 12,
+                         "n_points": [500] * 12, "sampling": ["jittered"] * 12, "noise": [0.0] * 12,
+                         "seed": list(range(12)), "status": ["suspect"] * 12, "qc_mean": [1.5] * 12,
+                         "foldovers": [2] * 12, "time_total": [1.0] * 12, "error_type": ["SelfCheck"] * 12,
+                         "error": ["2 flipped triangle(s)"] * 12})
+    text = summary_table(rows)
+    assert text.count("  SUSPECT ") == 10 and "  ... and 2 more (see results.csv)" in text
