@@ -258,10 +258,10 @@ class FbcpPc(Method):
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         boundary, solver, k_local = params["boundary"], params["free_boundary"], params["k_local"]
-        loops = given_loops(surface) if boundary == "given" else None
-        front = run_frontend(surface, params, timer)
-        if loops is None:
-            loops = list(front.boundary_loops)
+        # Given loops replace the detected ones in the front end: detection failing
+        # (NoBoundaryError on a noisy strip) must not stop a run that never uses its loops.
+        front = run_frontend(surface, params, timer, given_loops=given_loops(surface) if boundary == "given" else None)
+        loops = list(front.boundary_loops)
         with timer("local_delaunay"):
             lap, n_tri = fbcp_laplacian(front.points, front.normals, loops, int(k_local))
         front = front.without_balls()
@@ -277,7 +277,7 @@ class FbcpPc(Method):
                 "free_boundary": solver, "n_local_triangles": n_tri, "turning": np.asarray(sol.turning).tolist(),
                 "energy": float(sol.energy)}
         if boundary == "given":
-            diag["n_detected_loops_unused"] = diag["n_detected_loops"]
+            diag["n_detected_loops_unused"] = len(front.diagnostics["boundary"].get("angle_loop_sizes") or [])
             diag["boundary_loops"] = [lp.tolist() for lp in loops]
         if solver == "two-pins":
             diag["pins"] = [int(p) for p in pins]

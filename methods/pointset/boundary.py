@@ -551,7 +551,8 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
 
     Most of the points (``n_points``, when given): too few points to have an inside
     (40 random points on a square: 21 candidates, which read as "closed surface").
-    Few candidates: the surface is closed. Many that do not close into a loop: the
+    Few candidates: the surface is closed, or its rim drowns in noise (``fold``, an open
+    strip, at normal noise of 0.5 spacings: 22 candidates). Many that do not close into a loop: the
     boundary is too ragged or sparse for balls of this size.
     """
     if n_points is not None and n_candidates > _MOSTLY_BOUNDARY * n_points:
@@ -563,7 +564,9 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
     if n_candidates < 4 * min_loop_size:
         return NoBoundaryError(
             f"no boundary found ({n_candidates} isolated point(s) pass the {angle_deg:g}-degree angle "
-            "criterion): closed surface: cut it open before flattening."
+            "criterion): closed surface: cut it open before flattening; or, if the surface has a rim, the "
+            "rim is too noisy or sparsely sampled to tell from the inside (denoise the points, or sample "
+            "the rim more densely)."
         )
     return NoBoundaryError(
         f"{n_candidates} points pass the {angle_deg:g}-degree angle criterion but no boundary loop closes: "

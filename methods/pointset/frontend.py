@@ -616,7 +616,7 @@ def weights_stage(points: np.ndarray, balls, weights: str = "tangent",
 
 
 def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params: FrontEndParams,
-                   lattice: bool = False):
+                   lattice: bool = False, given: list | None = None):
     """Stage ``boundary``: the boundary loops, in kd-tree order.
 
     With ``boundary_method="angle"``, when at least ``4 * min_loop_size`` points pass the
@@ -661,9 +661,12 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
                                   min_loop_size=min_loop_size)
     else:
         bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
+    if given is not None:
+        return _with_loops(bnd, given, 1, "given"), False
+    if params.boundary_method != "rings":
         cells = lattice_loops(p, frame_normals, nb.graph.indices) if lattice else None
         if cells is not None:
-            return _with_loops(bnd, cells, int(params.boundary_decimate)), False
+            return _with_loops(bnd, cells, int(params.boundary_decimate), "lattice cells"), False
     if params.boundary_method == "angle" and not bnd.loops and bnd.candidates.sum() >= 4 * params.min_loop_size:
         # Many boundary candidates but no closed loop: a ragged, sparsely sampled
         # boundary. Retry the boundary stage alone on wider balls (W is unaffected).
@@ -687,12 +690,12 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     return bnd, retried
 
 
-def _with_loops(bnd, loops: list, decimate: int):
-    """``bnd`` (a BoundaryLoops) with ``loops`` in place of its own, its candidates kept."""
+def _with_loops(bnd, loops: list, decimate: int, source: str):
+    """``bnd`` (a BoundaryLoops) with ``loops`` (from ``source``) in place of its own, its candidates kept."""
     loops = [loop[::decimate] if decimate > 1 else loop for loop in loops]
     mask = np.zeros(bnd.mask.shape[0], dtype=bool)
     mask[np.concatenate(loops)] = True
-    diagnostics = dict(bnd.diagnostics, loops_from="lattice cells", angle_loop_sizes=bnd.diagnostics.get("loop_sizes"),
+    diagnostics = dict(bnd.diagnostics, loops_from=source, angle_loop_sizes=bnd.diagnostics.get("loop_sizes"),
                        loop_sizes=[int(len(loop)) for loop in loops], n_in_loops=int(mask.sum()))
     return replace(bnd, loops=loops, mask=mask, diagnostics=diagnostics)
 
@@ -738,8 +741,8 @@ def stage_diagnostics(nb: Neighbourhoods, balls, w: np.ndarray, r_x: np.ndarray,
     }
 
 
-def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | None = None,
-                   **options: Any) -> FrontEnd:
+def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | None = None, *,
+                   given_loops: list | None = None, **options: Any) -> FrontEnd:
     """Run the point-set front end of Schmidt & Singh on a point set.
 
     Stages, each a function of this module: checks (:func:`validate_inputs`); Euclidean
@@ -761,6 +764,11 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         Consistently oriented normals; estimated when omitted.
     params : FrontEndParams, optional
         The options (see its fields); the defaults when omitted.
+    given_loops : list of (L_i,) array_like of int, optional
+        Boundary loops known to the caller (indices of ``points``, walking order): used as
+        the loops instead of detected ones (the angle criterion still gives the
+        candidates; ``diagnostics["boundary"]["loops_from"]`` is "given"), so no
+        NoBoundaryError.
     **options
         Fields of :class:`FrontEndParams` to change in ``params``, e.g. ``k_nn=12``.
 
@@ -838,7 +846,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
             w, r_x = weights_stage(nb.points, balls, chosen.weights, chosen.reg_eps)
         with timer("boundary"):
             lattice = is_lattice(nb.points, nb.graph, frame_normals)
-            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen, lattice)
+            known = None if given_loops is None else [inv[np.asarray(lp, dtype=np.int64)] for lp in given_loops]
+            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen, lattice, known)
         return balls, w, r_x, bnd, retried, chosen.dem, normals, lattice
 
     uncut = None

@@ -27,7 +27,8 @@ __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_
 FRONTEND_DEFAULTS: dict[str, Any] = method_defaults()
 
 
-def run_frontend(surface: MethodInput, params: dict, timer: StageTimer, *, weights: str = "tangent") -> FrontEnd:
+def run_frontend(surface: MethodInput, params: dict, timer: StageTimer, *, weights: str = "tangent",
+                 given_loops: list | None = None) -> FrontEnd:
     """Run the front end with the front-end keys of ``params``; its stage timings go to ``timer``.
 
     Parameters
@@ -39,6 +40,9 @@ def run_frontend(surface: MethodInput, params: dict, timer: StageTimer, *, weigh
     timer : StageTimer
     weights : {"tangent", "lle3d"}
         The front end's weights.
+    given_loops : list of (L_i,) numpy.ndarray of int64, optional
+        Loops to use instead of detected ones (``build_frontend``'s ``given_loops``); the
+        self-check then judges the map on them.
 
     Returns
     -------
@@ -53,7 +57,7 @@ def run_frontend(surface: MethodInput, params: dict, timer: StageTimer, *, weigh
     """
     options = frontend_params(params, weights=weights)
     require_neighbours(surface.n_points, options.k_nn, "k_nn")
-    front = build_frontend(surface.points, surface.normals, options)
+    front = build_frontend(surface.points, surface.normals, options, given_loops=given_loops)
     for stage in STAGES:
         timer.timings[stage] = timer.timings.get(stage, 0.0) + front.timings.get(stage, 0.0)
     _CHECK_INPUTS[surface] = _check_inputs(front)

@@ -254,3 +254,29 @@ def test_given_loops_follow_the_coincident_merge():
     ref = get_method("fbcp-pc")(replace(surf.method_input(needs_faces=False),
                                         boundary_loops=surf.boundary_loops), boundary="given")
     np.testing.assert_allclose(res.uv[:-1], ref.uv, atol=1e-9 * np.ptp(ref.uv))
+
+
+def test_given_loops_run_where_detection_finds_none(monkeypatch):
+    """``boundary="given"`` never used the detected loops but ran the detector first, and its
+    NoBoundaryError stopped the run (``fold`` at noise 0.5 in a sweep). With detection made to
+    find nothing, "detected" fails as before and "given" gives the very map it gives with
+    detection working, judged by its self-check on the given loops."""
+    import parambench.methods.pointset.frontend as frontend
+    from parambench.datasets_gen.errors import NoBoundaryError
+
+    surface = make_surface("holes", 800, sampling="jittered", seed=0)
+    given = replace(surface.method_input(False), boundary_loops=surface.boundary_loops)
+    working = get_method("fbcp-pc")(given, boundary="given")
+    found = frontend.find_boundary
+
+    def nothing(*args, **kwargs):
+        bnd = found(*args, **kwargs)
+        return replace(bnd, loops=[], mask=np.zeros_like(bnd.mask))
+
+    monkeypatch.setattr(frontend, "find_boundary", nothing)
+    with pytest.raises(NoBoundaryError):
+        get_method("fbcp-pc")(given, boundary="detected")
+    blind = get_method("fbcp-pc")(given, boundary="given")
+    np.testing.assert_array_equal(blind.uv, working.uv)
+    check = blind.diagnostics["selfcheck"]
+    assert check["passed"] and len(check["turning_numbers"]) == len(surface.boundary_loops) == 4
