@@ -131,3 +131,15 @@ def test_inspect_merges_copies_as_flatten_does_and_reports_input_indices(tmp_pat
     shift = np.searchsorted(copies, np.arange(len(base)), side="left")
     expected = [sorted((np.asarray(loop) + shift[loop]).tolist()) for loop in plain["boundary_loops"]]
     assert [sorted(loop) for loop in report["boundary_loops"]] == expected
+
+
+def test_warm_up_runs_each_built_in_method_once_per_process_and_never_a_plugin(spies):
+    """The first cell of a method was timed with its kernels' compilation or cache load."""
+    from parambench.bench.run_cell import warm_up
+
+    point_spy, _ = spies
+    params = {"weights": "hybrid"}
+    first = warm_up("scp", params)
+    assert first > 0.0 and warm_up("scp", params) == 0.0
+    assert warm_up("scp", {"weights": "uniform"}) > 0.0  # a variant takes other paths
+    assert warm_up(point_spy.name) == 0.0 and point_spy.seen == []
