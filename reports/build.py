@@ -236,7 +236,25 @@ def _subtitle(run: dict, rows: pd.DataFrame) -> str:
     n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
     parts.append(f"{len(rows)} cells, {n_ok} ok, " + (f"{n_suspect} suspect, " if n_suspect else "")
                  + f"{len(rows) - n_ok - n_suspect} failed")
+    unfinished = _unfinished(run, rows)
+    if unfinished:
+        parts.append(unfinished)
     return " · ".join(parts)
+
+
+def _unfinished(run: dict, rows: pd.DataFrame) -> str:
+    """The line "k of N planned cells finished (…)" when the run planned more cells than there are rows, else "".
+
+    A report of an interrupted or still running sweep must not read as the whole sweep: the
+    planned count is ``run.json``'s ``n_cells``, written before the first cell runs.
+    """
+    planned = run.get("n_cells")
+    if isinstance(planned, bool) or not isinstance(planned, (int, float)) or not planned == planned:
+        return ""
+    if len(rows) >= planned:
+        return ""
+    return (f"{len(rows)} of {int(planned)} planned cells finished (the sweep was interrupted or is still "
+            f"running: this report is incomplete)")
 
 
 def render_html(results: Results, benchmark_json=()) -> str:
@@ -264,8 +282,8 @@ def render_html(results: Results, benchmark_json=()) -> str:
     warnings = list(results.warnings)
     rows = add_labels(results.rows)
     summary = summarise(rows)
-    sections = [_verdict_section(rows, summary), _claims_section(rows), _overview_section(summary),
-                _problems_section(rows)]
+    sections = [_verdict_section(rows, summary, results.run), _claims_section(rows),
+                _overview_section(summary), _problems_section(rows)]
     # In this order: the surface pages and the optional parts add to ``warnings``, which
     # the run metadata section at the end lists.
     sections += [_view_section(results, view, warnings) for view in picture_views(rows, results.root)]
@@ -279,8 +297,11 @@ def render_html(results: Results, benchmark_json=()) -> str:
     return render_report("parambench report", _subtitle(results.run, rows), sections)
 
 
-def _verdict_section(rows: pd.DataFrame, summary: pd.DataFrame) -> Section:
-    """Cell counts, the verdict sentences and the verdict table (a warning instead when every cell failed)."""
+def _verdict_section(rows: pd.DataFrame, summary: pd.DataFrame, run: dict | None = None) -> Section:
+    """Cell counts, the verdict sentences and the verdict table (a warning instead when every cell failed).
+
+    ``run`` (``run.json``) gives the planned number of cells: a partial sweep is said to be one, first.
+    """
     n_ok, n_suspect = int((rows["status"] == "ok").sum()), int((rows["status"] == "suspect").sum())
     verdicts = family_verdicts(summary, rows)
     verdict = Section("Verdict: which method, where, and why", intro=(
@@ -288,6 +309,9 @@ def _verdict_section(rows: pd.DataFrame, summary: pd.DataFrame) -> Section:
         + f"{len(rows) - n_ok - n_suspect} failed; {rows['variant'].nunique()} method variant(s) on "
         f"{rows['config'].nunique()} surface configuration(s). Every sentence and cell below is computed from this "
         f"run's results."))
+    unfinished = _unfinished(run or {}, rows)
+    if unfinished:
+        verdict.blocks.append(Note(unfinished[0].upper() + unfinished[1:] + ".", "warning"))
     if n_ok + n_suspect == 0:
         verdict.blocks.append(Note("Every cell failed: the tables below list the errors.", "warning"))
     else:
@@ -301,7 +325,7 @@ def _verdict_section(rows: pd.DataFrame, summary: pd.DataFrame) -> Section:
 def _claims_section(rows: pd.DataFrame) -> Section:
     """The paper's claims table and the suite's goal against fbcp-pc, with the SDP-against-N
     curve and the per-surface ocp / fbcp-pc table when the run has them."""
-    claims = Section("The paper's claims, measured", [claims_table([*check_claims(rows), claim_ocp_vs_fbcp(rows)])])
+    claims = Section("The paper's claims, measured", [claims_table([*check_claims(rows), *claim_ocp_vs_fbcp(rows)])])
     picture = sdp_curve_figure(sdp_size_curve(rows))
     if picture is not None:
         claims.blocks.append(Section("SDP against N on surfaces with holes", [picture]))

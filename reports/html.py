@@ -85,6 +85,7 @@ td.status.failed { background: #fdeaea !important; max-width: 30em; }
 td.status.ok { color: #14591c; }
 td.status.suspect { background: #fff4d6 !important; color: #8a5a00; max-width: 30em; }
 td.partial { color: #8a5a00; }
+td.suspect { color: #8a5a00; }
 td.absent { color: #aaa; text-align: center; }
 td.error { font-family: "DejaVu Sans Mono", monospace; font-size: 8pt; white-space: pre-wrap;
            word-break: break-word; max-width: 60em; }

@@ -165,7 +165,7 @@ def gather_rows(root: Path) -> tuple[pd.DataFrame, list[str]]:
     rows : pandas.DataFrame
         Raw (not normalised) rows; empty when nothing was found.
     warnings : list of str
-        Unreadable files that were skipped.
+        Files that were skipped and why (unreadable, or a table without ``cell_id`` or rows).
     """
     warnings: list[str] = []
     records = []
@@ -182,18 +182,45 @@ def gather_rows(root: Path) -> tuple[pd.DataFrame, list[str]]:
     for name, reader in (("results.parquet", pd.read_parquet), ("results.csv", pd.read_csv)):
         path = root / name
         if path.exists():
-            try:
-                table = reader(path)
-            except Exception as exc:  # pyarrow and the csv parser raise many kinds; skip the file either way
-                warnings.append(f"skipped {name}: {exc}")
+            table, problem = _read_table(path, reader)
+            if problem:
+                warnings.append(f"skipped {name}: {problem}")
                 continue
             break
-    if table is None or table.empty or "cell_id" not in table.columns:
+    if table is None:
         return from_cells, warnings
     if from_cells.empty:
         return table, warnings
     extra = table[~table["cell_id"].astype(str).isin(set(from_cells["cell_id"].astype(str)))]
     return pd.concat([from_cells, extra], ignore_index=True), warnings
+
+
+def _read_table(path: Path, reader) -> tuple[pd.DataFrame | None, str]:
+    """A consolidated results table, or None and what is wrong with it (one line).
+
+    A table that exists but cannot be used is named with its fault, so that a folder with
+    only such a table is not reported as holding no table at all.
+    """
+    if path.is_dir():
+        return None, "a folder, not a file"
+    if path.stat().st_size == 0:
+        return None, "empty file (0 bytes)"
+    try:
+        table = reader(path)
+    except Exception as exc:  # pyarrow and the csv parser raise many kinds; skip the file either way
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        hint = "; the file may be cut off or damaged" if path.suffix == ".csv" else ""
+        return None, f"unreadable ({type(exc).__name__}: {text[:200]}{hint})"
+    if path.suffix == ".csv" and not _ends_with_newline(path):
+        # The sweep writes whole lines: a last line without its end was cut off, and the
+        # parser would fill the missing fields of that row with blanks without a word.
+        return None, "cut off mid-row (its last line has no line end): the file is incomplete"
+    if "cell_id" not in table.columns:
+        shown = ", ".join(map(str, table.columns[:8])) + (", …" if len(table.columns) > 8 else "")
+        return None, f"no cell_id column (columns: {shown or 'none'}), so its rows cannot be told apart"
+    if table.empty:
+        return None, "no row (only a header)"
+    return table, ""
 
 
 def load_results(results_dir: str | os.PathLike) -> Results:
@@ -210,19 +237,22 @@ def load_results(results_dir: str | os.PathLike) -> Results:
     Raises
     ------
     EmptyResultsError
-        The directory does not exist or holds no result row at all. A directory whose
-        rows all failed is not empty: it gives a report of the failures.
+        The path is a file or does not exist, or the directory holds no usable result row
+        (the message names each file that is there but unusable, and its fault). A directory
+        whose rows all failed is not empty: it gives a report of the failures.
     """
     root = Path(results_dir)
+    if root.is_file():
+        raise EmptyResultsError(
+            f"{root} is a file; pass the sweep's results folder (the one holding cells/ and run.json, "
+            f"here perhaps {root.parent}): `parambench report RESULTS_DIR`.")
     if not root.is_dir():
         raise EmptyResultsError(
             f"Results directory {root} does not exist. Run `parambench run` first (or pass the "
             f"directory it wrote), then `parambench report RESULTS_DIR`.")
     raw, warnings = gather_rows(root)
     if raw.empty:
-        raise EmptyResultsError(
-            f"No finished cell in {root} (no cells/*.json, no results.parquet or results.csv). "
-            f"Run `parambench run` first and wait for at least one cell to finish.")
+        raise EmptyResultsError(_no_rows_message(root, warnings))
     run: dict = {}
     run_path = root / "run.json"
     if run_path.exists():
@@ -233,6 +263,23 @@ def load_results(results_dir: str | os.PathLike) -> Results:
     else:
         warnings.append("run.json is missing: run metadata is not shown.")
     return Results(root=root, run=run, rows=normalise_rows(raw), warnings=warnings)
+
+
+def _ends_with_newline(path: Path) -> bool:
+    with path.open("rb") as handle:
+        handle.seek(-1, os.SEEK_END)  # not empty: _read_table says so before
+        return handle.read(1) in (b"\n", b"\r")
+
+
+def _no_rows_message(root: Path, warnings: list[str]) -> str:
+    """Why ``root`` gave no row: the files that were there but unusable, or that there were none."""
+    if not warnings:
+        return (f"No finished cell in {root} (no cells/*.json, no results.parquet or results.csv). "
+                f"Run `parambench run` first and wait for at least one cell to finish.")
+    shown = "; ".join(" ".join(w.split()) for w in warnings[:3])  # one line: the CLI prints it as is
+    shown += f"; and {len(warnings) - 3} more" if len(warnings) > 3 else ""
+    return (f"No usable result in {root}: {shown}. Restore the file(s), or run `parambench run` again into this "
+            f"folder (finished cells in cells/ are kept).")
 
 
 def load_cell_arrays(root: Path, artifact: str) -> CellArrays | None:

@@ -40,6 +40,7 @@ __all__ = [
     "exponent_table",
     "stage_memory_table",
     "format_number",
+    "SUSPECT_MARK",
 ]
 
 #: Statuses of cells whose metrics were computed ("suspect": the map failed its self-check).
@@ -68,6 +69,8 @@ SUMMARY_METRICS = (
 _ERROR_SHORT = 300  # characters of an error shown in the overview's tooltips; the failures table has all of it
 _STATUS_SHORT = 60  # characters of a summary row's status; the full text is its tooltip
 _MISSING = "—"
+#: Appended to an overview figure that includes a suspect cell (the terminal summary's mark).
+SUSPECT_MARK = "*"
 
 
 @dataclass
@@ -287,11 +290,13 @@ def summary_tables(summary: pd.DataFrame) -> dict[str, Table]:
 
 
 def overview_table(summary: pd.DataFrame) -> Table:
-    """Method variants x datasets at a glance: median QC mean, failures counted.
+    """Method variants x datasets at a glance: median QC mean, failures counted, suspect figures marked.
 
     A dataset's value is the median, over its configurations (sizes, samplings, noise),
     of the per-configuration medians; the lowest value of each column among the variants
     acceptable on every configuration of the dataset is marked when at least two have one.
+    A value that includes a suspect cell (a map that failed its self-check) ends in
+    :data:`SUSPECT_MARK`, as in the terminal summary, and says so in its tooltip.
 
     Parameters
     ----------
@@ -304,37 +309,51 @@ def overview_table(summary: pd.DataFrame) -> Table:
     cells: dict = {}
     for (dataset, variant), group in summary.groupby(["dataset", "variant"], sort=False):
         values = group["qc_mean"].dropna()
-        n_failed = int((group["n_cells"] - group["n_ok"] - group["n_suspect"]).sum())
-        errors = "; ".join(dict.fromkeys(s for s, f in zip(group["status"], group["has_failure"]) if f))
-        cells[(dataset, variant)] = (float(values.median()) if len(values) else np.nan, n_failed,
-                                     int(group["n_cells"].sum()), errors, bool(group["_acceptable"].all()))
+        cells[(dataset, variant)] = {
+            "value": float(values.median()) if len(values) else np.nan,
+            "n_failed": int((group["n_cells"] - group["n_ok"] - group["n_suspect"]).sum()),
+            "n_suspect": int(group["n_suspect"].sum()), "n_cells": int(group["n_cells"].sum()),
+            "errors": "; ".join(dict.fromkeys(s for s, f in zip(group["status"], group["has_failure"]) if f)),
+            "acceptable": bool(group["_acceptable"].all())}
     best = {}
     for dataset in datasets:
-        values = [cells[(dataset, v)][0] for v in variants if (dataset, v) in cells and cells[(dataset, v)][4]]
+        values = [cells[(dataset, v)]["value"] for v in variants
+                  if (dataset, v) in cells and cells[(dataset, v)]["acceptable"]]
         values = [v for v in values if v == v]
         best[dataset] = min(values) if len(values) >= 2 else None
     body = []
     for variant in variants:
         row = [Cell(variant, ("method",))]
         for dataset in datasets:
-            if (dataset, variant) not in cells:
-                row.append(Cell("·", ("absent",), "not run"))
-                continue
-            value, n_failed, n_cells, errors, acceptable = cells[(dataset, variant)]
-            if value != value:
-                row.append(Cell("failed" if n_failed else _MISSING, ("failed",) if n_failed else (),
-                                _short(errors, 200)))
-                continue
-            text = format_number(value, "ratio")
-            is_best = acceptable and best[dataset] is not None and text == format_number(best[dataset], "ratio")
-            classes = ["best"] if is_best else []
-            if n_failed:
-                text += f" ({n_failed} of {n_cells} failed)"
-                classes.append("partial")
-            row.append(Cell(text, tuple(classes), _short(errors, 200)))
+            cell = cells.get((dataset, variant))
+            row.append(Cell("·", ("absent",), "not run") if cell is None else _overview_cell(cell, best[dataset]))
         body.append(row)
-    return Table(["Method", *datasets], body, "Median QC mean per method and dataset (1 = conformal)",
-                 "overview", numeric=set(range(1, 1 + len(datasets))))
+    caption = "Median QC mean per method and dataset (1 = conformal)"
+    if any(c["n_suspect"] and c["value"] == c["value"] for c in cells.values()):
+        caption += f"; {SUSPECT_MARK} = includes suspect cells, maps that failed their self-check"
+    return Table(["Method", *datasets], body, caption, "overview", numeric=set(range(1, 1 + len(datasets))))
+
+
+def _overview_cell(cell: dict, best: float | None) -> Cell:
+    """One overview figure: failures counted in the text, suspect cells marked like the terminal summary's."""
+    value, n_failed, n_suspect = cell["value"], cell["n_failed"], cell["n_suspect"]
+    errors = _short(cell["errors"], 200)
+    if value != value:
+        return Cell("failed" if n_failed else _MISSING, ("failed",) if n_failed else (), errors)
+    text = format_number(value, "ratio")
+    is_best = cell["acceptable"] and best is not None and text == format_number(best, "ratio")
+    classes = ["best"] if is_best else []
+    titles = [errors] if errors else []
+    if n_suspect:
+        # The figure includes maps that failed their self-check: never shown as a plain number.
+        text += SUSPECT_MARK
+        classes.append("suspect")
+        titles.insert(0, f"{SUSPECT_MARK} {n_suspect} of {cell['n_cells']} cells suspect: their maps failed the "
+                         "self-check and are included in this median")
+    if n_failed:
+        text += f" ({n_failed} of {cell['n_cells']} failed)"
+        classes.append("partial")
+    return Cell(text, tuple(classes), " | ".join(titles))
 
 
 def _cell_names(group: pd.DataFrame, limit: int = 12) -> str:

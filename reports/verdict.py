@@ -149,8 +149,9 @@ def family_verdicts(summary: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         Columns ``family``, ``variant``, ``n_configs``, ``n_acceptable``, ``n_near_best``,
-        ``verdict`` ("recommended", "acceptable", "fails"), ``reason`` (the most frequent
-        failure reason, "" when none), ``time_ratio`` (median over configurations of the
+        ``verdict`` ("recommended", "acceptable", "fails"), ``reason`` (each kind of failure
+        reason with the number of configurations it applies to, most frequent first, see
+        :func:`_reasons_text`; "" when none), ``time_ratio`` (median over configurations of the
         time over :data:`REFERENCE_METHOD`'s, NaN without a reference) and ``qc_mean``
         (median over the family's configurations).
     """
@@ -168,14 +169,7 @@ def family_verdicts(summary: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     for (family, variant), group in s.groupby(["family", "variant"], sort=False):
         n, n_acc, n_near = len(group), int(group["acceptable"].sum()), int(group["near_best"].sum())
         verdict = "recommended" if n_near == n else "acceptable" if n_acc == n else "fails"
-        reasons = [r for r in group["reason"] if r]
-        kinds = pd.Series([reason_kind(r) for r in reasons], dtype=object)
-        reason = ""
-        if len(reasons):
-            top = kinds.value_counts().index[0]
-            reason = next(r for r, k in zip(reasons, kinds) if k == top)
-            if n > 1:
-                reason += f" (on {len(reasons)} of {n})"
+        reason = _reasons_text([r for r in group["reason"] if r], n)
         ratios = group["time_ratio"].dropna()
         out.append({"family": family, "variant": variant, "n_configs": n, "n_acceptable": n_acc,
                     "n_near_best": n_near, "verdict": verdict, "reason": reason,
@@ -187,6 +181,25 @@ def family_verdicts(summary: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     frame["_order"] = frame["family"].map(order)
     return frame.sort_values(["_order", "qc_mean", "variant"], kind="stable").drop(columns="_order") \
         .reset_index(drop=True)
+
+
+def _reasons_text(reasons: list[str], n: int) -> str:
+    """Each kind of failure reason once, most frequent first, with the surfaces it applies to.
+
+    ``"foldovers (3) (on 2 of 6); QC +101% (on 2 of 6)"``: each count belongs to the reason
+    printed beside it (a count of every failing surface beside one reason overstated it). A
+    kind is shown by its first reason; "(on k of n)" is left out when the family has one surface.
+    """
+    if not reasons:
+        return ""
+    kinds = pd.Series([reason_kind(r) for r in reasons], dtype=object)
+    counts = kinds.value_counts(sort=False)  # first-seen order breaks ties between equally frequent kinds
+    order = sorted(counts.index, key=lambda kind: -counts[kind])
+    parts = []
+    for kind in order:
+        text = next(r for r, k in zip(reasons, kinds) if k == kind)
+        parts.append(text + (f" (on {counts[kind]} of {n})" if n > 1 else ""))
+    return "; ".join(parts)
 
 
 def _with_time(record) -> str:
@@ -209,12 +222,14 @@ def verdict_table(verdicts: pd.DataFrame) -> Table:
         n_configs = int(group["n_configs"].max())
         rec = "; ".join(_with_time(r) for _, r in group[group["verdict"] == "recommended"].iterrows())
         acc = "; ".join(_with_time(r) for _, r in group[group["verdict"] == "acceptable"].iterrows())
-        fails = "; ".join(f"{r['variant']}: {r['reason']}" for _, r in group[group["verdict"] == "fails"].iterrows())
+        # A variant's reasons are joined by "; ": variants are set apart by " | ".
+        fails = " | ".join(f"{r['variant']}: {r['reason']}" for _, r in group[group["verdict"] == "fails"].iterrows())
         body.append([Cell(family, ("key",)), Cell(str(n_configs)), Cell(rec or "—", ("recommended",)),
                      Cell(acc or "—"), Cell(fails or "—", ("fails",))])
     caption = (f"Verdict per surface family: recommended = acceptable on every surface of the family and within "
                f"{round((NEAR_BEST - 1) * 100)} % of its best QC; (×r time) = median time over {REFERENCE_METHOD}'s; "
-               f"QC +x % = QC mean above the surface's best acceptable one; (on k of n) = surfaces of the family")
+               f"QC +x % = QC mean above the surface's best acceptable one; (on k of n) = surfaces of the family on "
+               f"which the reason beside it applies")
     columns = ["Family", "Surfaces", "Recommended", f"Acceptable (QC within {round((QC_BOUND - 1) * 100)} %)",
                "Not acceptable: measured reason"]
     return Table(columns, body, caption, "verdict", numeric={1})

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from html import unescape
 
@@ -86,3 +87,29 @@ def test_render_html_puts_the_sections_in_order(results_dir, mesh_tools):
     assert titles[:4] == fixed
     assert titles[-3:] == ["Time against size", "Benchmarks", "Run metadata"]
     assert all(t.startswith("Surface: ") for t in titles[4:-3]) and len(titles) > 7
+
+
+def _plan(root, n_cells):
+    """Record in run.json, as the sweep does before its first cell runs, how many cells it planned."""
+    run_json = root / "run.json"
+    run_json.write_text(json.dumps(dict(json.loads(run_json.read_text()), n_cells=n_cells)))
+
+
+def test_a_partial_sweep_says_how_many_of_its_planned_cells_finished(tmp_path, make_results):
+    root = tmp_path / "sweep"
+    results, rows, summary = _rows(root, make_results)
+    planned = len(rows)
+    _plan(root, planned)
+    results = load_results(root)
+    assert "planned" not in build._subtitle(results.run, rows)  # every planned cell finished: nothing to say
+    assert not any("planned" in n.text for n in _notes(_verdict_section(rows, summary, results.run)))
+
+    # Interrupted before 6 cells ran and before the table was consolidated.
+    for path in [root / "results.parquet", root / "results.csv", *sorted((root / "cells").glob("*.json"))[:6]]:
+        path.unlink()
+    results = load_results(root)
+    rows = add_labels(results.rows)
+    said = f"{planned - 6} of {planned} planned cells finished (the sweep was interrupted or is still running"
+    assert f"{planned - 6} cells" in build._subtitle(results.run, rows) and said in build._subtitle(results.run, rows)
+    warnings = [n.text for n in _notes(_verdict_section(rows, summarise(rows), results.run)) if n.kind == "warning"]
+    assert len(warnings) == 1 and warnings[0].startswith(said)

@@ -55,10 +55,10 @@ def test_dncp_equals_scp_within_the_stated_tolerance():
 def test_ocp_margin_against_the_best_cotangent_scp():
     rows = _rows([_row("ocp", qc_mean=1.0150), _row("scp", qc_mean=1.0100), _row("scp-igl", qc_mean=1.0101),
                   _row("ocp", params={"energy": "paper"}, qc_mean=1.5)])  # the paper variant is not the claim
-    claim = claim_ocp_near_scp(rows)
+    [claim] = claim_ocp_near_scp(rows)
     assert claim.status == "met" and claim.measured == "QC excess +0.50% to +0.50%"
     worse = _rows([_row("ocp", qc_mean=1.05, status="suspect"), _row("scp", qc_mean=1.0)])
-    claim = claim_ocp_near_scp(worse)
+    [claim] = claim_ocp_near_scp(worse)
     assert claim.status == "not met" and "+5.0%, suspect" in claim.where
 
 
@@ -92,3 +92,18 @@ def test_spinning_of_raw_scp_on_w_tan():
     claim = claim_spinning(rows)
     assert claim.status == "partly met" and "spins on bump" in claim.where and "(t = 9)" in claim.where
     assert "does not spin on saddle" in claim.where
+
+
+def test_ocp_margin_is_checked_per_variant_and_names_the_seeds():
+    refine = {"refine": "mesh"}
+    rows = _rows([_row("scp", seed=0, qc_mean=1.0), _row("scp", seed=1, qc_mean=1.0),
+                  _row("ocp", seed=0, qc_mean=1.05), _row("ocp", seed=1, qc_mean=1.005),  # fails on seed 0 only
+                  _row("ocp", seed=0, params=refine, qc_mean=1.001), _row("ocp", seed=1, params=refine, qc_mean=1.002)])
+    default, refined = claim_ocp_near_scp(rows)
+    assert "QC mean of ocp over" in default.claim and "QC mean of ocp [refine=mesh] over" in refined.claim
+    assert default.status == "partly met" and default.measured == "QC excess +0.50% to +5.00%"
+    surface = "bump · 100 pts · grid"
+    assert default.where == f"holds on {surface} (seed 1); fails on {surface} (seed 0: +5.0%)"
+    assert refined.status == "met" and refined.measured == "QC excess +0.10% to +0.20%"
+    assert refined.where == "holds on bump · 100 pts · grid (seeds 0, 1)"
+    assert [c.claim for c in check_claims(rows)].count(default.claim) == 1 and len(check_claims(rows)) == 7

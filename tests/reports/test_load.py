@@ -178,3 +178,80 @@ def test_mismatched_landscape_is_left_out_but_the_map_is_kept(tmp_path):
     assert arrays.landscape is None
     assert arrays.uv.shape == (3, 2)
     assert len(arrays.problems) == 1 and "landscape left out" in arrays.problems[0]
+
+
+def _table_only(root, keep):
+    """Leave one consolidated table and nothing else to read: no cell file, no other table."""
+    for path in (root / "cells").glob("*.json"):
+        path.unlink()
+    for name in ("results.parquet", "results.csv"):
+        if name != keep:
+            (root / name).unlink()
+    return root / keep
+
+
+def _cut_at(path, marker, extra=0):
+    """Cut the table in its fifth line, ``extra`` characters after ``marker``: a copy stopped mid-row."""
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:4]) + lines[4][:lines[4].index(marker) + extra])
+
+
+def _cut_in_a_quoted_field(path):
+    _cut_at(path, '""solve""')  # inside the quoted JSON of the timings
+
+
+def _cut_in_a_number(path):
+    _cut_at(path, ",ok,,,", 8)  # in qc_mean: the parser reads the short row without a word
+    assert len(pd.read_csv(path)) == 4
+
+
+def _without_cell_id(path):
+    pd.read_csv(path).drop(columns="cell_id").to_csv(path, index=False)
+
+
+def _header_only(path):
+    path.write_text(path.read_text().splitlines(keepends=True)[0])
+
+
+@pytest.mark.parametrize("keep, damage, fault", [
+    ("results.csv", _cut_in_a_quoted_field, "EOF inside string"),
+    ("results.csv", _cut_in_a_number, "cut off mid-row"),
+    ("results.csv", _without_cell_id, "no cell_id column (columns: dataset, size,"),
+    ("results.csv", _header_only, "no row"),
+    ("results.csv", lambda p: p.write_bytes(b""), "empty file (0 bytes)"),
+    ("results.parquet", lambda p: p.write_text("garbage\n"), "unreadable (ArrowInvalid"),
+])
+def test_a_table_that_cannot_be_used_is_named_with_its_fault(results_dir, keep, damage, fault):
+    damage(_table_only(results_dir, keep))
+    with pytest.raises(EmptyResultsError) as info:
+        load_results(results_dir)
+    message = str(info.value)
+    assert f"skipped {keep}: " in message and fault in message
+    assert "\n" not in message and "no results.parquet or results.csv" not in message
+
+
+def test_a_table_without_cell_id_beside_cell_files_is_a_warning(results_dir):
+    (results_dir / "results.parquet").unlink()
+    _without_cell_id(results_dir / "results.csv")
+    results = load_results(results_dir)
+    assert len(results.rows) == len(list((results_dir / "cells").glob("*.json")))
+    assert any(w.startswith("skipped results.csv: no cell_id column") for w in results.warnings)
+
+
+def test_a_file_given_for_the_folder_is_said_to_be_a_file(results_dir):
+    with pytest.raises(EmptyResultsError) as info:
+        load_results(results_dir / "results.csv")
+    message = str(info.value)
+    assert "is a file" in message and str(results_dir) in message and "does not exist" not in message
+
+
+def test_the_command_line_names_the_bad_table_in_one_line_and_exits_2(results_dir, capsys):
+    from parambench.bench.cli import main
+
+    _without_cell_id(_table_only(results_dir, "results.csv"))
+    assert main(["report", str(results_dir)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "results.csv: no cell_id column" in err[0] and "Traceback" not in err[0]
+    assert main(["report", str(results_dir / "results.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "results.csv is a file" in err[0]

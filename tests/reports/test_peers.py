@@ -65,21 +65,24 @@ def test_failed_cells_lose_the_pair_and_suspect_ones_count_but_are_marked():
     assert by["plane"]["holds"] is True
     table = ocp_vs_fbcp_table(rows)
     texts = [[c.text for c in row] for row in table.rows]
-    plane = next(t for t in texts if t[0].startswith("plane"))
-    assert plane[3] == "0.01 / 0 (suspect)" and plane[5] == "yes"
-    saddle = next(t for t in texts if t[0].startswith("saddle"))
-    assert saddle[5] == "—"
+    column = {name: i for i, name in enumerate(table.columns)}
+    plane = next(t for t in texts if t[column["Surface"]].startswith("plane"))
+    assert plane[column["ocp: mean |mu| / foldovers"]] == "0.01 / 0 (suspect)"
+    assert plane[column["ocp at or below"]] == "yes"
+    saddle = next(t for t in texts if t[column["Surface"]].startswith("saddle"))
+    assert saddle[column["ocp at or below"]] == "—"
 
 
 def test_the_claim_line_counts_pairs_and_names_where_the_goal_fails():
     rows = _rows([_row("ocp", mu_mean=0.020, foldovers=0), _row("fbcp-pc", mu_mean=0.040, foldovers=0),
                   _row("ocp", "cap", mu_mean=0.030, foldovers=0), _row("fbcp-pc", "cap", mu_mean=0.020, foldovers=0)])
-    claim = claim_ocp_vs_fbcp(rows)
+    [claim] = claim_ocp_vs_fbcp(rows)
     assert claim.status == "partly met"
     assert claim.measured.startswith("ocp at or below on 1 of 2 pairs")
     assert "0.5 – 1.5" in claim.measured
     assert "holds on bump" in claim.where and "fails on cap" in claim.where and "|mu| +50.0%" in claim.where
-    assert claim_ocp_vs_fbcp(_rows([_row("ocp", mu_mean=0.02, foldovers=0)])).status == "not measured in this run"
+    [alone] = claim_ocp_vs_fbcp(_rows([_row("ocp", mu_mean=0.02, foldovers=0)]))
+    assert alone.status == "not measured in this run"
     assert ocp_vs_fbcp_table(_rows([_row("ocp", mu_mean=0.02, foldovers=0)])) is None
 
 
@@ -88,5 +91,50 @@ def test_two_exact_maps_tie_at_rounding_level():
                   _row("ocp", mu_mean=0.02, foldovers=0), _row("fbcp-pc", mu_mean=0.01, foldovers=0)])
     pairs = ocp_vs_fbcp(rows).set_index("config")["holds"]
     assert [bool(pairs[c]) for c in sorted(pairs.index)] == [False, True]  # bump loses, plane ties
-    claim = claim_ocp_vs_fbcp(rows)
+    [claim] = claim_ocp_vs_fbcp(rows)
     assert "median 2" in claim.measured  # the plane's 2e5 ratio of rounding errors is left out
+
+
+REFINE = {"refine": "mesh"}
+
+
+def _seeded(method, seed, params=None, **metrics):
+    row = _row(method, params=params, seed=seed, **metrics)
+    row["cell_id"] += f"-s{seed}"
+    return row
+
+
+def test_each_ocp_variant_is_compared_on_its_own():
+    # The quick suite runs ocp and ocp [refine=mesh] on every surface and seed: both use the default
+    # energy. The default is 50 % above fbcp-pc on both seeds, refine=mesh 5 % below.
+    rows = _rows([cell for seed in (0, 1) for cell in (
+        _seeded("ocp", seed, mu_mean=0.030, foldovers=0), _seeded("ocp", seed, REFINE, mu_mean=0.019, foldovers=0),
+        _seeded("fbcp-pc", seed, mu_mean=0.020, foldovers=0))])
+    pairs = ocp_vs_fbcp(rows)
+    assert sorted(pairs["variant"]) == ["ocp", "ocp", "ocp [refine=mesh]", "ocp [refine=mesh]"]
+    by_variant = pairs.groupby("variant")
+    assert by_variant["mu_ocp"].unique().map(list).to_dict() == {"ocp": [0.030], "ocp [refine=mesh]": [0.019]}
+    assert by_variant["holds"].sum().to_dict() == {"ocp": 0, "ocp [refine=mesh]": 2}
+
+    default, refined = claim_ocp_vs_fbcp(rows)
+    assert default.claim.startswith("Goal of this suite: ocp at or below") and default.status == "not met"
+    assert default.measured.startswith("ocp at or below on 0 of 2 pairs")
+    assert refined.claim.startswith("Goal of this suite: ocp [refine=mesh] at or below") and refined.status == "met"
+    assert refined.measured.startswith("ocp [refine=mesh] at or below on 2 of 2 pairs")
+    assert "(seed 0: |mu| +50.0%; seed 1: |mu| +50.0%)" in default.where and "holds" not in default.where
+    assert "(seeds 0, 1)" in refined.where and "fails" not in refined.where
+
+    table = ocp_vs_fbcp_table(rows)
+    column = {name: i for i, name in enumerate(table.columns)}
+    shown = {(r[column["ocp variant"]].text, r[column["Seed"]].text): r[column["ocp: mean |mu| / foldovers"]].text
+             for r in table.rows}
+    assert shown == {("ocp", "0"): "0.03 / 0", ("ocp", "1"): "0.03 / 0", ("ocp [refine=mesh]", "0"): "0.019 / 0",
+                     ("ocp [refine=mesh]", "1"): "0.019 / 0"}
+
+
+def test_two_fbcp_pc_variants_on_one_boundary_are_named_apart():
+    rows = _rows([_row("ocp", mu_mean=0.020, foldovers=0), _row("fbcp-pc", params={"k": 8}, mu_mean=0.030, foldovers=0),
+                  _row("fbcp-pc", params={"k": 16}, mu_mean=0.010, foldovers=0)])
+    pairs = ocp_vs_fbcp(rows).set_index("peer_name")["holds"]
+    assert pairs.to_dict() == {"fbcp-pc (detected boundary): fbcp-pc [k=8]": True,
+                               "fbcp-pc (detected boundary): fbcp-pc [k=16]": False}

@@ -2,9 +2,12 @@
 
 import pandas as pd
 
+# The terminal summary's mark: the report marks suspect figures alike.
+from parambench.bench.sweep import SUSPECT_MARK
 from parambench.reports.labels import add_labels
 from parambench.reports.load import normalise_rows
-from parambench.reports.tables import failures_table, overview_table, summarise, summary_tables, suspect_table
+from parambench.reports.tables import (failures_table, format_number, overview_table, summarise, summary_tables,
+                                      suspect_table)
 
 
 def _row(method, seed, status="ok", error="", **metrics):
@@ -46,3 +49,28 @@ def test_suspect_cells_are_listed_apart_from_failures():
     overview = overview_table(summarise(rows))
     a_row = next(r for r in overview.rows if r[0].text == "a")
     assert "failed" not in a_row[1].text  # a suspect seed is not a failure
+
+
+def test_the_overview_marks_figures_that_include_suspect_cells():
+    rows = _rows()
+    summary = summarise(rows)
+    overview = overview_table(summary)
+    cells = {r[0].text: r[1] for r in overview.rows}
+    a = summary[summary["variant"] == "a"].iloc[0]
+    # a's median includes its suspect seed: marked as the terminal summary marks it, and said why
+    assert cells["a"].text == format_number(a["qc_mean"]) + SUSPECT_MARK
+    assert "suspect" in cells["a"].classes and "1 of 2 cells suspect" in cells["a"].title
+    assert "self-check" in cells["a"].title
+    assert cells["b"].text == format_number(1.2) and "suspect" not in cells["b"].classes
+    assert f"{SUSPECT_MARK} = includes suspect cells" in overview.caption
+
+
+def test_a_figure_with_suspect_and_failed_cells_carries_both_marks():
+    rows = add_labels(normalise_rows(pd.DataFrame([
+        _row("a", 0, status="suspect", error="loop 0 turns +2.00", qc_mean=1.9, foldovers=3),
+        _row("a", 1, status="failed", error="boom"), _row("a", 2, qc_mean=1.1, foldovers=0)])))
+    cell = overview_table(summarise(rows)).rows[0][1]
+    assert cell.text == f"{format_number(1.5)}{SUSPECT_MARK} (1 of 3 failed)"
+    assert {"suspect", "partial"} <= set(cell.classes) and "boom" in cell.title
+    clean = overview_table(summarise(add_labels(normalise_rows(pd.DataFrame([_row("b", 0, qc_mean=1.2)])))))
+    assert SUSPECT_MARK not in clean.rows[0][1].text and SUSPECT_MARK not in clean.caption

@@ -97,3 +97,29 @@ def test_no_acceptable_method_is_said_plainly():
     assert (v["verdict"] == "fails").all()
     assert "no method is acceptable" in verdict_sentences(v)[0]
     assert np.isnan(v["time_ratio"]).all()  # no scp-igl in the run: no ratio is made up
+
+
+def test_each_reason_is_printed_with_the_number_of_surfaces_it_applies_to():
+    # lem on three smooth surfaces: it folds on bump and cap and is only far above the QC bound on saddle.
+    rows = []
+    for dataset, folds in (("bump", 3), ("cap", 3), ("saddle", 0)):
+        rows += [_row("scp-igl", dataset, qc_mean=1.01, foldovers=0, time_total=1.0),
+                 _row("lem", dataset, qc_mean=2.0, foldovers=folds, time_total=0.5)]
+    v = _verdicts(rows).set_index("variant")
+    assert v.at["lem", "n_configs"] == 3
+    assert v.at["lem", "reason"] == f"foldovers (3) (on 2 of 3); QC {2.0 / 1.01 - 1:+.0%} (on 1 of 3)"
+    fails = verdict_table(v.reset_index()).rows[0][4].text
+    assert fails == "lem: " + v.at["lem", "reason"]
+    assert "foldovers (lem)" in verdict_sentences(v.reset_index())[0]  # the most frequent reason leads
+
+
+def test_variants_in_the_not_acceptable_column_are_set_apart_from_their_reasons():
+    rows = []
+    for dataset in ("bump", "cap"):
+        rows += [_row("scp-igl", dataset, qc_mean=1.01, foldovers=0, time_total=1.0),
+                 _row("lem", dataset, qc_mean=2.0, foldovers=0 if dataset == "bump" else 2, time_total=0.5),
+                 _row("sdp", dataset, qc_mean=1.5, foldovers=0, time_total=0.5)]
+    fails = verdict_table(_verdicts(rows)).rows[0][4].text
+    qc_lem, qc_sdp = f"QC {2.0 / 1.01 - 1:+.0%}", f"QC {1.5 / 1.01 - 1:+.0%}"
+    assert sorted(fails.split(" | ")) == [f"lem: {qc_lem} (on 1 of 2); foldovers (2) (on 1 of 2)",
+                                          f"sdp: {qc_sdp} (on 2 of 2)"]
