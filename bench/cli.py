@@ -25,7 +25,13 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"parambench: error: {message} (see '{self.prog} --help')\n")
 
 
-def _coerce(key: str, text: str, default: Any) -> Any:
+#: How a null is written on the command line (JSON's ``null`` and Python's ``None``).
+NULL_WORDS = ("null", "none")
+
+
+def _coerce(key: str, text: str, default: Any, nullable: bool = False) -> Any:
+    if nullable and text.strip().lower() in NULL_WORDS:
+        return None
     if isinstance(default, bool):
         low = text.strip().lower()
         if low in ("1", "true", "yes", "on"):
@@ -47,8 +53,11 @@ def _coerce(key: str, text: str, default: Any) -> Any:
     return text
 
 
-def parse_param_values(pairs: Sequence[str], defaults: dict) -> dict:
+def parse_param_values(pairs: Sequence[str], defaults: dict, nullable: frozenset = frozenset()) -> dict:
     """Turn ``["k=1.5", "weights=uniform"]`` into typed parameters, typed like the defaults.
+
+    ``nullable`` names parameters with a number default that also take null (``Method.nullable``,
+    e.g. ``ocp``'s ``polish_spread``): ``null`` or ``none`` gives them None.
 
     Raises
     ------
@@ -61,7 +70,7 @@ def parse_param_values(pairs: Sequence[str], defaults: dict) -> dict:
             raise InvalidInputError(f"--param expects KEY=VALUE, got {pair!r}.")
         key, value = pair.split("=", 1)
         key = key.strip()
-        params[key] = _coerce(key, value, defaults.get(key))
+        params[key] = _coerce(key, value, defaults.get(key), key in nullable)
     return params
 
 
@@ -345,7 +354,12 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     with _offer_repair(args.repair):
         surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)
     method = get_method(args.method or _default_method(surface))
-    params = parse_param_values(args.param or [], method.defaults)
+    if args.points_only and method.needs_faces:
+        from parambench.datasets_gen.errors import MissingFacesError
+
+        raise MissingFacesError(f"--points-only drops the faces, and method {method.name!r} needs them: leave out "
+                                "--points-only, or choose a point-set method (e.g. ocp).")
+    params = parse_param_values(args.param or [], method.defaults, method.nullable)
     n_input_rows = surface.n_points
     csv = out.suffix.lower() == ".csv"
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
@@ -410,6 +424,9 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     from parambench.methods.pointset.params import FrontEndParams
 
     out = Path(args.output)
+    if out.suffix.lower() != ".json":
+        # A mistyped -o (scan.obj for scan.json) replaced a mesh with JSON, with exit 0.
+        raise InputFileError(f"cannot write {out.name!r}: inspect writes JSON, so its output must end in .json.")
     _check_output_path(out, Path(args.input))
     with _offer_repair(args.repair):
         surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)

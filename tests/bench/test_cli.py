@@ -299,3 +299,23 @@ def test_report_out_that_is_a_file_and_filesystem_errors_are_one_line(tmp_path, 
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "PermissionError" in err and "/sys/x" in err
+
+
+def test_small_command_line_traps(tmp_path, capsys, real_dir):
+    """From a tester's run: ``polish_spread=null`` (documented "null = never") was refused as not a
+    float; ``inspect -o mesh.obj`` replaced a mesh with JSON, exit 0; ``--points-only`` with a mesh
+    method said the user gave a point set."""
+    from parambench.datasets_gen.registry import make_surface
+
+    src = tmp_path / "bump.xyz"
+    np.savetxt(src, make_surface("bump", 1500, sampling="jittered", seed=0).points)
+    assert main(["flatten", str(src), "--param", "polish_spread=null", "-o", str(tmp_path / "a.csv")]) == 0
+    assert main(["flatten", str(src), "--param", "k_nn=null", "-o", str(tmp_path / "b.csv")]) == 2
+    assert "k_nn expects a int, got 'null'" in capsys.readouterr().err
+    mesh = tmp_path / "mesh.obj"
+    mesh.write_text("keep me\n")
+    assert main(["inspect", str(src), "-o", str(mesh)]) == 2
+    assert "its output must end in .json" in capsys.readouterr().err and mesh.read_text() == "keep me\n"
+    assert main(["flatten", str(real_dir / "lilium.obj"), "--points-only", "--method", "scp",
+                 "-o", str(tmp_path / "c.obj")]) == 2
+    assert "--points-only drops the faces, and method 'scp' needs them" in capsys.readouterr().err
