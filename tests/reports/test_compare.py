@@ -74,3 +74,26 @@ def test_compare_with_a_missing_folder_is_one_line_and_exit_2(tmp_path, make_res
     assert main(["report", str(a), str(tmp_path / "nope")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "EmptyResultsError" in err[0] and "nope" in err[0]
+
+
+def test_swapping_the_runs_mirrors_the_changes(two_runs):
+    """A time of 0.467 -> 0.362 s (x0.775) was "unchanged" one way and a regression the other: the
+    improvement threshold was 1 - tol, not 1 / (1 + tol). Times that differ by less than the
+    floor (run-to-run noise on sub-second cells) are no change either way."""
+    a, b = two_runs
+    cells = sorted((b / "cells").glob("bump-144-poisson-s1-scp-*.json"))
+    _edit(b, "bump", 144, 1, "scp", time_total=json.loads(cells[0].read_text())["time_total"] * 0.7 + 0.5)
+    _edit(a, "bump", 144, 1, "scp", time_total=json.loads(cells[0].read_text())["time_total"] + 0.5)
+    _edit(b, "bump", 400, 0, "scp", time_total=0.362)
+    _edit(a, "bump", 400, 0, "scp", time_total=0.467)
+    rows_a, rows_b = load_results(a).rows, load_results(b).rows
+    forward, backward = compare_rows(rows_a, rows_b), compare_rows(rows_b, rows_a)
+    key = ["config", "variant", "seed"]
+    mirror = {"regression": "improvement", "improvement": "regression", "unchanged": "unchanged",
+              "only in A": "only in B", "only in B": "only in A"}
+    merged = forward.merge(backward, on=key, suffixes=("_f", "_b"))
+    assert len(merged) == len(forward) == len(backward)
+    assert (merged["change_f"].map(mirror) == merged["change_b"]).all()
+    noisy = merged[(merged["config"] == "bump · 400 pts · poisson") & (merged["variant"] == "scp")
+                   & (merged["seed"] == 0)]
+    assert noisy["change_f"].tolist() == ["unchanged"]  # 0.105 s apart: under the floor
