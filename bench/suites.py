@@ -15,7 +15,7 @@ from parambench.methods.registry import all_methods
 
 from .cells import REAL_PREFIX, Cell
 
-__all__ = ["Suite", "SUITES", "get_suite", "expand_cells", "validate_suite", "check_workers"]
+__all__ = ["Suite", "SUITES", "get_suite", "expand_cells", "validate_suite", "check_workers", "real_dataset_note"]
 
 
 @dataclass(frozen=True)
@@ -226,6 +226,25 @@ def _surfaces_of(dataset: str, suite: Suite) -> list[tuple]:
         return list(itertools.product(suite.sizes, real, suite.noise, suite.seeds))
     generated = tuple(s for s in suite.samplings if s not in REAL_SAMPLINGS)
     return list(itertools.product(suite.sizes, generated, suite.noise, suite.seeds))
+
+
+def real_dataset_note(suite: Suite) -> str | None:
+    """A line saying that real datasets ignore the suite's noise and samplings, when they do; else None.
+
+    Without a sampling of real meshes ("scattered") a real dataset is its file's own points:
+    ``--datasets real/lilium --noise 0.5 --samplings random`` ran the clean file, stored with
+    noise 0, and said nothing.
+    """
+    real = [d for d in suite.datasets if d.startswith(REAL_PREFIX)]
+    if not real or any(s in REAL_SAMPLINGS for s in suite.samplings):
+        return None
+    noisy = sorted({float(n) for n in suite.noise if n})
+    if not noisy:
+        return None
+    shown = ", ".join(real[:3]) + (f" and {len(real) - 3} more" if len(real) > 3 else "")
+    return (f"note: {shown} run on the file's own points, without noise ({', '.join(f'{n:g}' for n in noisy)}) "
+            "or resampling: those apply to generated surfaces; add --samplings scattered to sample the real "
+            "meshes at the given sizes and noise.")
 
 
 def expand_cells(suite: Suite) -> list[Cell]:

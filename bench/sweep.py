@@ -26,7 +26,7 @@ from .run_cell import compute_cell, store_cell
 from .runmeta import run_metadata
 from .schema import STATUS_FAILED, STATUS_OK, STATUS_SUSPECT
 from .storage import ResultStore, StoredCells, check_output_dir
-from .suites import Suite, check_workers, expand_cells
+from .suites import Suite, check_workers, expand_cells, real_dataset_note
 
 __all__ = ["run_sweep", "summary_table", "SweepPlan", "plan_sweep"]
 
@@ -229,6 +229,9 @@ def run_sweep(suite: Suite, results_dir: str, *, scheduler: str | None = None, w
         _set_aside_unreadable(store, stored, cells)
         plan = plan_sweep(cells, stored, retry_failed=retry_failed)
         _note(plan.describe())
+        real_note = real_dataset_note(suite)
+        if real_note:
+            _note(real_note)
         store.write_metadata(run_metadata(
             suite=suite.name, parameters=asdict(suite), seeds=list(suite.seeds), n_cells=len(cells),
             n_skipped=len(cells) - len(plan.todo), n_retried=plan.n_retried, n_unreadable=plan.n_unreadable,

@@ -335,3 +335,15 @@ def test_summary_says_how_many_suspect_cells_it_left_unlisted():
                          "error": ["2 flipped triangle(s)"] * 12})
     text = summary_table(rows)
     assert text.count("  SUSPECT ") == 10 and "  ... and 2 more (see results.csv)" in text
+
+
+def test_real_datasets_say_they_ignore_the_noise(tmp_path, capsys):
+    """``--datasets real/lilium --noise 0.5`` ran the clean file and stored it with noise 0, silently."""
+    from parambench.bench.suites import real_dataset_note
+
+    noisy = replace(PLANE, datasets=("plane", "real/lilium"), noise=(0.0, 0.5), samplings=("random",))
+    note = real_dataset_note(noisy)
+    assert note is not None and "real/lilium run on the file's own points, without noise (0.5)" in note
+    assert real_dataset_note(replace(noisy, noise=(0.0,))) is None
+    assert real_dataset_note(replace(noisy, samplings=("random", "scattered"))) is None
+    assert real_dataset_note(replace(noisy, datasets=("plane",))) is None
