@@ -117,6 +117,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     check_workers(args.workers)
     _check_scheduler(args.scheduler, args.workers, args.isolate)
     _check_benchmark_files(args.benchmark_json)
+    if args.scheduler is not None:
+        from .dask_backend import check_scheduler_reachable
+
+        check_scheduler_reachable(args.scheduler)
     paths: dict = {}
 
     def report(_table) -> None:

@@ -13,7 +13,35 @@ from typing import Iterator
 from .cells import Cell
 from .run_cell import compute_cell
 
-__all__ = ["dask_results"]
+__all__ = ["dask_results", "check_scheduler_reachable", "SCHEDULER_TIMEOUT"]
+
+#: Seconds to wait for a scheduler to answer before the sweep starts.
+SCHEDULER_TIMEOUT = 10.0
+
+
+def check_scheduler_reachable(address: str, timeout: float | None = None) -> None:
+    """Connect to the scheduler once, before the sweep creates its folder.
+
+    An unreachable address failed only after the folder was made, 30 s later, with the
+    file-system advice of a generic OSError ("check the path and its permissions").
+
+    Raises
+    ------
+    InvalidInputError
+        No scheduler answered at ``address`` within ``timeout`` seconds (default
+        :data:`SCHEDULER_TIMEOUT`).
+    """
+    from distributed import Client
+
+    from parambench.datasets_gen.errors import InvalidInputError
+
+    timeout = SCHEDULER_TIMEOUT if timeout is None else timeout
+    try:
+        Client(address, timeout=f"{timeout:g}s").close()
+    except (OSError, TimeoutError) as exc:
+        raise InvalidInputError(f"--scheduler: no Dask scheduler answered at {address} within {timeout:g} s "
+                                f"({type(exc).__name__}); start one (`dask scheduler`, then `dask worker "
+                                f"{address}`), or leave out --scheduler to run in this process.") from None
 
 
 def dask_results(cells: list[Cell], *, scheduler: str | None = None, workers: int | None = None,

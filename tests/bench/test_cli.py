@@ -319,3 +319,17 @@ def test_small_command_line_traps(tmp_path, capsys, real_dir):
     assert main(["flatten", str(real_dir / "lilium.obj"), "--points-only", "--method", "scp",
                  "-o", str(tmp_path / "c.obj")]) == 2
     assert "--points-only drops the faces, and method 'scp' needs them" in capsys.readouterr().err
+
+
+def test_an_unreachable_scheduler_is_refused_before_the_folder_is_made(tmp_path, capsys, monkeypatch):
+    """It failed 30 s into the sweep, after the results folder was created, with "check the path and
+    its permissions"."""
+    import parambench.bench.dask_backend as backend
+
+    monkeypatch.setattr(backend, "SCHEDULER_TIMEOUT", 1.0)
+    out = tmp_path / "sweep"
+    assert main(["run", "--scheduler", "tcp://127.0.0.1:1", "--datasets", "plane", "--methods", "scp",
+                 "--sizes", "500", "--seeds", "0", "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "no Dask scheduler answered at tcp://127.0.0.1:1 within 1 s" in err and "permissions" not in err
+    assert not out.exists()
