@@ -25,9 +25,12 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
     Returns
     -------
     (i, j) : tuple of int
-        Indices into ``points``, ``i < j`` by position in ``candidates``. Distances within
-        a relative 1e-9 of the largest are ties; they go to the first pair in candidate
-        order (row by row), so the choice does not depend on the last bits of rounding.
+        Indices into ``points``, ``points[i]`` before ``points[j]`` in lexicographic (x, y,
+        z) order. Distances within a relative 1e-9 of the largest are ties; they go to the
+        pair whose points come first in that order, so the choice depends neither on the
+        last bits of rounding nor on the order of the vertices (a square's two diagonals
+        went to whichever came first in the file: ``lscm-igl`` on a shuffled copy of a
+        square grid gave another map, 2e-3 of its size apart).
     """
     cand = np.asarray(candidates, dtype=np.int64)
     pts = points[cand]
@@ -35,16 +38,30 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
     peaks = [float(cdist(pts[start:start + chunk], pts).max()) for start in starts]
     # Symmetric shapes have exact ties (a square's two diagonals) that rounding splits
     # differently from one scipy release to the next: distances within rounding of the
-    # maximum count as equal, and the first such pair in candidate order wins. Only the
-    # first chunk holding one is computed again.
+    # maximum count as equal. Only the chunks holding one are computed again.
     floor = max(peaks) * (1.0 - _TIE_RTOL)
+    tied = []
     for start, peak in zip(starts, peaks):
         if peak >= floor:
-            d = cdist(pts[start:start + chunk], pts)
-            r, c = divmod(int(np.flatnonzero(d.ravel() >= floor)[0]), d.shape[1])
-            a, b = sorted((start + r, c))
-            return int(cand[a]), int(cand[b])
-    raise AssertionError("unreachable: the maximum is among the distances")
+            rows, cols = np.nonzero(cdist(pts[start:start + chunk], pts) >= floor)
+            tied.append(np.column_stack([start + rows, cols]))
+    pairs = np.concatenate(tied)
+    # Each pair ordered by its points, then the first pair by its points: x, y, z of the
+    # first point, then of the second (np.lexsort's last key is the primary one).
+    a, b = pairs[:, 0], pairs[:, 1]
+    swap = _lex_less(pts[b], pts[a])
+    a, b = np.where(swap, b, a), np.where(swap, a, b)
+    keys = np.column_stack([pts[a], pts[b]])
+    best = np.lexsort(keys.T[::-1])[0]
+    return int(cand[a[best]]), int(cand[b[best]])
+
+
+def _lex_less(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(K,) bool: row p_k before row q_k in lexicographic (x, y, z) order."""
+    diff = p != q
+    first = np.argmax(diff, axis=1)
+    rows = np.arange(p.shape[0])
+    return diff.any(axis=1) & (p[rows, first] < q[rows, first])
 
 
 def opposite_pairs(points: np.ndarray, loop: np.ndarray, start: int, count: int) -> list[tuple[int, int]]:

@@ -63,3 +63,17 @@ def test_a_libigl_solver_failure_is_a_solver_error_naming_what_to_do(monkeypatch
     monkeypatch.setattr(module, name, broken)
     with pytest.raises(SolverError, match="igl::lscm failed.*try --method scp"):
         get_method(method)(make_surface("bump", 300, sampling="jittered", seed=0))
+
+
+def test_lscm_igl_does_not_depend_on_the_vertex_order():
+    """A square grid's two diagonals tie for the farthest boundary pair: the first in vertex order
+    was pinned, so a shuffled copy of the mesh got another map (2e-3 of its size apart)."""
+    from parambench.datasets_gen.surface import MethodInput
+
+    surface = make_surface("plane", 400, sampling="grid", seed=0)
+    points, faces = surface.points, surface.faces
+    perm = np.random.default_rng(3).permutation(len(points))
+    inverse = np.argsort(perm)
+    plain = get_method("lscm-igl")(MethodInput(points, faces)).uv
+    shuffled = get_method("lscm-igl")(MethodInput(points[perm], inverse[faces])).uv[inverse]
+    np.testing.assert_allclose(shuffled, plain, atol=1e-9 * np.ptp(plain))
