@@ -146,14 +146,19 @@ def matplotlib_dem(name: str, step: int = 1, sea_level: float = 0.0) -> Surface:
     Raises
     ------
     InvalidInputError
-        For an unknown name or a step below 1.
+        For an unknown name, a step that is not a whole number of at least 1, or a sea level
+        that is not a finite number.
     """
     from matplotlib import cbook
 
     if name not in MATPLOTLIB_DEMS:
         raise InvalidInputError(f"unknown DEM {name!r}; known: {', '.join(MATPLOTLIB_DEMS)}.")
-    if int(step) < 1:
-        raise InvalidInputError(f"step={step} must be at least 1.")
+    # step=2.5 was cut to 2 and step=True read as 1; sea_level=None failed inside float().
+    if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
+        raise InvalidInputError(f"step={step!r} must be a whole number of at least 1.")
+    if isinstance(sea_level, bool) or not isinstance(sea_level, (int, float, np.number)) \
+            or not np.isfinite(sea_level):
+        raise InvalidInputError(f"sea_level={sea_level!r} must be a finite number of metres.")
     step = int(step)
     data = np.load(cbook.get_sample_data(MATPLOTLIB_DEMS[name], asfileobj=False))
     if name == "jacksboro":

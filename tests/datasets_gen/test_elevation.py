@@ -101,7 +101,11 @@ def test_matplotlib_dems():
         require_connected_disk_like(s.points, s.faces)
 
 
-@pytest.mark.parametrize("kwargs", [{"name": "etopo"}, {"name": "jacksboro", "step": 0}])
+@pytest.mark.parametrize("kwargs", [{"name": "etopo"}, {"name": "jacksboro", "step": 0},
+                                    # cut to 2, read as 1, and a bare TypeError inside float():
+                                    {"name": "jacksboro", "step": 2.5}, {"name": "jacksboro", "step": True},
+                                    {"name": "topobathy", "sea_level": None},
+                                    {"name": "topobathy", "sea_level": float("nan")}])
 def test_matplotlib_dem_refuses_what_it_does_not_know(kwargs):
     with pytest.raises(InvalidInputError):
         matplotlib_dem(**kwargs)
