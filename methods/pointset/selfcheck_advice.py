@@ -13,7 +13,7 @@ from typing import Any
 
 from .failure_causes import cause_advice
 
-__all__ = ["suggest_fix", "failure_line", "mesh_advice"]
+__all__ = ["suggest_fix", "failure_line", "mesh_advice", "MAX_STEPS"]
 
 
 #: Per failed check, most telling first (a spinning boundary also folds and stretches
@@ -30,18 +30,36 @@ _FIXES = {
 }
 
 
-def _proposal(key: str, how: str, current: Any) -> str | None:
+def _step(how: str, value: Any) -> Any:
+    """``value`` changed one step the way ``how`` says (a number; ``how`` not "line" / "mesh")."""
+    if how == "x10":  # scp-tan's fixed k: k_opt of W^tan is ~10-25 (Sec. 4.2)
+        return 10 * value
+    if how == "lower":
+        return value - 20
+    if isinstance(value, int):
+        return value + 4
+    return float(f"{value * 1.4:.3g}")
+
+
+#: Steps from the method's default a proposal may reach: advice relative to the value the
+#: run used grew without end when followed (fbcp-pc on random points of a square proposed
+#: ball_eps_factor 3.5, 4.9, 6.86, 9.6, 13.5 in turn, none of which helped).
+MAX_STEPS = 2
+
+
+def _proposal(key: str, how: str, current: Any, default: Any = None) -> str | None:
     if how in ("line", "mesh"):
         return None if current == how else f"{key}={how}"
     if not isinstance(current, (int, float)) or isinstance(current, bool):
         return None
-    if how == "x10":  # scp-tan's fixed k: k_opt of W^tan is ~10-25 (Sec. 4.2)
-        return f"{key}={10 * current:g}"
-    if how == "lower":
-        return f"{key}={current - 20:g}"
-    if isinstance(current, int):
-        return f"{key}={current + 4}"
-    return f"{key}={current * 1.4:.3g}"
+    proposed = _step(how, current)
+    if isinstance(default, (int, float)) and not isinstance(default, bool):
+        reach = default
+        for _ in range(MAX_STEPS):
+            reach = _step(how, reach)
+        if (proposed - reach) * (_step(how, default) - default) > 0:  # past the reach, the way it moves
+            return None
+    return f"{key}={proposed:g}"
 
 
 def suggest_fix(failed: list[str], params: dict, method: str) -> str:
@@ -59,15 +77,28 @@ def suggest_fix(failed: list[str], params: dict, method: str) -> str:
     Returns
     -------
     str
-        E.g. ``"try --param boundary_angle_deg=100"``, or advice to try ``ocp``.
+        E.g. ``"try --param boundary_angle_deg=100"``, or advice to try ``ocp``. A change is
+        proposed only within :data:`MAX_STEPS` steps of the method's default, so following
+        the advice ends.
     """
+    defaults = _defaults(method)
     for name in sorted(failed, key=lambda f: list(_FIXES).index(f) if f in _FIXES else len(_FIXES)):
         for key, how in _FIXES.get(name, []):
             if key in params:
-                change = _proposal(key, how, params[key])
+                change = _proposal(key, how, params[key], defaults.get(key))
                 if change:
                     return f"try --param {change}"
-    return "try another method, e.g. --method ocp" if method != "ocp" else "try --param k_nn=12"
+    if method != "ocp":
+        return "try another method, e.g. --method ocp"
+    return "try --param k_nn=12" if params.get("k_nn", 12) < 12 else "try --method sdp"
+
+
+def _defaults(method: str) -> dict:
+    """The registered method's defaults, or {} (an unknown name: proposals then have no reach)."""
+    from ..registry import all_methods
+
+    cls = all_methods().get(method)
+    return dict(cls.defaults) if cls is not None else {}
 
 
 def mesh_advice(check: dict, params: dict, method: str) -> str:

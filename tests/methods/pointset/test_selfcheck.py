@@ -201,6 +201,23 @@ def test_pointset_faces_without_loops_drop_bridging_triangles():
     assert np.all(_area(pts[:, :2], faces) > 0)
 
 
+def test_following_the_advice_ends():
+    """fbcp-pc on random points of a square proposed ball_eps_factor 3.5, 4.9, 6.86, 9.6, 13.5 in turn
+    (each relative to the value the run used), none helping: proposals stop two steps past the
+    default, then name the next parameter, then another method."""
+    params = {"ball_eps_factor": 2.5, "k_nn": 8, "k_local": 16}
+    seen = []
+    for _ in range(8):
+        advice = suggest_fix(["turning"], params, "fbcp-pc")
+        seen.append(advice)
+        if "--param" not in advice:
+            break
+        key, value = advice.removeprefix("try --param ").split("=")
+        params[key] = type(params[key])(float(value))
+    assert seen == ["try --param ball_eps_factor=3.5", "try --param ball_eps_factor=4.9", "try --param k_nn=12",
+                    "try --param k_nn=16", "try another method, e.g. --method ocp"]
+
+
 def test_suggestions_name_a_parameter_of_the_method():
     assert suggest_fix(["flipped", "turning"], {"k": 1.0, "k_nn": 8}, "scp-tan") == "try --param k=10"
     assert suggest_fix(["coverage"], {"boundary_angle_deg": 120.0}, "ocp") == "try --param boundary_angle_deg=100"
