@@ -11,10 +11,17 @@ import numpy as np
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..hints import Hint
+from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
+                                      scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
+from ..spectral.problem import solve_line_then_direct
 from ._robust_laplacian import robust_point_cloud_laplacian
+
+
+#: Offered last when both k searches fail: the same points with W^tan instead of this Laplacian.
+_OCP_HINT = Hint("try --method ocp (the same boundary, the paper's Laplacian)")
 
 
 @register
@@ -31,7 +38,12 @@ class ScpRobustLaplacian(Method):
         lap = robust_point_cloud_laplacian(surface.points, int(params["rl_neighbors"]), timer)
         with timer("solve"):
             problem = ConformalProblem(lap, front.boundary_loops, b_matrix="boundary", points=surface.points)
-            sol = problem.solve("scp", params["k_search"])
+            if params["k_search"] == "line":
+                # Line, then direct where it fails, as ocp: each alone failing named the other
+                # (a 3000-point bumped square: "use k_search='direct'", then "use k_search='line'").
+                sol = solve_line_then_direct(problem, "scp", hints=(*BOUNDARY_HINTS, _OCP_HINT))
+            else:
+                sol = problem.solve("scp", params["k_search"])
             uv = scale_to_spacing(sol.uv, front)
         diag = {**frontend_diagnostics(front), **sol.diagnostics,
                 "k_opt": float(sol.k), "turning": np.asarray(sol.turning).tolist()}

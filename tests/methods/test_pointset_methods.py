@@ -149,3 +149,29 @@ def test_b_orthonormalize_hand_case():
     out = b_orthonormalize(pair, b)
     f = out - (b @ out) / b.sum()
     np.testing.assert_allclose(f.T @ (b[:, None] * f), np.eye(2), atol=1e-12)
+
+
+def test_scp_rl_line_search_falls_back_to_direct_and_names_no_circle(monkeypatch):
+    """Each k search alone, failing, named the other (a tester's bumped square: "use
+    k_search='direct'", then "use k_search='line'"). The line search now goes on to the direct one,
+    as ocp's does, and when both fail offers front-end changes and ocp, not another k_search."""
+    from parambench.datasets_gen.errors import ConvergenceError, SolverError
+    from parambench.datasets_gen.registry import make_surface
+    from parambench.methods.spectral import ConformalProblem
+
+    searches = []
+
+    def failing(self, mode, k_search="none", **kwargs):
+        searches.append(k_search)
+        if k_search == "line":
+            raise ConvergenceError("no t = 1 crossing found; use k_search='direct'")
+        raise SolverError("no near-real k gives a regular map; use k_search='line'")
+
+    monkeypatch.setattr(ConformalProblem, "solve", failing)
+    surface = make_surface("bump", 600, sampling="jittered", seed=0).points_only()
+    with pytest.raises(ConvergenceError) as caught:
+        get_method("scp-rl")(surface)
+    message = str(caught.value)
+    assert searches[:2] == ["line", "direct"]
+    assert "k_search='direct' too" in message and "--method ocp" in message
+    assert "use k_search='line'" not in message and "use k_search='direct'" not in message
