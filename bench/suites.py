@@ -247,8 +247,18 @@ def real_dataset_note(suite: Suite) -> str | None:
             "meshes at the given sizes and noise.")
 
 
+def _points_only(dataset: str) -> bool:
+    """A real dataset stored as points without faces (``real/chameleon``)."""
+    from parambench.datasets_gen.real import REAL_DATASETS
+
+    entry = REAL_DATASETS.get(dataset)
+    return entry is not None and entry.points_only
+
+
 def expand_cells(suite: Suite) -> list[Cell]:
     """Every cell of a suite, in a deterministic order (dataset, size, sampling, seed, method).
+
+    Mesh methods get no cell on a real dataset stored as points without faces.
 
     Raises
     ------
@@ -263,6 +273,8 @@ def expand_cells(suite: Suite) -> list[Cell]:
     for dataset in suite.datasets:
         for size, sampling, noise, seed in _surfaces_of(dataset, suite):
             for method in methods:
+                if registered[method].needs_faces and _points_only(dataset):
+                    continue  # a mesh method on a point set: no cell (5 "MissingFacesError" rows per seed before)
                 combos = _param_combinations(registered[method], suite.param_grids)
                 combos += [tuple(sorted(p)) for m, p in suite.variants if m == method and tuple(sorted(p)) not in combos]
                 for params in combos:
@@ -270,6 +282,9 @@ def expand_cells(suite: Suite) -> list[Cell]:
                     cells.append(Cell(dataset, int(size), sampling, float(noise) + 0.0, int(seed), method, params))
     # A value given twice ("--seeds 0 0", "--methods ocp ocp") names the same cell twice: run it once.
     cells = list(dict.fromkeys(cells))
+    if not cells and all(_points_only(d) for d in suite.datasets):
+        raise InvalidInputError(f"the suite has no cell: {', '.join(suite.datasets)} hold(s) points without faces, "
+                                "and mesh methods need faces; add a point-set method (e.g. --methods ocp).")
     if not cells:  # only samplings of real meshes, and no real mesh to sample
         raise InvalidInputError(f"the suite has no cell: sampling {', '.join(suite.samplings)} applies to real "
                                 f"meshes only (e.g. --datasets real/lilium); generated surfaces take "

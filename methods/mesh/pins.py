@@ -25,43 +25,47 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
     Returns
     -------
     (i, j) : tuple of int
-        Indices into ``points``, ``points[i]`` before ``points[j]`` in lexicographic (x, y,
-        z) order. Distances within a relative 1e-9 of the largest are ties; they go to the
-        pair whose points come first in that order, so the choice depends neither on the
-        last bits of rounding nor on the order of the vertices (a square's two diagonals
-        went to whichever came first in the file: ``lscm-igl`` on a shuffled copy of a
-        square grid gave another map, 2e-3 of its size apart).
+        Indices into ``points``, ``i < j`` by position in ``candidates``. Distances within
+        a relative 1e-9 of the largest are ties (a square's two diagonals), so the choice
+        does not depend on the last bits of rounding. Ties go to the pair with the smallest
+        :func:`_spread_score` (what the points say, not their order: the first pair in
+        candidate order was taken, and ``lscm-igl`` on a shuffled copy of a jittered square
+        grid gave another map, 2e-3 of its size apart), and where that ties too (an exactly
+        symmetric mesh) to the first pair in candidate order (row by row).
     """
     cand = np.asarray(candidates, dtype=np.int64)
     pts = points[cand]
     starts = range(0, len(cand), chunk)
     peaks = [float(cdist(pts[start:start + chunk], pts).max()) for start in starts]
-    # Symmetric shapes have exact ties (a square's two diagonals) that rounding splits
-    # differently from one scipy release to the next: distances within rounding of the
-    # maximum count as equal. Only the chunks holding one are computed again.
+    # Symmetric shapes have exact ties that rounding splits differently from one scipy
+    # release to the next: distances within rounding of the maximum count as equal. Only
+    # the chunks holding one are computed again.
     floor = max(peaks) * (1.0 - _TIE_RTOL)
     tied = []
     for start, peak in zip(starts, peaks):
         if peak >= floor:
             rows, cols = np.nonzero(cdist(pts[start:start + chunk], pts) >= floor)
-            tied.append(np.column_stack([start + rows, cols]))
+            keep = start + rows < cols  # each pair once, in candidate order
+            tied.append(np.column_stack([start + rows[keep], cols[keep]]))
     pairs = np.concatenate(tied)
-    # Each pair ordered by its points, then the first pair by its points: x, y, z of the
-    # first point, then of the second (np.lexsort's last key is the primary one).
-    a, b = pairs[:, 0], pairs[:, 1]
-    swap = _lex_less(pts[b], pts[a])
-    a, b = np.where(swap, b, a), np.where(swap, a, b)
-    keys = np.column_stack([pts[a], pts[b]])
-    best = np.lexsort(keys.T[::-1])[0]
-    return int(cand[a[best]]), int(cand[b[best]])
+    if len(pairs) > 1:
+        score = np.array([_spread_score(points, cand[a], cand[b]) for a, b in pairs])
+        pairs = pairs[score <= score.min() * (1.0 + _TIE_RTOL)]
+    a, b = pairs[0]
+    return int(cand[a]), int(cand[b])
 
 
-def _lex_less(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """(K,) bool: row p_k before row q_k in lexicographic (x, y, z) order."""
-    diff = p != q
-    first = np.argmax(diff, axis=1)
-    rows = np.arange(p.shape[0])
-    return diff.any(axis=1) & (p[rows, first] < q[rows, first])
+def _spread_score(points: np.ndarray, i: int, j: int) -> float:
+    """Sum over all points of the distance to the nearer of ``points[i]``, ``points[j]``.
+
+    Invariant under the order of the points and under rigid motions, and different for the
+    diagonals of a square whose inside is not exactly symmetric; a rule on coordinates (the
+    pair whose points come first in x) was not: in the centred principal frame the
+    corners of a square share their x up to rounding, and a worker process with other
+    thread settings took the other diagonal.
+    """
+    near = np.minimum(np.linalg.norm(points - points[i], axis=1), np.linalg.norm(points - points[j], axis=1))
+    return float(np.sort(near).sum())  # sorted: the sum does not depend on the points' order
 
 
 def opposite_pairs(points: np.ndarray, loop: np.ndarray, start: int, count: int) -> list[tuple[int, int]]:

@@ -116,12 +116,13 @@ def test_sweep_rows_metrics_and_resume(tmp_path):
 
 
 def test_failing_cell_is_recorded_and_sweep_goes_on(tmp_path):
-    suite = TINY.with_overrides(datasets=["plane", "real/chameleon"], methods=["scp-igl"])
+    # chameleon's file normals point both ways (46 of 4594): ocp refuses them
+    suite = TINY.with_overrides(datasets=["plane", "real/chameleon"], methods=["ocp"])
     table = run_sweep(suite, str(tmp_path), progress=False)
     assert len(table) == 2
     failed = table[table.status == "failed"].iloc[0]
-    assert failed.dataset == "real/chameleon" and failed.error_type == "MissingFacesError"
-    assert "point set" in failed.error and pd.isna(failed.qc_mean)
+    assert failed.dataset == "real/chameleon" and failed.error_type == "InconsistentNormalsError"
+    assert "other side of the surface" in failed.error and pd.isna(failed.qc_mean)
     assert table[table.dataset == "plane"].iloc[0].status == "ok"
 
 
@@ -347,3 +348,15 @@ def test_real_datasets_say_they_ignore_the_noise(tmp_path, capsys):
     assert real_dataset_note(replace(noisy, noise=(0.0,))) is None
     assert real_dataset_note(replace(noisy, samplings=("random", "scattered"))) is None
     assert real_dataset_note(replace(noisy, datasets=("plane",))) is None
+
+
+def test_mesh_methods_get_no_cells_on_a_point_set_without_faces():
+    """``real/chameleon`` (points and normals, no faces) gave every mesh method a failed cell."""
+    from parambench.bench.suites import expand_cells
+
+    suite = replace(PLANE, datasets=("plane", "real/chameleon"), methods=("ocp", "scp-igl"), seeds=(0,))
+    cells = expand_cells(suite)
+    assert {(c.dataset, c.method) for c in cells} == {("plane", "ocp"), ("plane", "scp-igl"),
+                                                      ("real/chameleon", "ocp")}
+    with pytest.raises(InvalidInputError, match="hold\\(s\\) points without faces"):
+        expand_cells(replace(suite, datasets=("real/chameleon",), methods=("scp-igl",)))

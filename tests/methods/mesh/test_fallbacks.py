@@ -21,17 +21,27 @@ def polygon(n: int, radii=None) -> np.ndarray:
 
 
 @pytest.mark.parametrize("nudge", [0.0, 1e-15, -1e-15])
-def test_farthest_pair_breaks_rounding_ties_by_the_points_not_their_order(nudge):
-    # a square's two diagonals tie; neither a last-bit difference (as different scipy
-    # releases round) nor the candidates' order may decide which one is taken (the first in
-    # candidate order did: lscm-igl gave another map on a shuffled copy of a mesh): the pair
-    # whose points come first in (x, y, z) order wins, its points in that order
+def test_farthest_pair_breaks_rounding_ties_by_candidate_order(nudge):
+    # a square's two diagonals tie; a last-bit difference (as different scipy releases
+    # round) must not decide which one is taken: the first pair in candidate order wins
     square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0 + nudge, 0.0], [0.0, 1.0, 0.0]])
     assert farthest_pair(square, np.array([0, 1, 2, 3])) == (0, 2)
-    assert farthest_pair(square, np.array([1, 3, 0, 2])) == (0, 2)
-    assert farthest_pair(square, np.array([3, 2, 1, 0]), chunk=1) == (0, 2)
-    shuffled = square[[2, 3, 0, 1]]
-    assert farthest_pair(shuffled, np.array([0, 1, 2, 3])) == (2, 0)
+    assert farthest_pair(square, np.array([1, 3, 0, 2])) == (1, 3)
+    assert farthest_pair(square, np.array([3, 0, 1, 2]), chunk=1) == (3, 1)
+
+
+def test_farthest_pair_breaks_ties_by_the_points_where_they_differ():
+    """A square whose inside is not symmetric: of its two tied diagonals, the one the points favour
+    (the smaller sum of distances to the nearer pin), whatever the order of the candidates (the
+    first in candidate order was taken: lscm-igl on a shuffled copy of a jittered grid gave
+    another map)."""
+    square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    inside = np.array([[0.2, 0.25, 0.0], [0.3, 0.2, 0.0]])  # near corner 0: its diagonal serves them better
+    points = np.vstack([square, inside])
+    for order in ([0, 1, 2, 3], [1, 3, 0, 2], [3, 2, 1, 0]):
+        assert set(farthest_pair(points, np.array(order), chunk=1 if order[0] == 3 else 2048)) == {0, 2}
+    moved = np.vstack([square, [[0.8, 0.25, 0.0], [0.7, 0.2, 0.0]]])  # now the inside lies near corner 1
+    assert set(farthest_pair(moved, np.array([0, 1, 2, 3]))) == {1, 3}
 
 
 def test_farthest_pair_finds_a_clear_maximum_across_chunks():
@@ -139,18 +149,17 @@ def recorder(regular_when):
 
 def test_mesh_attempts_order_weights_then_pins():
     s = fan_disk()
-    farthest = [8, 0]   # of the equal diameters of a regular 16-gon, the one whose points come first in x
+    solve, calls = recorder(lambda ua, pair: pair is not None and ua == "negative" and pair == (5, 13))
+    out, diag = first_regular(mesh_attempts(solve, s, weights="authalic", uniform_at=None, pins="farthest"))
+    farthest = [0, 8]   # the first pair of equal distances on a regular 16-gon
     pairs = opposite_pairs(s.points, np.arange(16), farthest[0], PIN_ALTERNATIVES)
     assert len(pairs) == PIN_ALTERNATIVES
-    works = pairs[3]
-    solve, calls = recorder(lambda ua, pair: pair is not None and ua == "negative" and pair == works)
-    out, diag = first_regular(mesh_attempts(solve, s, weights="authalic", uniform_at=None, pins="farthest"))
     # as asked, the authalic rows, every other pair as asked, then the pairs with the rows
     expect = [(None, None), ("negative", None)] + [(None, p) for p in pairs]
-    expect += [("negative", p) for p in pairs[:4]]
+    expect += [("negative", p) for p in pairs[: pairs.index((5, 13)) + 1]]
     assert calls == expect
     assert diag["authalic_fallback"] == "negative" and diag["pins_farthest"] == farthest
-    assert diag["pins_fallback"] == 4
+    assert diag["pins_fallback"] == pairs.index((5, 13)) + 1
 
 
 def test_mesh_attempts_keep_given_pins_and_given_rows():
