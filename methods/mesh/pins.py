@@ -10,6 +10,10 @@ __all__ = ["farthest_pair", "opposite_pairs"]
 #: Relative difference under which two distances count as the same (see farthest_pair).
 _TIE_RTOL = 1e-9
 
+#: Most tied pairs told apart by :func:`_spread_score` (each costs a pass over all points):
+#: an evenly sampled circle ties every diameter, and there candidate order decides.
+_MAX_SCORED_TIES = 8
+
 
 def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048) -> tuple[int, int]:
     """The two candidate vertices farthest apart in 3D.
@@ -31,7 +35,8 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
         :func:`_spread_score` (what the points say, not their order: the first pair in
         candidate order was taken, and ``lscm-igl`` on a shuffled copy of a jittered square
         grid gave another map, 2e-3 of its size apart), and where that ties too (an exactly
-        symmetric mesh) to the first pair in candidate order (row by row).
+        symmetric mesh) or more than ``_MAX_SCORED_TIES`` pairs tie (an evenly sampled
+        circle) to the first pair in candidate order (row by row).
     """
     cand = np.asarray(candidates, dtype=np.int64)
     pts = points[cand]
@@ -48,7 +53,7 @@ def farthest_pair(points: np.ndarray, candidates: np.ndarray, chunk: int = 2048)
             keep = start + rows < cols  # each pair once, in candidate order
             tied.append(np.column_stack([start + rows[keep], cols[keep]]))
     pairs = np.concatenate(tied)
-    if len(pairs) > 1:
+    if 1 < len(pairs) <= _MAX_SCORED_TIES:
         score = np.array([_spread_score(points, cand[a], cand[b]) for a, b in pairs])
         pairs = pairs[score <= score.min() * (1.0 + _TIE_RTOL)]
     a, b = pairs[0]

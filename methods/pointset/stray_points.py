@@ -147,7 +147,7 @@ def _small_far_groups(points: np.ndarray, knn_indices: np.ndarray, limit: float)
     n, k = knn_indices.shape
     rows = np.repeat(np.arange(n), k)
     cols = knn_indices.ravel()
-    short = np.linalg.norm(points[rows] - points[cols], axis=1) <= limit
+    short = (cols >= 0) & (np.linalg.norm(points[rows] - points[np.maximum(cols, 0)], axis=1) <= limit)
     graph = csr_matrix((np.ones(int(short.sum())), (rows[short], cols[short])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     size = np.bincount(label)
