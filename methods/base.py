@@ -43,8 +43,8 @@ from parambench.datasets_gen.surface import MethodInput, Surface
 from .hints import fit_hints, hinted, method_hints
 from .pose import run_in_unit_pose
 
-__all__ = ["Parameterization", "MethodOutput", "Method", "InertParameterWarning", "as_method_input", "StageTimer", "active_stage", "add_stage_hook",
-           "remove_stage_hook", "retry_memo", "selfcheck_doubt"]
+__all__ = ["Parameterization", "MethodOutput", "Method", "InertParameterWarning", "as_method_input", "StageTimer",
+           "active_stage", "add_stage_hook", "remove_stage_hook", "retry_memo", "selfcheck_doubt"]
 
 
 @dataclass(eq=False)
