@@ -40,7 +40,8 @@ def test_build_frontend_runs_with_the_dataclass_defaults(make_height_patch):
     assert fe.params == dataclasses.asdict(FrontEndParams())
     # no default hides in build_frontend's signature any more
     sig = inspect.signature(build_frontend)
-    assert [p.name for p in sig.parameters.values()] == ["points", "normals", "params", "options"]
+    assert [p.name for p in sig.parameters.values()] == ["points", "normals", "params", "given_loops", "options"]
+    assert sig.parameters["given_loops"].kind is inspect.Parameter.KEYWORD_ONLY  # loops are no option
 
 
 def test_build_frontend_keywords_and_dataclass_agree(make_height_patch):
