@@ -307,6 +307,26 @@ def test_a_boundary_image_that_crosses_itself_fails():
     assert clean["boundary_crosses"] is False and clean["passed"]
 
 
+def test_crossing_loop_segments_never_reach_triangle(monkeypatch):
+    """Triangle splits crossing constraint segments itself, and on one map (15,656 points, 219
+    crossing pairs) never returned: crossings are found first, and Triangle is not called."""
+    import triangle
+
+    from parambench.methods.pointset.uv_triangulation import triangulate_uv
+
+    pts, outer, rim = _grid_with_hole()
+    uv = pts[:, :2].copy()
+    a, b = outer[2], outer[len(outer) // 2 + 2]
+    uv[[a, b]] = uv[[b, a]]
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("Triangle was given crossing segments")
+
+    monkeypatch.setattr(triangle, "triangulate", must_not_run)
+    tri = triangulate_uv(uv, [outer, rim])
+    assert tri.boundary_crosses and tri.kind == "delaunay-fallback" and len(tri.faces)
+
+
 def _noisy_grid(n=40, noise=0.5, seed=5):
     """A jittered n x n grid of spacing 1 with normal (z) noise of ``noise`` spacings, its
     outer loop and the true map (x, y)."""
