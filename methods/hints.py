@@ -67,9 +67,18 @@ class Hint:
 
 
 def _render(stem: str, hints: tuple[Hint, ...]) -> str:
-    if not hints:
+    # One hint per parameter (the first): errors restated upstream ("the detected boundary
+    # looks wrong") add their own hints before the solver's, which may name it again.
+    kept, named = [], set()
+    for hint in hints:
+        if hint.param is not None:
+            if hint.param in named:
+                continue
+            named.add(hint.param)
+        kept.append(hint)
+    if not kept:
         return f"{stem}."
-    return f"{stem}; {', or '.join(h.text for h in hints)}."
+    return f"{stem}; {', or '.join(h.text for h in kept)}."
 
 
 def hinted(error_cls: type[ParambenchError], stem: str, *hints: Hint) -> ParambenchError:

@@ -61,7 +61,23 @@ def run_frontend(surface: MethodInput, params: dict, timer: StageTimer, *, weigh
     for stage in STAGES:
         timer.timings[stage] = timer.timings.get(stage, 0.0) + front.timings.get(stage, 0.0)
     _CHECK_INPUTS[surface] = _check_inputs(front)
+    _require_simple_loops(front.boundary_loops, options.k_nn)
     return front
+
+
+def _require_simple_loops(loops, k_nn: int) -> None:
+    """Refuse detected loops that pass a point twice, as a failed solve the retries can take up.
+
+    The conformal problem refused them as bad input, "split pinched boundary vertices
+    first", which a point set's user cannot do: scan lines 5 spacings apart, rolled on a
+    cylinder, gave such loops with 8 neighbours and the exact map with 16 or 24.
+    """
+    flat = np.concatenate([np.asarray(lp, dtype=np.int64) for lp in loops]) if loops else np.zeros(0, np.int64)
+    repeated = flat.size - np.unique(flat).size
+    if repeated:
+        raise hinted(SolverError, f"the detected boundary loops pass {repeated} point(s) twice (a boundary "
+                     f"too sparsely sampled for {k_nn} neighbours, such as scan lines far apart)",
+                     Hint(f"raise k_nn (e.g. {2 * k_nn})", "k_nn", 2 * k_nn, 1))
 
 
 @dataclass(frozen=True, eq=False)

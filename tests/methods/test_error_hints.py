@@ -176,3 +176,28 @@ def test_error_note_without_a_method_leaves_the_remedies_out():
     exc = hinted(ConvergenceError, "no regular coarse map", Hint("use normalized=False", "normalized", False))
     assert error_note(exc) == "ConvergenceError: no regular coarse map."
     assert error_note(SolverError("plain")) == "SolverError: plain"
+
+
+def test_a_restated_error_names_each_parameter_once():
+    """"the detected boundary looks wrong" adds its own hints before the solver's: "raise k_nn (e.g.
+    12), or raise k_nn (e.g. 16)" named one parameter twice."""
+    from parambench.methods.hints import Hint, hinted
+    from parambench.datasets_gen.errors import SolverError
+
+    err = hinted(SolverError, "failed", Hint("raise k_nn (e.g. 12)", "k_nn", 12, 1), Hint("repair the mesh"),
+                 Hint("raise k_nn (e.g. 16)", "k_nn", 16, 1), Hint("try --method ocp"))
+    assert str(err) == "failed; raise k_nn (e.g. 12), or repair the mesh, or try --method ocp."
+
+
+def test_pinched_detected_loops_are_a_failed_solve_not_bad_input():
+    """Scan lines 5 spacings apart gave loops through one point twice, and the conformal problem
+    refused them as bad input: "split pinched boundary vertices first", which a point set's user
+    cannot do. It is now a SolverError (the retries take it up) naming k_nn."""
+    import numpy as np
+
+    from parambench.datasets_gen.errors import SolverError
+    from parambench.methods.pointset.plugin_support import _require_simple_loops
+
+    _require_simple_loops([np.array([0, 1, 2]), np.array([3, 4, 5])], 8)
+    with pytest.raises(SolverError, match=r"pass 1 point\(s\) twice .* raise k_nn \(e.g. 16\)"):
+        _require_simple_loops([np.array([0, 1, 2, 3]), np.array([3, 4, 5])], 8)
