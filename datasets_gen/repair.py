@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
+from .knn_pieces import comparable_pieces, disconnected_error, knn_labels
 from .surface import Surface
 
 __all__ = ["repair_surface", "repair_summary", "largest_piece", "compact"]
@@ -144,13 +144,17 @@ def _reversed_faces(before: np.ndarray, after: np.ndarray) -> int:
 
 
 def _largest_knn_component(points: np.ndarray, k_nn: int) -> tuple[np.ndarray, int]:
-    """Indices of the largest component of the symmetrised kNN graph, and the number of components."""
-    k = min(int(k_nn), len(points) - 1)
-    _, idx = cKDTree(points).query(points, k=k + 1, workers=-1)
-    rows = np.repeat(np.arange(len(points)), k)
-    graph = sp.csr_matrix((np.ones(rows.size), (rows, idx[:, 1:].ravel())), shape=(len(points),) * 2)
-    n_comp, label = connected_components(graph, directed=False)
-    return np.flatnonzero(label == np.argmax(np.bincount(label))), int(n_comp)
+    """Indices of the largest piece of the symmetrised kNN graph, and the number of pieces.
+
+    Raises :class:`~parambench.datasets_gen.errors.DisconnectedError` when pieces of
+    comparable size make "the largest" no repair (:func:`.knn_pieces.comparable_pieces`).
+    """
+    label = knn_labels(points, k_nn)
+    counts = np.bincount(label)
+    sizes = np.sort(counts)[::-1]
+    if comparable_pieces(sizes):
+        raise disconnected_error(sizes, k_nn, points)
+    return np.flatnonzero(label == np.argmax(counts)), int(counts.size)
 
 
 def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
@@ -181,6 +185,9 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
     ------
     InvalidInputError, DegenerateFacesError, TooFewPointsError
         The repaired surface fails :class:`Surface`'s validation (e.g. too few points left).
+    DisconnectedError
+        A point set in pieces of comparable size (the second largest at least half the
+        largest): keeping one would drop about as much as it keeps.
     """
     points = np.asarray(surface.points, dtype=np.float64)
     if surface.faces is not None:

@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from parambench.datasets_gen.errors import ConvergenceError, SolverError, released
+from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, TopologyError, released
 from parambench.datasets_gen.surface import MethodInput
 
 from ..spectral.turning import is_regular_turning
@@ -103,7 +103,9 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
     Raises
     ------
     SolverError, ConvergenceError
-        From the free attempt, when the filled one fails too (``"auto"``), or from the only attempt.
+        From the free attempt, when the filled one fails too (``"auto"``: also with a
+        :class:`TopologyError` or :class:`InvalidInputError` on the filled surface), or
+        from the only attempt.
     """
     if holes == "filled":
         work, n = fill(surface)
@@ -126,7 +128,10 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         return result, surface, 0
     try:
         return attempt(work), work, n
-    except (SolverError, ConvergenceError):
+    except (SolverError, TopologyError, InvalidInputError):
+        # The filled surface is ours, not the caller's: its input errors are this
+        # fallback failing (fill points that split a point set's kNN graph, scan lines
+        # 10 spacings apart at k_nn=12), not advice about the input.
         if first_error is not None:
             raise first_error from None
         # the free map is irregular but exists: the benchmark measures it

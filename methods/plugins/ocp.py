@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from parambench.datasets_gen.errors import (ConvergenceError, InvalidInputError, ParambenchError, SolverError,
-                                            UnknownNameError, released)
+                                            TopologyError, UnknownNameError, released)
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer, retry_memo
@@ -420,7 +420,16 @@ class Ocp(Method):
             if params["holes"] == "auto":
                 start, n_thin = self._thin_holes_filled(surface, params, timer, fronts, ready, thin)
             try:
-                (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
+                try:
+                    (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
+                except (TopologyError, InvalidInputError):
+                    if start is surface:
+                        raise
+                    # The fill points are ours: where they split the graph (scan lines
+                    # 10 spacings apart, k_nn=12, taken for slots), the holes stay free.
+                    start, n_thin = surface, 0
+                    thin.clear()
+                    (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
             except (ConvergenceError, SolverError) as exc:
                 if not first_pair:
                     raise

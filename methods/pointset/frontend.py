@@ -27,7 +27,7 @@ from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .lattice import is_lattice
 from .lattice_loops import lattice_loops
-from .neighbourhoods import knn_graph, local_spacing, require_connected, symmetric_adjacency
+from .neighbourhoods import _component_sizes, knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
 from .normals import NOISY_MAX_K, NOISY_TARGET_DEG, check_user_normals, noise_adaptive_normals, orient_normals
@@ -383,7 +383,7 @@ def knn_stage(pts: np.ndarray, k_nn: int, neighbours: str = "auto", spacing_mode
     if not unique_checked and (not euclidean or graph.distances[:, 0].min() <= duplicate_tolerance(pts)):
         require_unique_points(pts)  # the exact check, and its message naming a pair
     adjacency = symmetric_adjacency(graph)
-    require_connected(adjacency, k_nn)
+    require_connected(adjacency, k_nn, p)
     spacing = graph.mean_spacing
     # The loop-spacing rule of the boundary needs the spacing right at the loop (one
     # average); balls and area terms need a smooth field (ten: noise-free on uniform
@@ -409,20 +409,21 @@ def slot_stage(nb: Neighbourhoods, normals: np.ndarray, k_nn: int, spacing_mode:
     -------
     Neighbourhoods
         ``nb`` with ``neighbour_diagnostics["slots"]`` (:func:`.slot_cuts.slot_cut_graph`'s
-        facts); where edges were cut, its graph, adjacency and spacing fields follow the
-        cut graph.
-
-    Raises
-    ------
-    DisconnectedError
-        The cut graph has several components.
+        facts, and ``disconnected``: True when the cut left the graph in pieces, so
+        nothing was cut); where edges were cut, its graph, adjacency and spacing fields
+        follow the cut graph.
     """
     graph, facts, lips = slot_cut_graph(nb.points, nb.graph, normals, nb.h_local, nb.h_around)
     diagnostics = dict(nb.neighbour_diagnostics, slots=facts)
     if not facts["n_slot_edges"]:
         return nb._replace(neighbour_diagnostics=diagnostics)
     adjacency = symmetric_adjacency(graph)
-    require_connected(adjacency, k_nn)
+    if _component_sizes(adjacency).size > 1:
+        # A slot ends somewhere: cuts that split the surface cut along a sampling's rows
+        # (scan lines 10 spacings apart at k_nn=12: 7169, 2446 and 1242 points), and
+        # the uncut graph, which is connected, maps (exactly, at k_nn=16).
+        diagnostics["slots"] = dict(facts, n_slot_edges=0, disconnected=True)
+        return nb._replace(neighbour_diagnostics=diagnostics)
     h_local = (local_spacing(graph, passes=SMOOTH_SPACING_PASSES) if spacing_mode == "local"
                else np.full(graph.indices.shape[0], graph.mean_spacing))
     return nb._replace(graph=graph, neighbour_diagnostics=diagnostics, adjacency=adjacency,

@@ -16,7 +16,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from parambench.datasets_gen.errors import DisconnectedError, TooFewPointsError, repairable
+from parambench.datasets_gen.errors import TooFewPointsError
+from parambench.datasets_gen.knn_pieces import disconnected_error
 
 from ..numba_cache import configure_numba_cache
 from .reorder import insert_sorted
@@ -291,7 +292,7 @@ def _union_rows(knn, lengths, t_ptr, t_src, t_len, n_chunks, indptr, indices, da
             _merge_row(knn, lengths, i, t_ptr, t_src, t_len, cols, lens, indices, data, indptr[i], True)
 
 
-def require_connected(adjacency: sp.spmatrix, k: int) -> None:
+def require_connected(adjacency: sp.spmatrix, k: int, points: np.ndarray | None = None) -> None:
     """Raise when the neighbourhood graph falls apart.
 
     Parameters
@@ -300,20 +301,19 @@ def require_connected(adjacency: sp.spmatrix, k: int) -> None:
         Symmetric neighbourhood graph.
     k : int
         The K used, quoted in the message.
+    points : (N, 3) numpy.ndarray of float64, optional
+        The graph's points: with them the message names the ``k_nn`` that joins pieces
+        that are scan lines (:func:`parambench.datasets_gen.knn_pieces.disconnected_error`).
 
     Raises
     ------
     DisconnectedError
-        With the component sizes, largest first.
+        With the component sizes, largest first; offering ``--repair`` unless the pieces
+        are of comparable size.
     """
     sizes = _component_sizes(adjacency)
-    n_comp = sizes.size
-    if n_comp > 1:
-        shown = ", ".join(str(int(s)) for s in sizes[:8]) + (", ..." if n_comp > 8 else "")
-        raise repairable(DisconnectedError(
-            f"the {k}-nearest-neighbour graph has several components: {shown} points; "
-            "flatten each separately or increase k_nn."
-        ))
+    if sizes.size > 1:
+        raise disconnected_error(sizes, k, points)
 
 
 def _component_sizes(adjacency: sp.spmatrix) -> np.ndarray:

@@ -136,6 +136,16 @@ STRIP_NEIGHBOURS = 128
 #: Candidates per examined point, in units of K: a row whose edges across are cut is
 #: filled up from these.
 POOL_FACTOR = 3
+#: No edge is cut when more than this share of the points are ends of the edges screen
+#: 1b passed, or are to be examined after screen 2: a slot is a line through the
+#: surface, while an anisotropic sampling (scan lines 3-5 spacings apart) is "slots"
+#: everywhere. There every cut was undone after the walk (``reverted``), and linking the
+#: crossings took 77 of 78 s (9,947 points, lines 3 spacings apart: 54k crossings) or
+#: more memory than the machine had (8,330 points, 15 apart, k_nn=48: 24 GB).
+#: Shares before and after screen 2 where a slot was cut: up to 0.17 and 0.136 (slit,
+#: random, graded and jittered, 2k and 20k); a random sampling without one reaches 0.19
+#: and 0.18 (fold and bump, random); scan lines 5 spacings apart 0.45 and 0.44, 3 apart 0.99.
+MAX_EXAMINED_SHARE = 0.3
 
 
 @numba.njit(cache=_CACHE)
@@ -494,7 +504,9 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: 
         :data:`POOL_FACTOR` K) that cross no slot, nearest first.
     diagnostics : dict
         ``n_void_edges`` (screen 1, undirected), ``n_short_strips`` (screen 1b),
-        ``n_examined_points`` (after screen 2),
+        ``n_examined_points`` (after screen 2), ``widespread`` (True when the ends of the
+        screen 1b edges or the examined points are more than :data:`MAX_EXAMINED_SHARE`
+        of the points: nothing is cut),
         ``n_lone_crossings`` (crossings of a strip that did not line up with others over
         :data:`MIN_CUT_EXTENT` spacings nor cross one :data:`LONE_STRIP_LENGTH` long:
         left), ``n_scattered_crossings`` (edges screen 2 left out that cross a strip
@@ -519,7 +531,7 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: 
     first = np.unique(np.minimum(r, j) * n + np.maximum(r, j), return_index=True)[1]
     r, j = r[first], j[first]
     diagnostics = {"n_void_edges": int(r.size), "n_short_strips": 0, "n_examined_points": 0, "n_lone_crossings": 0,
-                   "n_scattered_crossings": 0, "n_tip_edges": 0, "n_slot_edges": 0}
+                   "n_scattered_crossings": 0, "n_tip_edges": 0, "n_slot_edges": 0, "widespread": False}
     # Screen 1b: a shorter strip, empty among the points two graph steps from r: a
     # necessary condition of the strip test that needs no kd-tree search.
     short = np.zeros(r.size, dtype=bool)
@@ -529,11 +541,15 @@ def slot_cut_graph(points: np.ndarray, graph: KnnGraph, normals: np.ndarray, h: 
     diagnostics["n_short_strips"] = int(r.size)
     if r.size == 0:
         return graph, diagnostics, None
+    if np.unique(np.concatenate([r, j])).size > MAX_EXAMINED_SHARE * n:
+        diagnostics["widespread"] = True
+        return graph, diagnostics, None
     grouped = _edge_groups(points, r, j, h, MIN_EXTENT)
     rows = np.unique(np.concatenate([r[grouped], j[grouped]]))
     diagnostics["n_examined_points"] = int(rows.size)
+    diagnostics["widespread"] = bool(rows.size > MAX_EXAMINED_SHARE * n)
     m = min(n - 1, STRIP_NEIGHBOURS)
-    if m <= k:
+    if m <= k or diagnostics["widespread"]:
         return graph, diagnostics, None
     tree = cKDTree(points)
     c_pool = min(m, POOL_FACTOR * k)
