@@ -190,6 +190,8 @@ def _selfcheck_summary(check: dict | None) -> str:
             + (f" (+{uncertain} within the normals' error of {check.get('normal_tol_deg', 0):g} deg)" if uncertain else "")
             + (f", {ring} triangle(s) of neighbouring points reversed" if ring else "")
             + f", {check.get('n_degenerate', 0)} degenerate of {check['n_triangles']} triangles"
+            + (f", boundary crosses itself in {check['n_boundary_crossings']} place(s)"
+               if check.get("n_boundary_crossings") else "")
             + (f", loop turning {turning}" if turning else "")
             + (f", stretched (coherent Beltrami coefficient {check.get('coherent_beltrami', 0):.2f})"
                if "distorted" in (check.get("failed") or ()) else "")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["signed_area_2d", "turning_number", "triangle_signed_areas", "flipped_triangles", "segments_cross",
-           "COLLAPSE_REL_TOL"]
+           "crossing_segment_pairs", "COLLAPSE_REL_TOL"]
 
 #: A triangle whose |uv area| is at most this share of the mean |uv area| has no orientation.
 COLLAPSE_REL_TOL = 1e-12
@@ -115,3 +115,33 @@ def segments_cross(p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray) -
     """
     return ((_orientation(p, q, a) * _orientation(p, q, b) < 0)
             & (_orientation(a, b, p) * _orientation(a, b, q) < 0))
+
+
+def crossing_segment_pairs(uv: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """The pairs of segments that cross properly (a uv boundary that self-intersects).
+
+    Two crossing segments' midpoints lie within the longer one's length of each other, so
+    only pairs of midpoints that close are tested.
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+    segments : (S, 2) numpy.ndarray of int64
+        Rows of ``uv`` each segment joins.
+
+    Returns
+    -------
+    (P, 2) numpy.ndarray of int64
+        Indices into ``segments``, each crossing pair once.
+    """
+    from scipy.spatial import cKDTree
+
+    if len(segments) < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    p, q = uv[segments[:, 0]], uv[segments[:, 1]]
+    reach = float(np.linalg.norm(q - p, axis=1).max())
+    pairs = cKDTree(0.5 * (p + q)).query_pairs(reach, output_type="ndarray")
+    if pairs.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    i, j = pairs[:, 0], pairs[:, 1]
+    return pairs[segments_cross(p[i], q[i], p[j], q[j])].astype(np.int64)

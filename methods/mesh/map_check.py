@@ -1,4 +1,4 @@
-"""The check of a mesh method's map: flipped and collapsed triangles, before the map is returned.
+"""The check of a mesh method's map: flipped and collapsed triangles, an overlapping boundary.
 
 A mesh map is judged on the mesh's own faces, so its facts are exact, not estimated as a
 point set's are (:mod:`parambench.methods.pointset.selfcheck`): a triangle whose uv
@@ -9,6 +9,13 @@ meshes get such maps: uniform, authalic or mean-value weights on irregular trian
 flipped: 2 foldovers), ``lscm-igl``'s two pins, a mesh folded in 3D. They used to be
 written with exit code 0; a map that fails this check now gets what a failed point-set
 check gets: exit code 3 from ``flatten`` unless ``--force``, status ``suspect`` in a sweep.
+
+A map with no flipped triangle can still overlap itself: a helical ribbon of 1.5 turns
+(4,500 vertices) maps conformally (QC 1.0000, 0 flips) round 1.5 times, 66 % of its
+triangles over others, from ``scp``, ``scp-igl``, ``lscm-igl``, ``dncp-opt`` and
+``bff-mouette`` alike. Such a map's boundary crosses itself in uv (with no flips, a
+boundary that does not cross itself bounds a map that does not overlap), so the
+crossings of the boundary edges' images are counted too.
 """
 
 from __future__ import annotations
@@ -17,7 +24,7 @@ import time
 
 import numpy as np
 
-from ..geometry2d import COLLAPSE_REL_TOL, flipped_triangles, triangle_signed_areas
+from ..geometry2d import COLLAPSE_REL_TOL, crossing_segment_pairs, flipped_triangles, triangle_signed_areas
 from .topology import interior_edges
 
 __all__ = ["check_mesh_map", "MESH_THRESHOLDS"]
@@ -44,14 +51,16 @@ def check_mesh_map(points: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> dic
     Returns
     -------
     dict
-        ``passed`` (bool), ``failed`` (list of ``"flipped"``, ``"degenerate"``),
+        ``passed`` (bool), ``failed`` (list of ``"flipped"``, ``"degenerate"``,
+        ``"boundary-crossing"``),
         ``reason`` (one line, empty when passed), ``n_triangles``, ``n_flipped``
         (orientation against the majority: a mirror image is no flip),
         ``n_degenerate`` (|uv area| at most ``COLLAPSE_REL_TOL`` of the mean, or a corner
         with a non-finite uv), ``n_nonfinite`` (uv rows), ``flipped_faces`` (the first
         few indices), ``n_folded_3d`` (flipped faces whose 3D normal turns more than 90
         degrees from a neighbour's across an edge: the mesh folds there itself),
-        ``thresholds``, ``seconds``, ``kind`` = ``"mesh"``.
+        ``n_boundary_crossings`` (pairs of boundary edges whose images cross; 0 when a
+        uv is not finite), ``thresholds``, ``seconds``, ``kind`` = ``"mesh"``.
     """
     start = time.perf_counter()
     uv = np.asarray(uv, dtype=np.float64)
@@ -66,15 +75,25 @@ def check_mesh_map(points: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> dic
     facts = {"kind": "mesh", "n_triangles": int(len(faces)), "n_flipped": int(flipped_idx.size),
              "n_degenerate": int(collapsed.sum()), "n_nonfinite": int((~finite_rows).sum()),
              "flipped_faces": flipped_idx[:_EXAMPLES].tolist(),
-             "n_folded_3d": int(_folded_in_3d(points, faces, flipped_idx).sum())}
+             "n_folded_3d": int(_folded_in_3d(points, faces, flipped_idx).sum()),
+             "n_boundary_crossings": _boundary_crossings(uv, faces) if finite_rows.all() else 0}
     failed = []
     if facts["n_flipped"] > MESH_THRESHOLDS["max_flipped"]:
         failed.append("flipped")
     if facts["n_degenerate"] > MESH_THRESHOLDS["max_collapsed"]:
         failed.append("degenerate")
+    if facts["n_boundary_crossings"]:
+        failed.append("boundary-crossing")
     facts.update(passed=not failed, failed=failed, reason=_reason(facts, faces), thresholds=dict(MESH_THRESHOLDS),
                  seconds=round(time.perf_counter() - start, 4))
     return facts
+
+
+def _boundary_crossings(uv: np.ndarray, faces: np.ndarray) -> int:
+    """Pairs of boundary edges (edges of one face) whose uv images cross properly."""
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    return int(len(crossing_segment_pairs(uv, unique[count == 1])))
 
 
 def _folded_in_3d(points: np.ndarray, faces: np.ndarray, which: np.ndarray) -> np.ndarray:
@@ -102,4 +121,7 @@ def _reason(facts: dict, faces: np.ndarray) -> str:
     if facts["n_degenerate"]:
         nonfinite = f", {facts['n_nonfinite']} vertex/vertices with a non-finite uv" if facts["n_nonfinite"] else ""
         parts.append(f"{facts['n_degenerate']} triangle(s) collapsed to zero uv area{nonfinite}")
+    if facts["n_boundary_crossings"]:
+        parts.append(f"the boundary's image crosses itself in {facts['n_boundary_crossings']} place(s) (the map "
+                     "overlaps itself)")
     return "; ".join(parts)

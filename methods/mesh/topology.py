@@ -22,6 +22,7 @@ __all__ = [
     "coherent_flips",
     "require_manifold",
     "require_oriented",
+    "require_no_handles",
     "require_disk",
     "require_connected_disk_like",
 ]
@@ -294,8 +295,8 @@ def require_oriented(faces: np.ndarray, half_edges: _HalfEdges | None = None) ->
     if flips is None:
         raise NotADiskError(
             f"the surface is not orientable ({n_conflicts} edge(s) where going round it brings a face back reversed, "
-            "as on a Moebius band); no map to the plane keeps its faces' orientation: cut it so that it becomes "
-            "orientable, or use --points-only.")
+            "as on a Moebius band); no map to the plane keeps its faces' orientation, and its points alone map no "
+            "better: cut it so that it becomes orientable (a Moebius band cut once across is a disk).")
     if n_conflicts:
         shown = [f"face {int(f)} (vertices {', '.join(str(int(v)) for v in faces[f])})"
                  for f in np.flatnonzero(flips)[:_EXAMPLES]]
@@ -310,6 +311,33 @@ def _component_count(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarra
     j = np.roll(faces, -1, axis=1).repeat(2, axis=1).ravel()
     adj = sp.coo_matrix((np.ones(i.size), (i, j)), shape=(n_vertices, n_vertices))
     return connected_components(adj, directed=False)
+
+
+def require_no_handles(faces: np.ndarray, n_loops: int) -> None:
+    """Raise when a connected mesh with ``n_loops`` boundary loops has a handle.
+
+    A connected orientable surface with b boundary loops has Euler characteristic
+    2 - 2g - b; a planar domain (a disk with holes) has genus g = 0. A handle cannot be
+    laid flat without a cut: the maps of a torus with a hole folded (scp: "N triangles
+    flipped", with advice about weights and triangle shapes that could not help).
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+        Every vertex referenced, one component.
+    n_loops : int
+
+    Raises
+    ------
+    NotADiskError
+    """
+    chi = int(igl.euler_characteristic(faces))
+    genus = (2 - n_loops - chi) // 2
+    if genus > 0:
+        raise NotADiskError(
+            f"the mesh has {genus} handle(s) (Euler characteristic {chi} with {n_loops} boundary loop(s): genus "
+            f"{genus}); a handle cannot be laid flat without a cut: cut each handle open along a closed curve "
+            "around it (a seam), so that the surface becomes a disk with holes.")
 
 
 def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_holes: bool = True) -> list[np.ndarray]:
@@ -332,8 +360,8 @@ def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_
     DisconnectedError
         Unreferenced vertices or several components.
     NotADiskError
-        Duplicate faces, non-manifold edges or vertices (:func:`require_manifold`), a closed surface, or (``allow_holes=False``)
-        more than one boundary loop or Euler characteristic != 1.
+        Duplicate faces, non-manifold edges or vertices (:func:`require_manifold`), a closed surface, a
+        handle (:func:`require_no_handles`), or (``allow_holes=False``) more than one boundary loop.
     """
     n = points.shape[0]
     require_manifold(faces, n)
@@ -353,6 +381,7 @@ def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_
     loops = boundary_loops(faces)
     if not loops:
         raise NotADiskError("the mesh is closed (no boundary loop); cut it open along a seam before flattening.")
+    require_no_handles(faces, len(loops))
     if not allow_holes:
         chi = int(igl.euler_characteristic(faces))
         if len(loops) != 1 or chi != 1:

@@ -23,7 +23,7 @@ import numpy as np
 
 from parambench.datasets_gen.errors import InvalidInputError
 
-from ..geometry2d import segments_cross, triangle_signed_areas
+from ..geometry2d import crossing_segment_pairs, triangle_signed_areas
 from ..numba_cache import configure_numba_cache
 from .row_chunks import for_each_chunk, worker_count
 
@@ -266,25 +266,6 @@ def _regions(faces: np.ndarray, neighbours: np.ndarray, segments: np.ndarray, n:
     return labels, seeds[:n_regions]
 
 
-def _segments_cross(uv: np.ndarray, segments: np.ndarray) -> bool:
-    """Whether two of the segments cross properly (the uv boundary self-intersects).
-
-    Two crossing segments' midpoints lie within the longer one's length of each other, so
-    only pairs of midpoints that close are tested.
-    """
-    from scipy.spatial import cKDTree
-
-    if len(segments) < 2:
-        return False
-    p, q = uv[segments[:, 0]], uv[segments[:, 1]]
-    reach = float(np.linalg.norm(q - p, axis=1).max())
-    pairs = cKDTree(0.5 * (p + q)).query_pairs(reach, output_type="ndarray")
-    if pairs.size == 0:
-        return False
-    i, j = pairs[:, 0], pairs[:, 1]
-    return bool(segments_cross(p[i], q[i], p[j], q[j]).any())
-
-
 def _cdt(uv: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None, bool]:
     """Constrained Delaunay faces and their neighbours (None when Triangle failed or had to
     change the input vertices), and whether the segments cross (the uv boundary
@@ -297,7 +278,7 @@ def _cdt(uv: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray | None, np.nd
     """
     import triangle
 
-    if _segments_cross(uv, segments):
+    if crossing_segment_pairs(uv, segments).size:
         return None, None, True
     try:
         out = triangle.triangulate({"vertices": uv, "segments": segments}, "pcQn")

@@ -108,3 +108,37 @@ def test_the_advice_follows_what_failed():
     shrunk = {"n_flipped": 0, "n_folded_3d": 0, "n_nonfinite": 0, "n_degenerate": 40}
     assert "protrusion" in mesh_advice(shrunk, {"weights": "cotangent"}, "scp")
     assert "no uv" in mesh_advice({**shrunk, "n_nonfinite": 1}, {}, "scp-igl")
+
+
+def _helical_ribbon(turns: float = 1.5, n_along: int = 300, n_across: int = 8):
+    """A ribbon winding ``turns`` times round a helix (radius 1, width 0.3, pitch 0.6): a disk, no self-contact."""
+    t = np.linspace(0.0, 2 * np.pi * turns, n_along)[:, None]
+    s = np.linspace(-0.15, 0.15, n_across)[None, :]
+    pts = np.stack([(1 + s) * np.cos(t), (1 + s) * np.sin(t), 0.6 * t / (2 * np.pi) + 0 * s], axis=-1).reshape(-1, 3)
+    i = np.arange(n_along * n_across).reshape(n_along, n_across)[:-1, :-1].ravel()
+    faces = np.r_[np.c_[i, i + n_across, i + n_across + 1], np.c_[i, i + n_across + 1, i + 1]]
+    return pts, faces
+
+
+@pytest.mark.parametrize("method", ["scp", "scp-igl", "lscm-igl"])
+def test_a_map_that_winds_over_itself_fails_without_a_flip(method):
+    """Before: a helical ribbon of 1.5 turns mapped round 1.5 times with 0 flips, "self-check ok", exit 0."""
+    pts, faces = _helical_ribbon()
+    check = get_method(method)(Surface(pts, faces, name="ribbon")).diagnostics["selfcheck"]
+    assert check["n_flipped"] == 0 and check["n_boundary_crossings"] > 0
+    assert not check["passed"] and check["failed"] == ["boundary-crossing"]
+    assert "crosses itself" in check["reason"]
+    # Less than one turn lies flat: the same strip of 0.8 turns passes.
+    pts, faces = _helical_ribbon(turns=0.8)
+    check = get_method(method)(Surface(pts, faces, name="ribbon")).diagnostics["selfcheck"]
+    assert check["passed"] and check["n_boundary_crossings"] == 0
+
+
+def test_flatten_refuses_the_overlapping_ribbon_with_advice(tmp_path, capsys):
+    import igl
+    pts, faces = _helical_ribbon()
+    src = tmp_path / "ribbon.obj"
+    igl.write_triangle_mesh(str(src), pts, faces)
+    assert main(["flatten", str(src), "-o", str(tmp_path / "uv.obj")]) == 3
+    err = capsys.readouterr().err
+    assert "crosses itself" in err and "winds round" in err and not (tmp_path / "uv.obj").exists()

@@ -203,3 +203,36 @@ def test_repair_says_a_moebius_band_cannot_be_wound_alike():
     faces[:10] = faces[:10, ::-1]
     _, facts = repair_surface(Surface(pts, faces, name="mixed"))
     assert facts["orientable"] is True and facts["faces_reversed"] == 10
+
+
+def _torus_with_a_hole(n: int = 24, m: int = 12):
+    """A torus (radii 1 and 0.35) on an n x m grid, with one grid face pair removed: genus 1, one loop."""
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, n, endpoint=False), np.linspace(0, 2 * np.pi, m, endpoint=False),
+                       indexing="ij")
+    pts = np.stack([(1 + 0.35 * np.cos(v)) * np.cos(u), (1 + 0.35 * np.cos(v)) * np.sin(u), 0.35 * np.sin(v)],
+                   axis=-1).reshape(-1, 3)
+    idx = np.arange(n * m).reshape(n, m)
+    a, b = idx, np.roll(idx, -1, axis=0)
+    c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
+    faces = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return pts, np.delete(faces, [0, n * m], axis=0)  # both triangles of quad (0, 0)
+
+
+def test_a_handle_is_named_by_every_mesh_method():
+    """Before: "N triangles flipped; try --param weights=hybrid", then advice about triangle shapes."""
+    pts, faces = _torus_with_a_hole()
+    assert len(mesh_boundary(faces, len(pts))[0]) == 1
+    for method in MESH_METHODS:
+        with pytest.raises(NotADiskError, match=r"1 handle\(s\) \(Euler characteristic -1 with 1 boundary loop"):
+            get_method(method)(Surface(pts, faces, name="torus with a hole"))
+    # A disk with holes is no handle: the grid with its middle face pair removed still maps.
+    grid, grid_faces = _grid(8)
+    holed = np.delete(grid_faces, [24, 24 + 49], axis=0)
+    assert get_method("scp")(Surface(grid, holed, name="holed grid")).diagnostics["selfcheck"]["passed"]
+
+
+def test_the_moebius_message_sends_nobody_to_points_only():
+    pts, faces = _moebius()
+    with pytest.raises(NotADiskError) as info:
+        get_method("scp")(Surface(pts, faces, name="moebius"))
+    assert "--points-only" not in str(info.value) and "cut once across is a disk" in str(info.value)
