@@ -222,3 +222,25 @@ def test_a_far_junk_row_does_not_widen_the_merge_tolerance():
     part = np.c_[x.ravel() + 500000.0, y.ravel() + 5400000.0, np.full(x.size, 120.0)]
     groups = coincident_groups(np.vstack([part, [0.0, 0.0, 0.0]]))
     assert groups.n_merged == 0 and groups.tolerance < 1e-6
+
+
+def test_the_duplicate_tolerance_does_not_turn_with_the_points():
+    """Before: copies merged at 2.83e-9 in the input's frame were refused as copies at 4.15e-9
+    in the frame a method runs in, with advice to merge what had just been merged."""
+    from scipy.spatial.transform import Rotation
+
+    from parambench.datasets_gen.surface import duplicate_tolerance
+
+    rng = np.random.default_rng(4)
+    pts = make_surface("bump", 3000, sampling="jittered", seed=0).points
+    n = len(pts)
+    turned = pts @ Rotation.from_euler("xyz", [20, 35, 50], degrees=True).as_matrix().T
+    assert duplicate_tolerance(turned) == pytest.approx(duplicate_tolerance(pts), rel=1e-9)
+    # Copies just inside the tolerance, turned off the axes: merged once, never refused after.
+    tol = duplicate_tolerance(turned)
+    step = rng.normal(size=(1500, 3))
+    copies = turned[:1500] + 0.9 * tol * step / np.linalg.norm(step, axis=1, keepdims=True)
+    with pytest.warns(CoincidentPointsWarning, match=f"1500 of {n + 1500} points coincide"):
+        result = get_method("ocp")(Surface(np.vstack([turned, copies]), name="copies"))
+    assert result.diagnostics["selfcheck"]["passed"]
+    np.testing.assert_array_equal(result.uv[n:], result.uv[:1500])
