@@ -63,8 +63,9 @@ against the 3D geometry. Thresholds (module constants, reported with every check
 * **boundary crossing**: the loops' images in uv must not cross each other or
   themselves (a crossing is a fold at the boundary; the constrained triangulation then
   needs extra vertices, and the triangle counts above come from the fallback).
-* **turning**: each loop's turning number in uv is +1 for the outer loop and -1 for
-  holes, or all reversed under a global mirror, within ``TURNING_TOL`` = 0.25.
+* **turning**: each loop's turning number in uv is +1 for the outer loop (the one whose
+  image bounds the largest area: an open cylinder may put either rim outside) and -1
+  for holes, or all reversed under a global mirror, within ``TURNING_TOL`` = 0.25.
 * **coverage**: the angle-criterion boundary candidates, when known, lie within
   ``COVER_RADIUS`` = 3 mean spacings of a detected loop; a connected group of at least
   ``MIN_MISSED_RING`` = 8 uncovered candidates is a missed hole. The check applies only
@@ -131,7 +132,7 @@ from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import ParambenchError
 
-from ..geometry2d import triangle_signed_areas, turning_number
+from ..geometry2d import signed_area_2d, triangle_signed_areas, turning_number
 from .failure_causes import describe_causes, failure_causes
 from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation, unresolved_points
 from .row_chunks import for_each_chunk
@@ -544,10 +545,22 @@ def points_outside(uv: np.ndarray, loops: list, knn_indices: np.ndarray) -> dict
     return {"n_outside": int(out.size), "outside_depth": round(float(depth.max()), 4)}
 
 
+def _outer_in_uv(uv: np.ndarray, loops: list) -> int:
+    """The loop whose image bounds the largest area: the outer one in uv.
+
+    Which loop a map puts outside is the map's choice where several could be: an open
+    cylinder's two rims are alike, and ``ocp`` put either outside (a correct map, radius
+    ratio 20.0 against e^3 = 20.09, refused as "loop 0 turns -1.00 (expected +1)").
+    """
+    areas = [abs(signed_area_2d(uv[np.asarray(lp, dtype=np.int64)])) for lp in loops]
+    return int(np.argmax(areas))
+
+
 def _turning(uv: np.ndarray, loops: list, mirrored: bool) -> dict:
     sign = -1.0 if mirrored else 1.0
     turns = [turning_number(uv[np.asarray(lp, dtype=np.int64)]) for lp in loops]
-    expected = [sign * (1.0 if i == 0 else -1.0) for i in range(len(turns))]
+    outer = _outer_in_uv(uv, loops)
+    expected = [sign * (1.0 if i == outer else -1.0) for i in range(len(turns))]
     ok = all(abs(t - e) <= TURNING_TOL for t, e in zip(turns, expected))
     return {"turning_numbers": [round(t, 4) for t in turns], "expected_turning": expected, "turning_ok": bool(ok)}
 
@@ -703,7 +716,7 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
             failing = _with_ring_facts(facts, failing, points, uv, normals, knn, loops, spacing_pt, tol)
     if loops and np.all(np.isfinite(uv)):
         # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
-        mirrored = facts.get("mirrored", turning_number(uv[loops[0]]) < 0)
+        mirrored = facts.get("mirrored", turning_number(uv[loops[_outer_in_uv(uv, loops)]]) < 0)
         facts.update(_turning(uv, loops, mirrored))
         facts.update(points_outside(uv, loops, knn))
     facts["coverage"] = (loop_coverage(points, loops, candidates, knn, l_mean) if candidates is not None else None)

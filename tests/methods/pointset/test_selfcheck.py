@@ -134,6 +134,32 @@ def test_identity_and_mirror_of_a_flat_patch_pass():
     assert mirror["passed"] and mirror["mirrored"] and mirror["turning_numbers"] == [-1.0, 1.0]
 
 
+def _open_cylinder(n_round=60, n_up=31, height=3.0):
+    """An open cylinder (radius 1, outward normals), its rims as loops (the surface on their left), and
+    its exact conformal map exp(h - i theta), which keeps the orientation."""
+    t, h = np.meshgrid(np.linspace(0, 2 * np.pi, n_round, endpoint=False), np.linspace(0.0, height, n_up))
+    pts = np.c_[np.cos(t).ravel(), np.sin(t).ravel(), h.ravel()]
+    w = np.exp(h.ravel() - 1j * t.ravel())
+    bottom, top = np.arange(n_round), np.arange(n_round)[::-1] + n_round * (n_up - 1)
+    normals = np.c_[pts[:, :2], np.zeros(len(pts))]
+    return pts, normals, np.c_[w.real, w.imag], bottom, top
+
+
+def test_either_rim_of_an_open_cylinder_may_map_outside():
+    """Before: a correct map with the detected outer loop inside was refused as "loop 0 turns -1.00 (expected +1)"."""
+    pts, normals, uv, bottom, top = _open_cylinder()
+    for loops in ([top, bottom], [bottom, top]):  # the top rim maps outside, listed first or second
+        check = check_pointset_map(pts, uv, normals, loops)
+        assert check["passed"] and not check["mirrored"], check["reason"]
+        assert sorted(check["turning_numbers"]) == [-1.0, 1.0]
+    inverted = 1.0 / (uv[:, 0] + 1j * uv[:, 1])  # the bottom rim outside: as conformal
+    check = check_pointset_map(pts, np.c_[inverted.real, inverted.imag], normals, [top, bottom])
+    assert check["passed"] and check["turning_numbers"] == [-1.0, 1.0]
+    # Both rims turning the same way is still wrong, whichever is outside.
+    check = check_pointset_map(pts, uv, normals, [top, bottom[::-1]])
+    assert not check["passed"] and "turning" in check["failed"]
+
+
 def test_a_local_fold_is_counted_as_flipped():
     pts, outer, rim = _grid_with_hole()
     normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
