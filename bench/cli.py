@@ -195,6 +195,8 @@ def _selfcheck_summary(check: dict | None) -> str:
             + (f", loop turning {turning}" if turning else "")
             + (f", stretched (coherent Beltrami coefficient {check.get('coherent_beltrami', 0):.2f})"
                if "distorted" in (check.get("failed") or ()) else "")
+            + (f", not conformal (coherent Beltrami coefficient {check.get('coherent_beltrami', 0):.2f}; "
+               "not judged for this method)" if check.get("stretched") and not check.get("conformal_judged") else "")
             + (f", {check.get('n_outside', 0)} point(s) outside the loops"
                if "outside" in (check.get("failed") or ()) else "")
             + (f", {check['n_isolated']} point(s) far from all others" if check.get("n_isolated") else "")
@@ -347,7 +349,7 @@ def _check_output_path(out: Path, source: Path) -> None:
 
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from parambench.datasets_gen.io import load_surface
-    from parambench.methods.pointset.selfcheck import pointset_faces
+    from parambench.methods.pointset.selfcheck import coherent_limit, pointset_faces
     from parambench.methods.pointset.selfcheck_advice import failure_line
     from parambench.methods.registry import get_method
 
@@ -390,6 +392,11 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         points, uv = _in_every_input_row(surface.points, uv, surface.params["input_rows"], n_input_rows)
     write_uv(out, points, uv, faces)
     print(f"{summary}{_selfcheck_summary(check)} -> {out}")
+    if not failed and check and check.get("stretched") and not check.get("conformal_judged"):
+        print(f"parambench: note: {method.name}'s map stretches whole regions one way (coherent Beltrami coefficient "
+              f"{check['coherent_beltrami']:.2f}; a conformal map stays under "
+              f"{coherent_limit(check.get('normal_tol_deg')):.2g}); {method.name}'s check does not judge conformality, "
+              "ocp's does (--method ocp)", file=sys.stderr)
     if failed:
         print(f"parambench: warning: {failure_line(check, result.params, method.name)} (written anyway: --force)",
               file=sys.stderr)

@@ -586,10 +586,14 @@ def coherent_limit(normal_tol_deg: float | None) -> float:
     return float(MAX_COHERENT_BELTRAMI_CLEAN + share * (MAX_COHERENT_BELTRAMI - MAX_COHERENT_BELTRAMI_CLEAN))
 
 
+def _stretched(facts: dict) -> bool:
+    """The map stretches whole regions one way: over :func:`coherent_limit`, judged or not."""
+    return facts.get("coherent_beltrami", 0.0) > coherent_limit(facts.get("normal_tol_deg"))
+
+
 def _too_distorted(facts: dict) -> bool:
     """A map that should be conformal stretches whole regions (judged only where asked)."""
-    return bool(facts.get("conformal_judged")) and \
-        facts.get("coherent_beltrami", 0.0) > coherent_limit(facts.get("normal_tol_deg"))
+    return bool(facts.get("conformal_judged")) and _stretched(facts)
 
 
 def _too_far_outside(facts: dict) -> bool:
@@ -673,7 +677,8 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         ``n_isolated`` (points far from all others,
         :func:`~parambench.methods.pointset.stray_points.isolated_mask`),
         ``n_outside`` and ``outside_depth`` (:func:`points_outside`; with loops),
-        ``conformal_judged``,
+        ``conformal_judged``, ``stretched`` (``coherent_beltrami`` over :func:`coherent_limit`,
+        judged or not),
         ``triangulation`` ("cdt", "delaunay", "delaunay-fallback" or "none"),
         ``n_triangles``, ``n_removed_outside``, ``normal_tol_deg``, ``n_flipped``,
         ``n_flipped_slivers`` (of them ``n_flipped_inner_slivers``, not all corners on a
@@ -734,6 +739,9 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
         failed.append("turning")
     if facts["coverage"] is not None and not facts["coverage"]["passed"]:
         failed.append("coverage")
+    # Reported for every map: a method that does not aim at conformality (lem: coherent
+    # Beltrami 0.38 on a plane, 0.90 on a frustum) passes its check, and says so.
+    facts["stretched"] = _stretched(facts)
     if _too_distorted(facts):
         failed.append("distorted")
     if _too_far_outside(facts):

@@ -323,3 +323,26 @@ def test_a_repaired_point_set_csv_keeps_one_row_per_input_row(tmp_path, capsys):
                                rtol=0, atol=1e-9)
     assert main(["flatten", str(src), "--repair", "-o", str(tmp_path / "scan.obj")]) == 0
     assert "the output holds these vertices" in capsys.readouterr().err
+
+
+def test_a_stretched_map_of_a_method_not_judged_for_it_is_named(tmp_path, capsys):
+    """Before: lem's map of a plane, QC 2.2 and 4.9 % of the diameter off a similarity, printed "self-check ok" alone."""
+    from parambench.datasets_gen.registry import make_surface
+
+    pts = make_surface("plane", 1500, sampling="jittered", seed=0).points
+    src = tmp_path / "plane.xyz"
+    np.savetxt(src, pts)
+    assert main(["flatten", str(src), "--method", "lem", "-o", str(tmp_path / "lem.csv")]) == 0
+    captured = capsys.readouterr()
+    assert "not conformal (coherent Beltrami coefficient" in captured.out
+    assert "lem's check does not judge conformality, ocp's does" in captured.err
+    uv = np.loadtxt(tmp_path / "lem.csv", delimiter=",", skiprows=1)
+    # The note is right: the map is measurably not a similarity of the plane.
+    a, b = uv[:, 0] + 1j * uv[:, 1], pts[:, 0] + 1j * pts[:, 1]
+    a, b = a - a.mean(), b - b.mean()
+    fit = min(np.linalg.norm((np.conj(z) @ b) / (np.conj(z) @ z) * z - b) for z in (a, np.conj(a)))
+    assert fit / np.linalg.norm(b) > 0.01
+    # ocp's map of the same points passes without the note.
+    assert main(["flatten", str(src), "-o", str(tmp_path / "ocp.csv")]) == 0
+    captured = capsys.readouterr()
+    assert "not conformal" not in captured.out and "note" not in captured.err
