@@ -545,6 +545,11 @@ def _in_loop_plane(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return centre, vt[:2], (q - centre) @ vt[:2].T
 
 
+def _smaller_angle(angle_deg: float) -> float:
+    """The angle to propose below ``angle_deg``: 100 degrees, or 20 below where that is not lower."""
+    return 100.0 if angle_deg > 100.0 else max(angle_deg - 20.0, 10.0)
+
+
 def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
                       n_points: int | None = None) -> NoBoundaryError:
     """The error for "no loop", worded by how many points passed the angle criterion.
@@ -552,7 +557,10 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
     Most of the points (``n_points``, when given): too few points to have an inside
     (40 random points on a square: 21 candidates, which read as "closed surface").
     Few candidates: the surface is closed, or its rim drowns in noise (``fold``, an open
-    strip, at normal noise of 0.5 spacings: 22 candidates). Many that do not close into a loop: the
+    strip, at normal noise of 0.5 spacings: 22 candidates), or its only opening is a hole
+    smaller than the balls (a sphere without a 15-degree cap, 2,949 points: 16
+    candidates, refused as "closed"; at 100 degrees one loop, and a map matching the
+    mesh's ``scp``). Many that do not close into a loop: the
     boundary is too ragged or sparse for balls of this size.
     """
     if n_points is not None and n_candidates > _MOSTLY_BOUNDARY * n_points:
@@ -566,7 +574,9 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
             f"no boundary found ({n_candidates} isolated point(s) pass the {angle_deg:g}-degree angle "
             "criterion): closed surface: cut it open before flattening; or, if the surface has a rim, the "
             "rim is too noisy or sparsely sampled to tell from the inside (denoise the points, or sample "
-            "the rim more densely)."
+            f"the rim more densely); or its only opening is a hole narrower than the geodesic balls (about "
+            f"5 spacings across), whose rim points see each other across it: lower boundary_angle_deg "
+            f"(e.g. {_smaller_angle(angle_deg):g})."
         )
     return NoBoundaryError(
         f"{n_candidates} points pass the {angle_deg:g}-degree angle criterion but no boundary loop closes: "

@@ -554,3 +554,21 @@ def test_bunny_holes_found_are_complete():
         assert surface.boundary_mask[loop].mean() >= 0.9
         overlap = [np.isin(true, loop).mean() for true in surface.boundary_loops]
         assert max(overlap) == 1.0
+
+
+def test_a_small_hole_as_the_only_opening_is_offered_a_smaller_angle():
+    """A sphere without a 15-degree cap (2,949 points): refused as closed, with no hint that helps before."""
+    from parambench.methods.pointset.frontend import build_frontend
+    from parambench.datasets_gen.errors import NoBoundaryError
+
+    i = np.arange(3000) + 0.5
+    phi, th = np.arccos(1 - 2 * i / 3000), np.pi * (1 + 5 ** 0.5) * i
+    sphere = np.c_[np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)]
+    points = sphere[sphere[:, 2] < np.cos(np.radians(15))]
+    with pytest.raises(NoBoundaryError, match=r"lower boundary_angle_deg \(e\.g\. 100\)"):
+        build_frontend(points)
+    front = build_frontend(points, boundary_angle_deg=100.0)
+    assert len(front.boundary_loops) == 1
+    rim = front.boundary_loops[0]
+    assert np.all(points[rim, 2] > np.cos(np.radians(15)) - 0.1)  # the loop is the hole's rim
+    assert "e.g. 80" in str(no_boundary_error(5, 100.0, 8))
