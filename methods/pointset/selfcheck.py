@@ -63,9 +63,11 @@ against the 3D geometry. Thresholds (module constants, reported with every check
 * **boundary crossing**: the loops' images in uv must not cross each other or
   themselves (a crossing is a fold at the boundary; the constrained triangulation then
   needs extra vertices, and the triangle counts above come from the fallback).
-* **turning**: each loop's turning number in uv is +1 for the outer loop (the one whose
-  image bounds the largest area: an open cylinder may put either rim outside) and -1
-  for holes, or all reversed under a global mirror, within ``TURNING_TOL`` = 0.25.
+* **turning**: each loop's turning number in uv is +1 for the outer loop and -1 for
+  holes, or all reversed under a global mirror, within ``TURNING_TOL`` = 0.25. The outer
+  loop is the longest in 3D, or the one whose image bounds the largest area where its
+  rim is at least ``COMPARABLE_RIM`` = 0.5 as long (an open cylinder may put either rim
+  outside; a small hole put outside has turned inside out).
 * **coverage**: the angle-criterion boundary candidates, when known, lie within
   ``COVER_RADIUS`` = 3 mean spacings of a detected loop; a connected group of at least
   ``MIN_MISSED_RING`` = 8 uncovered candidates is a missed hole. The check applies only
@@ -164,6 +166,7 @@ CLEAN_TOL_DEG = 3.0
 COHERENT_CELL_TRIANGLES = 100
 MAX_OUTSIDE_DEPTH = 0.25
 MAX_RING_FLIPPED = 0
+COMPARABLE_RIM = 0.5
 
 #: The thresholds as reported in ``diagnostics["selfcheck"]["thresholds"]``.
 THRESHOLDS = {"max_flipped": MAX_FLIPPED, "max_degenerate_fraction": MAX_DEGENERATE_FRACTION,
@@ -545,21 +548,32 @@ def points_outside(uv: np.ndarray, loops: list, knn_indices: np.ndarray) -> dict
     return {"n_outside": int(out.size), "outside_depth": round(float(depth.max()), 4)}
 
 
-def _outer_in_uv(uv: np.ndarray, loops: list) -> int:
-    """The loop whose image bounds the largest area: the outer one in uv.
+def _outer_in_uv(uv: np.ndarray, loops: list, points: np.ndarray) -> int:
+    """The loop the map may put outside: the one whose image bounds the largest area, where
+    its rim is at least :data:`COMPARABLE_RIM` as long in 3D as the longest loop's; else the
+    longest (``loops[0]``).
 
-    Which loop a map puts outside is the map's choice where several could be: an open
-    cylinder's two rims are alike, and ``ocp`` put either outside (a correct map, radius
-    ratio 20.0 against e^3 = 20.09, refused as "loop 0 turns -1.00 (expected +1)").
+    Which of two alike rims a map puts outside is its choice: an open cylinder's two rims
+    are alike, and ``ocp`` put either outside (a correct map, radius ratio 20.0 against
+    e^3 = 20.09, refused as "loop 0 turns -1.00 (expected +1)"). A small hole put outside
+    is a hole turned inside out (``real/bunny10k``: one of 1.42 and 3551 in area), which
+    squeezes the rest of the surface into a point.
     """
     areas = [abs(signed_area_2d(uv[np.asarray(lp, dtype=np.int64)])) for lp in loops]
-    return int(np.argmax(areas))
+    outer = int(np.argmax(areas))
+    if outer and _rim_length(points, loops[outer]) < COMPARABLE_RIM * _rim_length(points, loops[0]):
+        return 0
+    return outer
 
 
-def _turning(uv: np.ndarray, loops: list, mirrored: bool) -> dict:
+def _rim_length(points: np.ndarray, loop) -> float:
+    loop = np.asarray(loop, dtype=np.int64)
+    return float(np.linalg.norm(points[np.roll(loop, -1)] - points[loop], axis=1).sum())
+
+
+def _turning(uv: np.ndarray, loops: list, mirrored: bool, outer: int) -> dict:
     sign = -1.0 if mirrored else 1.0
     turns = [turning_number(uv[np.asarray(lp, dtype=np.int64)]) for lp in loops]
-    outer = _outer_in_uv(uv, loops)
     expected = [sign * (1.0 if i == outer else -1.0) for i in range(len(turns))]
     ok = all(abs(t - e) <= TURNING_TOL for t, e in zip(turns, expected))
     return {"turning_numbers": [round(t, 4) for t in turns], "expected_turning": expected, "turning_ok": bool(ok)}
@@ -721,8 +735,9 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
             failing = _with_ring_facts(facts, failing, points, uv, normals, knn, loops, spacing_pt, tol)
     if loops and np.all(np.isfinite(uv)):
         # Without triangles to tell a mirror, the outer loop's own sign is taken as the mirror's.
-        mirrored = facts.get("mirrored", turning_number(uv[loops[_outer_in_uv(uv, loops)]]) < 0)
-        facts.update(_turning(uv, loops, mirrored))
+        outer = _outer_in_uv(uv, loops, points)
+        mirrored = facts.get("mirrored", turning_number(uv[loops[outer]]) < 0)
+        facts.update(_turning(uv, loops, mirrored, outer))
         facts.update(points_outside(uv, loops, knn))
     facts["coverage"] = (loop_coverage(points, loops, candidates, knn, l_mean) if candidates is not None else None)
     failed = []

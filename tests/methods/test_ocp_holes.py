@@ -53,7 +53,10 @@ def test_holes_that_turn_inside_out_are_filled_on_a_real_scan():
     diag = result.diagnostics
     assert diag["holes_filled"] >= 1 and diag["n_fill_points"] > 0
     check = diag["selfcheck"]
-    assert check["turning_ok"] and all(t == -1.0 for t in check["turning_numbers"][1:])
+    # One loop outside, the others its holes: no hole turned inside out (which loop is
+    # outside is the map's choice where the rims are alike, the self-check's rule).
+    turns = np.asarray(check["turning_numbers"])
+    assert check["turning_ok"] and abs(turns.sum()) == len(turns) - 2 and set(np.abs(turns)) == {1.0}
     assert "normalized" not in str(check.get("retry", {}).get("error", ""))  # hints name ocp's parameters
     base = _quality(bunny, get_method("scp-igl")(bunny.method_input(True)).uv)
     assert _quality(bunny, result.uv)["foldovers"] < base["foldovers"] / 10
@@ -82,3 +85,46 @@ def test_a_slot_is_filled_before_the_first_solve():
 def test_wide_holes_are_not_thin(planar_holes):
     result = get_method("ocp")(planar_holes.method_input(False))
     assert result.diagnostics["thin_holes_filled"] == 0
+
+
+def _plane_with_holes(n: int, per_side: int, radius: float = 4.5, seed: int = 5) -> np.ndarray:
+    """A jittered plane [-1, 1]^2 with per_side^2 round holes of ``radius`` grid spacings."""
+    rng = np.random.default_rng(seed)
+    m = int(np.sqrt(n * 1.3))
+    h = 2.0 / (m - 1)
+    x, y = np.meshgrid(np.linspace(-1, 1, m), np.linspace(-1, 1, m))
+    xy = np.c_[x.ravel(), y.ravel()] + rng.uniform(-0.3, 0.3, (x.size, 2)) * h
+    centres = np.stack(np.meshgrid(*[np.linspace(-0.75, 0.75, per_side)] * 2), -1).reshape(-1, 2)
+    keep = np.min(np.linalg.norm(xy[:, None] - centres[None], axis=2), axis=1) > radius * h
+    return np.c_[xy[keep], np.zeros(keep.sum())]
+
+
+def test_many_holes_get_a_small_basis_and_the_exact_map():
+    """Before: 9 basis functions per hole, and time that grew with the cube of the basis
+    (10k points, 36 holes: 9.5 s; 100 holes: 97 s; now 2.5 s and 11 s)."""
+    from parambench.methods.spectral.subspace import MANY_LOOPS, boundary_basis
+
+    loops = [np.arange(60)] + [60 + 12 * j + np.arange(12) for j in range(MANY_LOOPS + 1)]
+    ring = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    pts = np.zeros((60 + 12 * (MANY_LOOPS + 1), 3))
+    pts[:60, :2] = 5 * np.c_[np.cos(np.linspace(0, 2 * np.pi, 60, endpoint=False)),
+                             np.sin(np.linspace(0, 2 * np.pi, 60, endpoint=False))]
+    for j in range(MANY_LOOPS + 1):
+        pts[60 + 12 * j: 72 + 12 * j, :2] = [j - 4.0, 0.0] + 0.3 * np.c_[np.cos(ring), np.sin(ring)]
+    many = boundary_basis(loops, pts).shape[1]
+    few = boundary_basis(loops[:MANY_LOOPS], pts).shape[1]
+    # Up to MANY_LOOPS loops every hole keeps 4 modes (9 functions); beyond, 1 (3 functions).
+    assert few >= 9 * (MANY_LOOPS - 1) and many < few
+    points = _plane_with_holes(5000, 4)
+    result = get_method("ocp")(_as_input(points))
+    assert len(result.diagnostics["boundary_loops"]) == 17
+    assert result.diagnostics["selfcheck"]["passed"]
+    uv, xy = result.uv[:, 0] + 1j * result.uv[:, 1], points[:, 0] + 1j * points[:, 1]
+    uv, xy = uv - uv.mean(), xy - xy.mean()
+    err = min(np.linalg.norm((np.conj(z) @ xy) / (np.conj(z) @ z) * z - xy) for z in (uv, np.conj(uv)))
+    assert err / np.linalg.norm(xy) < 1e-5
+
+
+def _as_input(points):
+    from parambench.datasets_gen.surface import MethodInput
+    return MethodInput(points)

@@ -160,6 +160,21 @@ def test_either_rim_of_an_open_cylinder_may_map_outside():
     assert not check["passed"] and "turning" in check["failed"]
 
 
+def test_a_small_hole_turned_outside_fails():
+    """A flat annulus, radii 1 and 0.2: its inversion puts the hole's short rim outside (a hole
+    turned inside out, the rest squeezed inside), which the turning check refuses."""
+    r, t = np.meshgrid(np.geomspace(0.2, 1.0, 20), np.linspace(0, 2 * np.pi, 64, endpoint=False))
+    z = (r * np.exp(1j * t)).ravel()
+    pts = np.c_[z.real, z.imag, np.zeros(z.size)]
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    outer = np.flatnonzero(np.isclose(r.ravel(), 1.0))  # counter-clockwise: the surface on the left
+    hole = np.flatnonzero(np.isclose(r.ravel(), 0.2))[::-1]
+    assert check_pointset_map(pts, pts[:, :2], normals, [outer, hole])["passed"]
+    w = 0.2 / z  # conformal and orientation-preserving too
+    check = check_pointset_map(pts, np.c_[w.real, w.imag], normals, [outer, hole])
+    assert not check["passed"] and "turning" in check["failed"]
+
+
 def test_a_local_fold_is_counted_as_flipped():
     pts, outer, rim = _grid_with_hole()
     normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
