@@ -82,3 +82,30 @@ def test_no_crossing_in_bracket_raises(surfaces):
         prob.solve("dncp", "line", pins=pins, bracket=(1.5, 3.0))
     sol = prob.solve("dncp", "line", pins=pins, bracket=(0.9, 1.1))
     assert np.isclose(sol.k, prob.solve("scp", "direct").k, rtol=1e-10)
+
+
+def test_an_open_cylinder_maps_to_its_annulus_without_lapack_warnings():
+    """Before: LAPACK's "ill-conditioned matrix" warning from a k the search stepped past reached the user."""
+    import warnings
+
+    import scipy.linalg as la
+
+    from parambench.datasets_gen.surface import Surface
+
+    n_round, n_up = 100, 17  # vertices numbered up each column, as a tester's file had them
+    t, h = np.meshgrid(np.linspace(0, 2 * np.pi, n_round, endpoint=False), np.linspace(0.0, 1.0, n_up), indexing="ij")
+    # As the file had them: 10 significant digits (the search met a singular k on exactly these).
+    pts = np.vectorize(lambda x: float(f"{x:.10g}"))(np.c_[np.cos(t).ravel(), np.sin(t).ravel(), h.ravel()])
+    i, j = np.meshgrid(np.arange(n_round), np.arange(n_up - 1), indexing="ij")
+    a, b = i * n_up + j, (i + 1) % n_round * n_up + j
+    a, b = a.ravel(), b.ravel()
+    faces = np.r_[np.c_[a, b, b + 1], np.c_[a, b + 1, a + 1]]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        uv = get_method("dncp-opt")(Surface(pts, faces, name="open cylinder")).uv
+    assert not [w for w in caught if issubclass(w.category, la.LinAlgWarning)]
+    bottom, top = np.arange(n_round) * n_up, np.arange(n_round) * n_up + n_up - 1
+    radii = [np.linalg.norm(uv[rim] - uv[bottom].mean(axis=0), axis=1) for rim in (bottom, top)]
+    assert max(r.std() / r.mean() for r in radii) < 1e-6  # both rims round, about one centre
+    ratio = max(r.mean() for r in radii) / min(r.mean() for r in radii)
+    assert ratio == pytest.approx(np.e, rel=1e-3)  # exp(height / radius)
