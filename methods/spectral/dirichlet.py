@@ -31,8 +31,13 @@ def fix_signs(vectors: np.ndarray) -> np.ndarray:
     return vectors * signs
 
 
+#: Two real parts this close to parallel (|cosine|) are one direction, not two.
+_DEPENDENT_COS = 0.999
+
+
 def real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two real vectors spanning the two smallest eigen-directions (a complex pair gives Re, Im)."""
+    """Two real vectors spanning the two smallest eigen-directions (a complex pair gives Re, Im;
+    a double real eigenvalue whose vectors' real parts coincide gives its plane)."""
     order = np.argsort(vals.real)
     vals, vecs = vals[order], vecs[:, order]
     first = vecs[:, 0]
@@ -43,6 +48,13 @@ def real_pair(vals: np.ndarray, vecs: np.ndarray) -> tuple[np.ndarray, np.ndarra
     second = vecs[:, 1]
     pair = np.column_stack([first.real if np.abs(first.real).max() >= np.abs(first.imag).max() else first.imag,
                             second.real if np.abs(second.real).max() >= np.abs(second.imag).max() else second.imag])
+    unit = pair / np.maximum(np.linalg.norm(pair, axis=0), 1e-300)
+    if abs(float(unit[:, 0] @ unit[:, 1])) > _DEPENDENT_COS:
+        # A double real eigenvalue (a square lattice's x and y modes): ARPACK returns two
+        # complex combinations of its plane whose real parts can coincide (sdp on a 61 x 61
+        # grid: "cannot make them B-orthonormal"). The plane is the span of all four parts.
+        parts = np.column_stack([first.real, first.imag, second.real, second.imag])
+        pair = np.linalg.svd(parts, full_matrices=False)[0][:, :2]
     return vals[:2].real, pair
 
 
@@ -156,7 +168,12 @@ def b_orthonormalize(pair: np.ndarray, b_diag: np.ndarray) -> np.ndarray:
     try:
         chol = np.linalg.cholesky(gram)
     except np.linalg.LinAlgError:
-        raise SolverError("the two eigenvectors are dependent on the boundary; cannot make them B-orthonormal.") from None
+        # A slit whose lips coincide (a cut mesh's seam as bare points) left both
+        # eigenvectors alike on the boundary: the message said so and offered nothing.
+        raise hinted(SolverError, "the two eigenvectors are dependent on the boundary, so they cannot be made "
+                     "B-orthonormal (a boundary the points do not show well, such as a slit whose lips coincide)",
+                     Hint("use b_orthonormal=False (the paper's variant)", "b_orthonormal", False),
+                     Hint("lower boundary_angle_deg (e.g. 100)", "boundary_angle_deg", 100.0, -1)) from None
     return fix_signs(f @ np.linalg.inv(chol).T)
 
 

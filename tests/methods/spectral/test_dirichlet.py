@@ -95,3 +95,22 @@ def test_sdp_pair_from_a_mixed_precision_factor_matches_double(monkeypatch):
     rot, *_ = np.linalg.lstsq(uv_mixed, uv_double, rcond=None)
     np.testing.assert_allclose(rot.T @ rot, np.eye(2), atol=1e-8)
     assert np.abs(uv_mixed @ rot - uv_double).max() < 1e-8 * np.abs(uv_double).max()
+
+
+def test_a_double_eigenvalue_in_complex_combinations_gives_its_plane():
+    """ARPACK may return a double real eigenvalue's plane as v and conj(v): their real parts
+    coincide, and sdp failed with "cannot make them B-orthonormal" (a 61 x 61 grid with a slit)."""
+    from parambench.methods.spectral.dirichlet import real_pair
+
+    rng = np.random.default_rng(0)
+    e1, e2 = np.linalg.qr(rng.standard_normal((50, 2)))[0].T
+    v = (e1 + 1j * e2) * np.exp(0.3j)
+    vals, pair = real_pair(np.array([2.0 + 0j, 2.0 + 0j]), np.column_stack([v, np.conj(v)]))
+    assert np.allclose(vals, [2.0, 2.0])
+    # The two columns span exactly the plane of e1 and e2.
+    basis = np.column_stack([e1, e2])
+    assert np.allclose(basis @ (basis.T @ pair), pair, atol=1e-12)
+    assert abs(np.linalg.det(basis.T @ pair)) > 0.5
+    # Distinct real eigenvectors are left as they are.
+    vals, pair = real_pair(np.array([1.0 + 0j, 2.0 + 0j]), np.column_stack([e1 + 0j, e2 + 0j]))
+    assert np.allclose(pair, np.column_stack([e1, e2]))
