@@ -673,6 +673,13 @@ def _dispatch(args: argparse.Namespace) -> int:
     except ParambenchError as exc:
         print(f"parambench: error: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader of stdout left (`parambench list | head`): nothing to tell it, and the
+        # interpreter's own flush at exit must not fail again (Python's documented recipe).
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, as a shell reports a pipe's writer cut short
     except OSError as exc:  # a folder the checks could not foresee (/proc as root, a disk full): one line
         print(f"parambench: error: {type(exc).__name__}: {exc}; check the path and its permissions.", file=sys.stderr)
         return 2

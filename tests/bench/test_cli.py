@@ -333,3 +333,17 @@ def test_an_unreachable_scheduler_is_refused_before_the_folder_is_made(tmp_path,
     err = capsys.readouterr().err
     assert "no Dask scheduler answered at tcp://127.0.0.1:1 within 1 s" in err and "permissions" not in err
     assert not out.exists()
+
+
+def test_a_reader_that_leaves_the_pipe_gets_no_error_message():
+    """Before: `parambench list | head` printed "BrokenPipeError ...; check the path and its permissions"."""
+    import subprocess
+    import sys
+
+    # PYTHONPATH leads to the source tree (tests/source_tree.py).
+    script = "import sys, time; time.sleep(1.0); from parambench.bench.cli import main; sys.exit(main(['list']))"
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the first line is written
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    assert proc.wait(timeout=120) == 141 and "error" not in err
