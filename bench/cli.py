@@ -246,13 +246,20 @@ def _retry_summary(retry: dict | None) -> str:
     return f" ({n} retries failed too: with {'; with '.join(earlier + [_listed(retry)])}{error})"
 
 
-def _holes_summary(diag: dict) -> str:
-    """Whether the method filled holes to get its map (``holes="auto"``) and with how much."""
+def _holes_summary(diag: dict, params: dict | None = None) -> str:
+    """Whether the method filled holes to get its map, with how much, and why: asked to
+    (``holes="filled"``), slots filled before the solve, or free holes that failed."""
     n = int(diag.get("holes_filled") or 0)
     if not n:
         return ""
     points = diag.get("n_fill_points")
-    return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: with free holes the map failed)"
+    if (params or {}).get("holes") == "filled":
+        why = "as holes=filled asks"
+    elif int(diag.get("thin_holes_filled") or 0) == n:
+        why = "narrow holes (slots) are filled before the solve"
+    else:
+        why = "with free holes the map failed"
+    return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: {why})"
 
 
 def _energy_summary(diag: dict) -> str:
@@ -377,7 +384,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
     summary = (f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
-               + _holes_summary(result.diagnostics) + _energy_summary(result.diagnostics))
+               + _holes_summary(result.diagnostics, result.params) + _energy_summary(result.diagnostics))
     if failed and not args.force:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
         strays = "stray" in check.get("causes", {}) or "isolated" in (check.get("failed") or ())
@@ -584,7 +591,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="output .obj (v, vt, f), .ply (x y z texture_u texture_v, faces) or .csv (u,v); point sets get the "
                            "self-check's uv triangulation as faces")
     flat.add_argument("--force", action="store_true",
-                      help="write a point-set map that fails its self-check (otherwise exit code 3, nothing written)")
+                      help="write a map (point set or mesh) that fails its self-check, with a warning and exit code 0 "
+                           "(otherwise exit code 3, nothing written)")
     flat.add_argument("--repair", action="store_true", help=REPAIR_HELP)
     flat.set_defaults(func=_cmd_flatten)
 

@@ -195,6 +195,11 @@ def test_the_summary_says_when_holes_were_filled():
     assert _holes_summary({}) == ""
     assert _holes_summary({"holes_filled": 2, "n_fill_points": 31}) == (
         " (2 hole(s) filled with 31 points: with free holes the map failed)")
+    # Before: holes=filled was said to have failed free, a map never tried.
+    assert _holes_summary({"holes_filled": 3, "n_fill_points": 235}, {"holes": "filled"}) == (
+        " (3 hole(s) filled with 235 points: as holes=filled asks)")
+    assert _holes_summary({"holes_filled": 1, "thin_holes_filled": 1, "n_fill_points": 9}, {"holes": "auto"}) == (
+        " (1 hole(s) filled with 9 points: narrow holes (slots) are filled before the solve)")
 
 
 def _xyz(tmp_path, name, sampling):
