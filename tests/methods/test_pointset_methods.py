@@ -175,3 +175,56 @@ def test_scp_rl_line_search_falls_back_to_direct_and_names_no_circle(monkeypatch
     assert searches[:2] == ["line", "direct"]
     assert "k_search='direct' too" in message and "--method ocp" in message
     assert "use k_search='line'" not in message and "use k_search='direct'" not in message
+
+
+class _ExactPlane:
+    """A plugin without a front end: the exact map of a plane (its points' own x, y in the pose it
+    is given), with or without the loops, walked either way."""
+
+    loops: list | None = None
+
+    @staticmethod
+    def make(loops):
+        from parambench.methods.base import Method, MethodOutput
+
+        class ExactPlane(Method):
+            name = "exact-plane-test"
+            defaults: dict = {}
+            param_grid: dict = {}
+            needs_faces = False
+
+            def solve(self, surface, params, timer):
+                diag = {} if loops is None else {"boundary_loops": [np.asarray(lp) for lp in loops]}
+                return MethodOutput(uv=surface.points[:, :2] - surface.points[:, :2].mean(axis=0), diagnostics=diag)
+
+        return ExactPlane
+
+
+@pytest.mark.parametrize("with_loops", [None, "as generated", "reversed"])
+def test_an_exact_map_without_a_front_end_passes(with_loops):
+    """Before: the check's own triangulation of the square's straight edges made 2.9 % zero-area
+    "degenerate" triangles (scikit-learn's peers failed on them), and loops handed over clockwise
+    read as "loop 0 turns -1.00 (expected +1)"."""
+    from parambench.methods.registry import _REGISTRY, register
+
+    plane = make_surface("plane", 2000, sampling="jittered", seed=0)
+    loops = None if with_loops is None else [
+        np.asarray(lp)[::-1] if with_loops == "reversed" else np.asarray(lp) for lp in plane.boundary_loops]
+    cls = register(_ExactPlane.make(loops))
+    try:
+        check = get_method(cls.name)(Surface(plane.points, name="plane")).diagnostics["selfcheck"]
+    finally:
+        _REGISTRY.pop(cls.name, None)
+    assert check["passed"], check["reason"]
+    assert check["n_degenerate"] == 0
+
+
+def test_the_front_end_walks_its_loops_with_the_surface_on_the_left():
+    """The convention the check orients handed-over loops by is the front end's own."""
+    from parambench.methods.pointset.frontend import build_frontend
+    from parambench.methods.pointset.plugin_support import surface_on_the_left
+
+    for name in ("bump", "holes"):
+        front = build_frontend(make_surface(name, 2000, sampling="random", seed=0).points)
+        for loop in front.boundary_loops:
+            assert surface_on_the_left(front.points, front.normals, loop, front.knn_indices) is loop
