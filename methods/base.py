@@ -275,13 +275,15 @@ class Method:
                 _check_number_type(key, default, params[key])
         self.check_params(params)
 
-    def inert_params(self, params: dict[str, Any]) -> dict[str, str]:
+    def inert_params(self, params: dict[str, Any], n_points: int | None = None) -> dict[str, str]:
         """Parameters that do not shape the map under the other values of ``params`` (none by default).
 
         Parameters
         ----------
         params : dict
             Resolved parameters.
+        n_points : int, optional
+            Points of the surface about to be mapped (where a size decides what acts).
 
         Returns
         -------
@@ -357,7 +359,7 @@ class Method:
         # Error hints name only this method's parameters (methods/hints.py).
         with method_hints(self.defaults, resolved):
             self.check_values(resolved)
-            self._warn_inert(params, resolved)
+            self._warn_inert(params, resolved, surface.n_points)
             result = self._run_point_or_mesh(surface, **resolved)
         # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
         check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)
@@ -370,8 +372,12 @@ class Method:
             )
         return result
 
-    def _warn_inert(self, given: dict[str, Any], resolved: dict[str, Any]) -> None:
-        for key, why in self.inert_params(resolved).items():
+    def _warn_inert(self, given: dict[str, Any], resolved: dict[str, Any], n_points: int | None = None) -> None:
+        try:
+            inert = self.inert_params(resolved, n_points)
+        except TypeError:  # a plugin written for inert_params(params) alone
+            inert = self.inert_params(resolved)
+        for key, why in inert.items():
             if key in given:
                 warnings.warn(InertParameterWarning(f"{self.name}: {key}={given[key]!r} {why}"),
                               stacklevel=3)

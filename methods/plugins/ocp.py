@@ -214,8 +214,11 @@ class Ocp(Method):
     choices = {"solver": OCP_SOLVERS, "energy": tuple(OCP_ENERGIES), "fine_solver": FINE_SOLVERS, "holes": HOLES_MODES,
                "refine": REFINE_MODES}
 
-    def inert_params(self, params: dict) -> dict[str, str]:
-        """``reg_eps`` under ``energy="neumann"``, ``area_factor`` under ``energy="paper"``.
+    def inert_params(self, params: dict, n_points: int | None = None) -> dict[str, str]:
+        """``reg_eps`` under ``energy="neumann"``, ``area_factor`` under ``energy="paper"``, and
+        the two-level parameters where the direct path runs (``solver="direct"``, or
+        ``"auto"`` below :data:`MULTILEVEL_FROM` points: ``map_error=0.02`` on 2,000 points
+        said nothing and changed nothing).
 
         ``reg_eps`` regularises the W^tan rows, which the default Neumann energy does not
         use (its rows are moment fits) but in its fallback to the paper's energy: passed
@@ -230,6 +233,15 @@ class Ocp(Method):
         if params["energy"] == "paper":
             inert["area_factor"] = ("has no effect: only the Neumann energies have an area term; pass energy='neumann' "
                                     "or 'neumann-tan'")
+        direct = params["solver"] == "direct" or (
+            params["solver"] == "auto" and n_points is not None
+            and resolve_solver("auto", n_points, params["k_search"]) == "direct")
+        if direct:
+            where = ("solver='direct' takes the direct one" if params["solver"] == "direct" else
+                     f"on {n_points} points solver='auto' takes the direct one (two levels from {MULTILEVEL_FROM} "
+                     "points on, or with solver='multilevel')")
+            for key in ("fine_solver", "map_error", "polish_residual", "polish_spread"):
+                inert[key] = f"acts only on the two-level path, and {where}"
         return inert
 
     def check_params(self, params: dict) -> None:

@@ -131,3 +131,25 @@ def test_reg_eps_does_not_act_on_the_default_energy_and_says_so():
     assert np.abs(paper_eps.uv - paper.uv).max() > 1e-6 * np.ptp(paper.uv)
     with pytest.warns(InertParameterWarning, match="area_factor=2.0 has no effect"):
         ocp(surface, energy="paper", area_factor=2.0)
+
+
+def test_two_level_parameters_on_the_direct_path_say_so():
+    """Before: ``map_error=0.02`` on 2,000 points (solver='auto' runs the direct path below 200k)
+    said nothing and changed nothing."""
+    import numpy as np
+
+    from parambench.methods.base import InertParameterWarning
+
+    surface = make_surface("bump", 800, sampling="jittered", seed=0).points_only()
+    ocp = get_method("ocp")
+    plain = ocp(surface)
+    with pytest.warns(InertParameterWarning, match=r"map_error=0.02 acts only on the two-level path, and on \d+ "
+                                                   r"points solver='auto' takes the direct one"):
+        given = ocp(surface, map_error=0.02)
+    np.testing.assert_array_equal(given.uv, plain.uv)
+    with pytest.warns(InertParameterWarning, match="polish_residual=0.0 acts only on the two-level path, and "
+                                                   "solver='direct' takes the direct one"):
+        ocp(surface, solver="direct", polish_residual=0.0)
+    # On the two-level path they act.
+    inert = ocp.inert_params({**ocp.defaults, "solver": "multilevel"}, 800)
+    assert not {"fine_solver", "map_error", "polish_residual", "polish_spread"} & set(inert)
