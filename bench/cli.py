@@ -477,6 +477,14 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
                      f"over 60 deg apart: a map's fold there may go unseen)")
     print(f"{surface.n_points} points, mean spacing {report['mean_spacing']:.4g}, "
           f"{len(loops)} boundary loop(s){coverage} -> {out}")
+    isolated = (report.get("selfcheck") or {}).get("n_isolated", 0)
+    if isolated:
+        # As flatten's check says of them; before, inspect reported "coverage ok" and a mean
+        # spacing of 2015 for points 0.003 apart, with exit 0.
+        print(f"parambench: error: inspect: {isolated} point(s) lie far from all others (a scan's 0 0 0 rows?), and "
+              f"the spacing and loops reported are skewed by them; {'remove them' if args.repair else '--repair drops them'}",
+              file=sys.stderr)
+        return EXIT_SELFCHECK
     if cov and not cov["passed"]:
         # The diagnostics are written either way; the exit code says the loops are doubtful.
         from parambench.methods.pointset.selfcheck_advice import suggest_fix

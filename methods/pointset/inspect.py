@@ -11,6 +11,7 @@ from .frontend import build_frontend
 from .plugin_support import frontend_candidates
 from .ring_orientation import unresolved_points
 from .selfcheck import loop_coverage
+from .stray_points import isolated_mask
 
 __all__ = ["inspect_surface"]
 
@@ -37,7 +38,9 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         ``reconstruction_error`` {"mean", "max", "unit"} (R_x / l^2), ``ball_size``,
         ``timings`` (seconds per stage), ``params``, the full ``diagnostics`` and
         ``selfcheck``: the parts of a map's self-check that need no map, ``{"coverage":
-        loop_coverage(...) or None, "n_unresolved": int}``
+        loop_coverage(...) or None, "n_unresolved": int, "n_isolated": int}`` (points far
+        from all others, :func:`~parambench.methods.pointset.stray_points.isolated_mask`:
+        a scan's ``0 0 0`` rows, which also inflate ``mean_spacing``)
         (:func:`parambench.methods.pointset.selfcheck.loop_coverage`: do the loops cover the
         angle-criterion candidates?; :func:`parambench.methods.pointset.ring_orientation.unresolved_points`:
         points where the sampling does not resolve the surface, and a map's fold would go unseen).
@@ -72,5 +75,6 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         "params": dict(fe.params),
         "diagnostics": diag,
         "selfcheck": {"coverage": coverage,
-                      "n_unresolved": int(unresolved_points(fe.normals, fe.knn_indices).sum())},
+                      "n_unresolved": int(unresolved_points(fe.normals, fe.knn_indices).sum()),
+                      "n_isolated": int(isolated_mask(fe.points, fe.knn_indices).sum())},
     }

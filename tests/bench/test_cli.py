@@ -347,3 +347,19 @@ def test_a_reader_that_leaves_the_pipe_gets_no_error_message():
     err = proc.stderr.read().decode()
     proc.stderr.close()
     assert proc.wait(timeout=120) == 141 and "error" not in err
+
+
+def test_inspect_names_points_far_from_all_others(tmp_path, capsys):
+    """Before: a UTM patch with one `0 0 0` row was reported with "mean spacing 2015" (the points are
+    0.003 apart), "loop coverage ok" and exit 0, where flatten exits 3 naming the far point."""
+    from parambench.datasets_gen.registry import make_surface
+
+    points = make_surface("bump", 1500, sampling="jittered", seed=0).points * 0.1 + [5e5, 4e6, 100.0]
+    src = tmp_path / "utm.xyz"
+    np.savetxt(src, np.vstack([points, [0.0, 0.0, 0.0]]), fmt="%.6f")
+    assert main(["inspect", str(src), "-o", str(tmp_path / "d.json")]) == 3
+    assert "1 point(s) lie far from all others" in capsys.readouterr().err
+    assert main(["inspect", str(src), "--repair", "-o", str(tmp_path / "d.json")]) == 0
+    import json
+    report = json.loads((tmp_path / "d.json").read_text())
+    assert report["selfcheck"]["n_isolated"] == 0 and report["mean_spacing"] < 0.01
