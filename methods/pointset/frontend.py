@@ -27,6 +27,7 @@ from .dem import DEM_KINDS, dem_balls
 from .laplacian import graph_laplacian
 from .lattice import is_lattice
 from .lattice_loops import lattice_loops
+from .loop_side import surface_on_the_left
 from .neighbourhoods import _component_sizes, knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
@@ -663,6 +664,9 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     else:
         bnd = find_boundary(p, frame_normals, balls.indices, balls.coords, **bnd_args)
     if given is not None:
+        # Given loops may run either way; the front end's run with the surface on their left.
+        given = [surface_on_the_left(p, frame_normals, np.asarray(lp, dtype=np.int64), nb.graph.indices)
+                 for lp in given]
         return _with_loops(bnd, given, 1, "given"), False
     if params.boundary_method != "rings":
         cells = lattice_loops(p, frame_normals, nb.graph.indices) if lattice else None

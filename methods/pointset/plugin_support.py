@@ -16,12 +16,12 @@ from ..base import StageTimer
 from ..hints import Hint, hinted
 from .failure_causes import cause_advice, describe_causes, protrusion_shrink
 from .frontend import STAGES, FrontEnd, build_frontend
+from .loop_side import surface_on_the_left
 from .params import frontend_params, method_defaults
 from .row_chunks import for_each_chunk
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
-           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause",
-           "surface_on_the_left"]
+           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
@@ -152,33 +152,6 @@ def _estimated_inputs(surface: MethodInput, result) -> _CheckInputs:
              for lp in loops]
     return _CheckInputs(normals=normals, knn_indices=graph.indices, spacing=graph.mean_spacing,
                         loops=loops, candidates=None)
-
-
-def surface_on_the_left(points: np.ndarray, normals: np.ndarray, loop: np.ndarray, knn_indices: np.ndarray
-                        ) -> np.ndarray:
-    """``loop`` walked so that the surface lies on its left, seen from the side ``normals`` point to.
-
-    The front end's loops run so; loops a method hands over without a front end (a
-    plugin's) may run either way, and the turning check read a correct map whose outer
-    loop ran clockwise as "loop 0 turns -1.00 (expected +1)".
-
-    Parameters
-    ----------
-    points, normals : (N, 3) numpy.ndarray of float64
-    loop : (L,) numpy.ndarray of int64
-    knn_indices : (N, K) numpy.ndarray of int64
-
-    Returns
-    -------
-    (L,) numpy.ndarray of int64
-        ``loop`` or ``loop[::-1]`` (the majority of its points decides).
-    """
-    if loop.size < 3:
-        return loop
-    ahead = points[np.roll(loop, -1)] - points[np.roll(loop, 1)]
-    inward = points[knn_indices[loop]].mean(axis=1) - points[loop]
-    left = np.cross(normals[loop], ahead)
-    return loop if np.sum(np.sign(np.einsum("ij,ij->i", inward, left))) >= 0 else loop[::-1]
 
 
 def selfcheck_result(surface: MethodInput, result, conformal: bool = False) -> dict:

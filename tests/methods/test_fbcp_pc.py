@@ -143,6 +143,20 @@ def test_cap_close_to_scp_and_stereographic(boundary):
     assert ev["qc_mean"] <= ref["qc_mean"] * (1 + QC_MARGIN)
     assert ev["exact_error"] < 2 * ref["exact_error"]  # measured 1.28e-4 vs 1.28e-4
     assert res.diagnostics["boundary"] == boundary
+    # Before: given loops ran the generator's way, and the check read this map as "loop 0 turns
+    # +1.00 (expected -1)": every `fbcp-pc [boundary=given]` cell of the quick sweep was suspect.
+    assert res.diagnostics["selfcheck"]["passed"], res.diagnostics["selfcheck"]["reason"]
+
+
+@pytest.mark.parametrize("shape", ["bump", "holes"])
+@pytest.mark.parametrize("reverse", [False, True])
+def test_given_loops_either_way_pass_the_check(shape, reverse):
+    surf = make_surface(shape, 2000, sampling="jittered", seed=0)
+    loops = [np.asarray(lp)[::-1] if reverse else np.asarray(lp) for lp in surf.boundary_loops]
+    given = replace(surf.method_input(needs_faces=False), boundary_loops=loops)
+    check = get_method("fbcp-pc")(given, boundary="given").diagnostics["selfcheck"]
+    assert check["passed"], check["reason"]
+    assert abs(sum(check["turning_numbers"])) == abs(len(loops) - 2)  # one outer loop, the rest holes
 
 
 def test_lilium_points_close_to_scp_on_the_mesh():

@@ -222,7 +222,7 @@ def test_an_exact_map_without_a_front_end_passes(with_loops):
 def test_the_front_end_walks_its_loops_with_the_surface_on_the_left():
     """The convention the check orients handed-over loops by is the front end's own."""
     from parambench.methods.pointset.frontend import build_frontend
-    from parambench.methods.pointset.plugin_support import surface_on_the_left
+    from parambench.methods.pointset.loop_side import surface_on_the_left
 
     for name in ("bump", "holes"):
         front = build_frontend(make_surface(name, 2000, sampling="random", seed=0).points)
