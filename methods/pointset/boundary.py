@@ -122,6 +122,16 @@ MAX_SMALL_GAP_SHARE = 0.10
 #: ... and the loops kept are those of fewer than ``_MAX_VOID_RING`` points around an empty
 #: disk at most this many ball radii wide (the rest the balls see).
 _MAX_SMALL_HOLE_BALLS = 1.25
+#: On irregular samplings (more points pass than that share) only the points near a void
+#: are kept: one whose empty disk touching it on its gap's side is at least this many local
+#: spacings in radius. Measured (the disk along the half-ball gap's bisector, plane with one
+#: hole, 2k and 20k points, seeds 0-1): points away from the rims of random samplings at
+#: most 2.1, of graded ones at most 2.4; rims of holes 6 spacings across 2.1-3.5 in the
+#: median, 4 spacings across 1.0-2.3 (these a random sampling cannot tell from its voids).
+VOID_RADIUS = 2.2
+#: ... and the loops kept there enclose an empty disk of at least this many of their own mean
+#: steps (``_MIN_EMPTY_STEPS`` elsewhere).
+VOID_EMPTY_STEPS = 2.5
 #: The pass runs below this many points: it cost 2.0 s of ``holes`` graded at 200k points
 #: (the boundary stage 1.9 -> 3.9 s), which at a million would take a sixth of the minute
 #: issue #14 allows. Above it a hole narrower than the balls is about 5 spacings of a
@@ -700,8 +710,8 @@ def find_boundary(points: np.ndarray, normals: np.ndarray, ball_indices: np.ndar
         kept, n_cover_loops = kept + more, len(more)
     n_small_holes = 0
     if not hairpins and local_spacing is not None and kept and points.shape[0] < SMALL_HOLE_MAX_POINTS:
-        small = _small_hole_loops(points, ball_indices, coords, e1, e2, candidates, reach, min_loop_size, kept,
-                                  ball_radius, typical_radius, local_spacing, angle_deg)
+        small = _small_hole_loops(points, ball_indices, coords, e1, e2, candidates, bisector, reach, min_loop_size,
+                                  kept, ball_radius, typical_radius, local_spacing, angle_deg)
         kept, n_small_holes = kept + small, len(small)
     n_hairpin_slots = 0
     if not hairpins and local_spacing is not None:
@@ -918,8 +928,8 @@ def is_outer_rim(points: np.ndarray, loop: np.ndarray, outward: np.ndarray, tree
     return bool(np.median(dist) >= _RIM_EMPTY * reach)
 
 
-def _small_hole_loops(points, ball_indices, coords, e1, e2, candidates, reach, min_loop_size, kept, ball_radius,
-                      typical_radius, local_spacing, angle_deg) -> list[np.ndarray]:
+def _small_hole_loops(points, ball_indices, coords, e1, e2, candidates, bisector, reach, min_loop_size, kept,
+                      ball_radius, typical_radius, local_spacing, angle_deg) -> list[np.ndarray]:
     """Loops of holes narrower than the balls, from the angle criterion on the balls' nearer members.
 
     The gap is measured again over the members within :data:`SMALL_HOLE_SHARE` of each
@@ -937,17 +947,74 @@ def _small_hole_loops(points, ball_indices, coords, e1, e2, candidates, reach, m
         c = coords[sl]
         near = (ball_indices[sl] >= 0) & (np.einsum("nbi,nbi->nb", c, c) <= (SMALL_HOLE_SHARE * ball_radius[sl, None]) ** 2)
         gap[sl], mid[sl] = angular_gaps(c, near)
+        # No member that near (a sparse point of a graded sampling's rim): open all round,
+        # facing where its whole ball's gap does (a zero direction has no successor).
+        lone = sl.start + np.flatnonzero(~near.any(axis=1))
+        gap[lone], mid[lone] = 2.0 * np.pi, bisector[lone]
     small = gap > np.deg2rad(angle_deg)
-    if np.count_nonzero(small & ~candidates) > MAX_SMALL_GAP_SHARE * n:
-        return []
     outward = mid[:, :1] * e1 + mid[:, 1:] * e2
+    irregular = np.count_nonzero(small & ~candidates) > MAX_SMALL_GAP_SHARE * n
+    if irregular:
+        on_loops = np.zeros(n, dtype=bool)
+        on_loops[np.concatenate(kept)] = True
+        small = _void_rims(points, small, small & ~on_loops, outward, local_spacing, ball_radius)
+        if not small.any():
+            return []
     found = _cover_loops(points, ball_indices, coords, e1, e2, small | candidates, outward, mid, reach, min_loop_size,
                          kept, ball_radius, typical_radius, local_spacing)
     # Only what the balls cannot see: short loops around a disk no wider than the balls.
     # Graded samplings gave longer ones beside their true loops (60 and 2,260 points,
     # disks 1.6 and 11 ball radii wide); the holes they are for have 12-21 points, 0.65-0.99.
-    return [c for c in found if c.size < _MAX_VOID_RING
-            and empty_radius_inside(points, c) <= _MAX_SMALL_HOLE_BALLS * float(np.median(ball_radius[c]))]
+    # On an irregular sampling the disk must be as wide as the voids' seeds asked for, and
+    # much wider than the loop's steps (a ring round a void of ``protrusions`` random 2k:
+    # 1.79 local spacings; one of ``real/camelhead``: 2.46, but 2.09 of its own steps;
+    # holes 4 spacings across on graded 2k / 20k: 2.43 / 2.51 and 3.23 / 3.06).
+    least, least_steps = (VOID_RADIUS, VOID_EMPTY_STEPS) if irregular else (0.0, 0.0)
+    found = [c for c in found if c.size < _MAX_VOID_RING]
+    empty = [empty_radius_inside(points, c) for c in found]
+    return [c for c, r in zip(found, empty)
+            if max(least * float(np.median(local_spacing[c])), least_steps * _perimeter(points, c) / c.size)
+            <= r <= _MAX_SMALL_HOLE_BALLS * float(np.median(ball_radius[c]))]
+
+
+def _void_rims(points: np.ndarray, small: np.ndarray, seeds: np.ndarray, outward: np.ndarray,
+               local_spacing: np.ndarray, ball_radius: np.ndarray) -> np.ndarray:
+    """Of the points ``small`` marks, those near a void wider than an irregular sampling leaves.
+
+    A point of ``seeds`` borders a void when the disk of :data:`VOID_RADIUS` local
+    spacings that touches it on its gap's side (centred that far out along ``outward``)
+    holds no point; the points kept are those of ``small`` within a hole's reach of such a
+    point: the diameter :data:`_MAX_SMALL_HOLE_BALLS` allows, plus a spacing.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    small, seeds : (N,) numpy.ndarray of bool
+        The points to choose from, and those whose disks are tried (not the rims of the
+        loops already kept: their disks are empty outside the surface).
+    outward : (N, 3) numpy.ndarray of float64
+        The gaps' directions, in 3D (zero where a point has none).
+    local_spacing, ball_radius : (N,) numpy.ndarray of float64
+
+    Returns
+    -------
+    (N,) numpy.ndarray of bool
+        A subset of ``small``.
+    """
+    tried = np.flatnonzero(seeds)
+    direction = unit_vectors(outward[tried])
+    radius = VOID_RADIUS * local_spacing[tried]
+    dist, _ = cKDTree(points).query(points[tried] + radius[:, None] * direction)
+    # The point itself is on the disk's rim: it is empty when nothing is nearer.
+    seeds = tried[(dist >= radius * (1.0 - 1e-9)) & (np.einsum("ij,ij->i", direction, direction) > 0.5)]
+    out = np.zeros_like(small)
+    if seeds.size == 0:
+        return out
+    idx = np.flatnonzero(small)
+    reach = 2.0 * _MAX_SMALL_HOLE_BALLS * ball_radius[seeds] + local_spacing[seeds]
+    near = cKDTree(points[idx]).query_ball_point(points[seeds], reach)
+    out[idx[np.unique(np.concatenate([np.asarray(j, dtype=np.int64) for j in near]))]] = True
+    return out
 
 
 def _true_loops(points: np.ndarray, all_cycles: list[np.ndarray], ball_radius: np.ndarray, typical_radius: float,

@@ -603,13 +603,15 @@ def test_a_hole_narrower_than_the_balls_is_found():
 
 def test_small_hole_loops_stay_off_irregular_samplings():
     """Irregular samplings: the small balls' gaps are everywhere (uniform random 65-72 % of the
-    points, graded 11-16 %), so the pass is skipped (at a 25 % gate ``protrusions`` graded 2k got a
-    void ring as a second loop); the generated surfaces' loops are unchanged in number."""
+    points, graded 11-16 %), so the pass looks only round voids wider than 2.2 local spacings (at a
+    25 % gate ``protrusions`` graded 2k got a void ring as a second loop; with voids 2.2 wide but no
+    such width asked of the loop, ``protrusions`` random 2k got one 1.79 wide); the generated
+    surfaces' loops are unchanged in number."""
     from parambench.datasets_gen.registry import make_surface
     from parambench.methods.pointset.frontend import build_frontend
 
     for name, sampling, n in (("bump", "random", 4000), ("holes", "graded", 4000), ("slit", "graded", 4000),
-                              ("protrusions", "graded", 2000)):
+                              ("protrusions", "graded", 2000), ("protrusions", "random", 2000)):
         surface = make_surface(name, n, sampling=sampling, seed=0)
         front = build_frontend(surface.points)
         assert front.diagnostics["boundary"]["n_small_holes"] == 0
@@ -627,3 +629,28 @@ def test_the_map_of_a_small_hole_leaves_it_open(tmp_path):
     faces = load_surface(tmp_path / "uv.obj").faces
     centroids = points[faces].mean(axis=1)
     assert not np.any(np.hypot(centroids[:, 0], centroids[:, 1]) < 2.0 * 2.0 / 59 * 0.97)  # none inside the hole
+
+
+@pytest.mark.parametrize("n", [2000, 20000])
+def test_a_small_hole_of_a_graded_sampling_is_found(n):
+    """A hole 4 nominal spacings across on a graded plane (its rim 20-21 points, an empty disk 2.4-2.5
+    local spacings wide): the pass had been skipped on irregular samplings, one loop, exit 0."""
+    from parambench.datasets_gen.build import build_surface, nominal_spacing
+    from parambench.datasets_gen.domains import Disk, Domain
+    from parambench.datasets_gen.shapes.base import unit_square
+    from parambench.datasets_gen.shapes.flat import Flat, Plane
+
+    radius = 2.0 * nominal_spacing(Plane(), n)
+
+    class OneHole(Flat):
+        name, description = "one-hole", "unit square with a hole 4 spacings across"
+
+        def _setup(self) -> Domain:
+            return Domain(unit_square(), (Disk((0.57, 0.43), radius),))
+
+    surface = build_surface(OneHole(), n, "graded", 1, 0.0)
+    front = build_frontend(surface.points)
+    assert len(front.boundary_loops) == 2 and front.diagnostics["boundary"]["n_small_holes"] == 1
+    hole = front.boundary_loops[1]
+    assert np.all(np.hypot(*(surface.points[hole, :2] - [0.57, 0.43]).T) < 1.6 * radius)
+    assert len(set(hole.tolist()) & set(surface.boundary_loops[1].tolist())) >= 0.9 * len(surface.boundary_loops[1])
