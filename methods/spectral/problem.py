@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from types import SimpleNamespace
 
@@ -36,6 +36,7 @@ from .operators import area_matrix, boundary_indicator, check_loops, conformal_o
 from .ordering import nested_dissection, nested_dissection_with_root
 from .reduction import BoundaryReduction, deflation_basis, dense_real_pencil, dense_smallest, pencil_k_estimates
 from .sparse_eigen import SparseFactor, smallest_eigenpair
+from .tied_modes import outer_rim_mode, pair_ties_at_zero
 from .subspace import DEFAULT_MODES, BoundarySubspace
 from .threads import single_threaded_blas
 from .turning import is_regular_turning, loop_turning_numbers
@@ -352,10 +353,13 @@ class ConformalProblem:
         red = self._reduction()
         m_kk = self._area_block(red.keep)
         op = (0.5 * k) * red.schur - m_kk
-        vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=1)
+        several = self.hermitian and len(self.loops) > 1
+        vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=2 if several else 1)
         self._counts["eigen_solves"] += 1
-        z_k = vecs[:, 0]
-        turning = loop_turning_numbers(z_k, self._local_loops(red.keep))
+        local_loops = self._local_loops(red.keep)
+        z_k, _ = outer_rim_mode(vecs, vals, None, local_loops,
+                                None if self.points is None else self.points[red.keep])
+        turning = loop_turning_numbers(z_k, local_loops)
         return KPoint(k=k, energy=float(vals[0].real), turning=turning, state=(z_k, complex(vals[0])))
 
     def _dncp_reduced(self, k: float, pins: np.ndarray, pin_values: np.ndarray) -> KPoint:
@@ -610,8 +614,30 @@ class ConformalProblem:
         self._counts["eigen_solves"] += 1
         self._counts["factorizations"] += res.n_factorizations
         self._counts["triangular_solves"] += res.n_solves
-        turning = loop_turning_numbers(res.vector, self.loops)
-        return KPoint(k=k, energy=float(res.value.real), turning=turning, state=(res.vector, res.value))
+        z = res.vector
+        if self.hermitian and res.vectors is not None:
+            z, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points)
+        turning = loop_turning_numbers(z, self.loops)
+        return KPoint(k=k, energy=float(res.value.real), turning=turning, state=(z, res.value))
+
+    def _untied_dncp(self, k: float, z: np.ndarray) -> np.ndarray:
+        """DNCP's map at k_opt, or where two zero-energy maps tie there, the one with the longest loop outside.
+
+        On an annulus both ``e^z`` and ``e^-z`` have zero energy at k_opt, so the pinned
+        system is near-singular and its solution a mix of the two set by roundoff (an open
+        cylinder of 100 x 17 vertices: rims not round, QC mean 1.06, max 2.4); see
+        :mod:`parambench.methods.spectral.tied_modes`. One more sparse eigen-solve (three
+        pairs) on surfaces with two or more loops and symmetric weights.
+        """
+        if not self.hermitian or len(self.loops) < 2:
+            return z
+        res = smallest_eigenpair(self.operator(k), self.b, hermitian=True, perm=self._order(), allow_negative=True,
+                                 check_inertia=False, nev=3)
+        self._counts["eigen_solves"] += 1
+        if not pair_ties_at_zero(res.values):
+            return z
+        pure, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points, n_tied=2)
+        return pure
 
     def _dncp_sparse(self, k: float, pins: np.ndarray, pin_values: np.ndarray) -> KPoint:
         op = self.operator(k)
@@ -819,7 +845,12 @@ class ConformalProblem:
         """
         k_opt, z_star = self.k_direct(pins if mode == "dncp" else (), max_candidates=max_candidates)
         if mode == "dncp":
-            return self.dncp(k_opt, pins, pin_values, backend=backend)
+            sol = self.dncp(k_opt, pins, pin_values, backend=backend)
+            untied = self._untied_dncp(k_opt, sol.z)
+            if untied is sol.z:
+                return sol
+            return ConformalSolution(z=untied, k=k_opt, energy=rayleigh_energy(untied, self.operator(k_opt), self.b),
+                                     turning=loop_turning_numbers(untied, self.loops), diagnostics=sol.diagnostics)
         op = self.operator(k_opt)
         return ConformalSolution(z=z_star, k=k_opt, energy=rayleigh_energy(z_star, op, self.b),
                                  turning=loop_turning_numbers(z_star, self.loops), eigenvalue=0.0,
@@ -860,6 +891,11 @@ class ConformalProblem:
             result = line_search(evaluate, **line_kwargs)
         best = result.best
         z = self._reduction(pins if mode == "dncp" else ()).extend(best.state[0]) if reduced else best.state[0]
+        if mode == "dncp":
+            untied = self._untied_dncp(best.k, z)
+            if untied is not z:
+                z = untied
+                best = replace(best, turning=loop_turning_numbers(z, self.loops))
         sol = ConformalSolution(z=z, k=best.k, energy=best.energy, turning=best.turning,
                                 eigenvalue=best.state[1], diagnostics={"backend": "boundary" if reduced else "sparse"})
         return sol, {"landscape": result.landscape, "bracket": list(result.bracket),

@@ -221,6 +221,8 @@ class EigenResult:
     n_solves : int
         Triangular solves with the factorisation.
     n_factorizations : int
+    vectors : (V, m) numpy.ndarray of complex128
+        The eigenvectors of ``values``, as the solver returned them.
     """
 
     vector: np.ndarray
@@ -229,6 +231,7 @@ class EigenResult:
     residual: float
     n_solves: int
     n_factorizations: int
+    vectors: np.ndarray | None = None
 
 
 def _spectral_scale(k_mat: sp.spmatrix, b_mat: sp.spmatrix) -> float:
@@ -408,4 +411,4 @@ def _smallest_eigenpair(k_mat: sp.spmatrix, b_mat: sp.spmatrix, *, hermitian: bo
                      Hint("try b_matrix='mass'", "b_matrix", "mass"))
     z = z - z.mean()
     return EigenResult(vector=z / np.linalg.norm(z), value=value, values=lam, residual=res,
-                       n_solves=n_solves, n_factorizations=n_fact)
+                       n_solves=n_solves, n_factorizations=n_fact, vectors=vecs)

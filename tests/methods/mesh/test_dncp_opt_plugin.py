@@ -84,28 +84,48 @@ def test_no_crossing_in_bracket_raises(surfaces):
     assert np.isclose(sol.k, prob.solve("scp", "direct").k, rtol=1e-10)
 
 
-def test_an_open_cylinder_maps_to_its_annulus_without_lapack_warnings():
+N_ROUND, N_UP = 100, 17  # the open cylinder's vertices, numbered up each column as a tester's file had them
+
+
+def _open_cylinder(moved: float = 0.0):
+    """A tester's open cylinder (radius 1, height 1) as a Surface, its vertices moved at random by
+    ``moved`` edge lengths (standard deviation)."""
+    from parambench.datasets_gen.surface import Surface
+
+    t, h = np.meshgrid(np.linspace(0, 2 * np.pi, N_ROUND, endpoint=False), np.linspace(0.0, 1.0, N_UP), indexing="ij")
+    # As the file had them: 10 significant digits (the search met a singular k on exactly these).
+    pts = np.vectorize(lambda x: float(f"{x:.10g}"))(np.c_[np.cos(t).ravel(), np.sin(t).ravel(), h.ravel()])
+    pts = pts + moved * 0.0628 * np.random.default_rng(0).standard_normal(pts.shape)
+    i, j = np.meshgrid(np.arange(N_ROUND), np.arange(N_UP - 1), indexing="ij")
+    a, b = i * N_UP + j, (i + 1) % N_ROUND * N_UP + j
+    a, b = a.ravel(), b.ravel()
+    return Surface(pts, np.r_[np.c_[a, b, b + 1], np.c_[a, b + 1, a + 1]], name="open cylinder")
+
+
+def test_an_open_cylinder_maps_without_lapack_warnings():
     """Before: LAPACK's "ill-conditioned matrix" warning from a k the search stepped past reached the user."""
     import warnings
 
     import scipy.linalg as la
 
-    from parambench.datasets_gen.surface import Surface
-
-    n_round, n_up = 100, 17  # vertices numbered up each column, as a tester's file had them
-    t, h = np.meshgrid(np.linspace(0, 2 * np.pi, n_round, endpoint=False), np.linspace(0.0, 1.0, n_up), indexing="ij")
-    # As the file had them: 10 significant digits (the search met a singular k on exactly these).
-    pts = np.vectorize(lambda x: float(f"{x:.10g}"))(np.c_[np.cos(t).ravel(), np.sin(t).ravel(), h.ravel()])
-    i, j = np.meshgrid(np.arange(n_round), np.arange(n_up - 1), indexing="ij")
-    a, b = i * n_up + j, (i + 1) % n_round * n_up + j
-    a, b = a.ravel(), b.ravel()
-    faces = np.r_[np.c_[a, b, b + 1], np.c_[a, b + 1, a + 1]]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        uv = get_method("dncp-opt")(Surface(pts, faces, name="open cylinder")).uv
+        result = get_method("dncp-opt")(_open_cylinder())
     assert not [w for w in caught if issubclass(w.category, la.LinAlgWarning)]
-    bottom, top = np.arange(n_round) * n_up, np.arange(n_round) * n_up + n_up - 1
+    assert result.diagnostics["selfcheck"]["n_flipped"] == 0
+
+
+@pytest.mark.parametrize("method", ["dncp-opt", "scp"])
+@pytest.mark.parametrize("moved", [0.0, 1e-4])
+def test_an_open_cylinder_maps_to_its_annulus(method, moved):
+    """The exact map is the annulus with radii in the ratio e^(height / radius).
+
+    Before: e^z and e^-z tie as the lowest modes, and the solvers' roundoff returned a mix
+    (rims 13-95 % off round, QC max 2.4; round on some machines, not on others); also with
+    the vertices moved by 1e-4 of an edge, which breaks the tie only at 5e-6."""
+    uv = get_method(method)(_open_cylinder(moved)).uv
+    bottom, top = np.arange(N_ROUND) * N_UP, np.arange(N_ROUND) * N_UP + N_UP - 1
     radii = [np.linalg.norm(uv[rim] - uv[bottom].mean(axis=0), axis=1) for rim in (bottom, top)]
-    assert max(r.std() / r.mean() for r in radii) < 1e-6  # both rims round, about one centre
+    assert max(r.std() / r.mean() for r in radii) < (1e-6 if not moved else 1e-3)  # both rims round, one centre
     ratio = max(r.mean() for r in radii) / min(r.mean() for r in radii)
     assert ratio == pytest.approx(np.e, rel=1e-3)  # exp(height / radius)
