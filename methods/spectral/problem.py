@@ -36,7 +36,7 @@ from .operators import area_matrix, boundary_indicator, check_loops, conformal_o
 from .ordering import nested_dissection, nested_dissection_with_root
 from .reduction import BoundaryReduction, deflation_basis, dense_real_pencil, dense_smallest, pencil_k_estimates
 from .sparse_eigen import SparseFactor, smallest_eigenpair
-from .tied_modes import outer_rim_mode, pair_ties_at_zero
+from .tied_modes import outer_rim_mode, tied_pair
 from .subspace import DEFAULT_MODES, BoundarySubspace
 from .threads import single_threaded_blas
 from .turning import is_regular_turning, loop_turning_numbers
@@ -353,14 +353,17 @@ class ConformalProblem:
         red = self._reduction()
         m_kk = self._area_block(red.keep)
         op = (0.5 * k) * red.schur - m_kk
-        several = self.hermitian and len(self.loops) > 1
-        vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=2 if several else 1)
+        several = len(self.loops) > 1
+        vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=3 if several else 1)
         self._counts["eigen_solves"] += 1
         local_loops = self._local_loops(red.keep)
-        z_k, _ = outer_rim_mode(vecs, vals, None, local_loops,
-                                None if self.points is None else self.points[red.keep])
+        z_k, energy = vecs[:, 0], float(vals[0].real)
+        if several and tied_pair(vals):
+            z_k, _ = outer_rim_mode(vecs, vals, None, local_loops,
+                                    None if self.points is None else self.points[red.keep], n_tied=2)
+            energy = float(np.real(np.vdot(z_k, op @ z_k)) / np.real(np.vdot(z_k, z_k)))
         turning = loop_turning_numbers(z_k, local_loops)
-        return KPoint(k=k, energy=float(vals[0].real), turning=turning, state=(z_k, complex(vals[0])))
+        return KPoint(k=k, energy=energy, turning=turning, state=(z_k, complex(vals[0])))
 
     def _dncp_reduced(self, k: float, pins: np.ndarray, pin_values: np.ndarray) -> KPoint:
         red = self._reduction(pins)
@@ -610,15 +613,17 @@ class ConformalProblem:
     def _scp_sparse(self, k: float, allow_negative: bool) -> KPoint:
         known_psd = self.psd_from_k is not None and k >= self.psd_from_k
         res = smallest_eigenpair(self.operator(k), self.b, hermitian=self.hermitian, perm=self._order(),
-                                 allow_negative=allow_negative, check_inertia=not known_psd)
+                                 allow_negative=allow_negative, check_inertia=not known_psd,
+                                 nev=3 if len(self.loops) > 1 else 2)
         self._counts["eigen_solves"] += 1
         self._counts["factorizations"] += res.n_factorizations
         self._counts["triangular_solves"] += res.n_solves
-        z = res.vector
-        if self.hermitian and res.vectors is not None:
-            z, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points)
+        z, energy = res.vector, float(res.value.real)
+        if len(self.loops) > 1 and tied_pair(res.values):
+            z, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points, n_tied=2)
+            energy = rayleigh_energy(z, self.operator(k), self.b)
         turning = loop_turning_numbers(z, self.loops)
-        return KPoint(k=k, energy=float(res.value.real), turning=turning, state=(z, res.value))
+        return KPoint(k=k, energy=energy, turning=turning, state=(z, res.value))
 
     def _untied_dncp(self, k: float, z: np.ndarray) -> np.ndarray:
         """DNCP's map at k_opt, or where two zero-energy maps tie there, the one with the longest loop outside.
@@ -629,12 +634,12 @@ class ConformalProblem:
         :mod:`parambench.methods.spectral.tied_modes`. One more sparse eigen-solve (three
         pairs) on surfaces with two or more loops and symmetric weights.
         """
-        if not self.hermitian or len(self.loops) < 2:
+        if len(self.loops) < 2:
             return z
-        res = smallest_eigenpair(self.operator(k), self.b, hermitian=True, perm=self._order(), allow_negative=True,
-                                 check_inertia=False, nev=3)
+        res = smallest_eigenpair(self.operator(k), self.b, hermitian=self.hermitian, perm=self._order(),
+                                 allow_negative=True, check_inertia=False, nev=3)
         self._counts["eigen_solves"] += 1
-        if not pair_ties_at_zero(res.values):
+        if not tied_pair(res.values):
             return z
         pure, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points, n_tied=2)
         return pure

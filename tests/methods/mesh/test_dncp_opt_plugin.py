@@ -121,7 +121,7 @@ def test_an_open_cylinder_maps_to_its_annulus(method, moved):
     """The exact map is the annulus with radii in the ratio e^(height / radius).
 
     Before: e^z and e^-z tie as the lowest modes, and the solvers' roundoff returned a mix
-    (rims 13-95 % off round, QC max 2.4; round on some machines, not on others); also with
+    (rims 7-48 % off round, QC max 2.4; round on some machines, not on others); also with
     the vertices moved by 1e-4 of an edge, which breaks the tie only at 5e-6."""
     uv = get_method(method)(_open_cylinder(moved)).uv
     bottom, top = np.arange(N_ROUND) * N_UP, np.arange(N_ROUND) * N_UP + N_UP - 1
