@@ -192,6 +192,26 @@ def test_folds_the_other_retries_keep_end_with_the_paper_energy():
     assert changed(["flipped"], unrefined) == [{"k_nn": 12}]
 
 
+def test_a_failing_map_with_several_loops_is_retried_with_its_holes_filled():
+    """Last, where two or more loops are mapped: the holes filled (points of an elliptic cylinder,
+    4,800, had passed that way before the tied annulus modes, whose paper-energy map then folded)."""
+    ocp = get_method("ocp")
+    params = dict(ocp.defaults)
+
+    def changed(failed, turning, base=params):
+        check = {"failed": failed, "turning_numbers": turning}
+        return [{k: v for k, v in r.items() if base[k] != v} for r in ocp.retry_params(base, check) or []]
+
+    assert changed(["flipped"], [1.0, -1.0])[-1] == {"holes": "filled"}
+    assert changed(["turning"], [1.0, 1.0])[-1] == {"holes": "filled"}
+    assert {"holes": "filled"} not in changed(["flipped"], [1.0])  # one loop: nothing to fill
+    assert {"holes": "filled"} not in changed(["flipped"], [1.0, -1.0], {**params, "holes": "free"})
+    assert {"holes": "filled"} not in changed(["degenerate"], [1.0, -1.0])
+    filled = {**params, "holes": "filled"}
+    assert ocp.repeats_a_run(filled, [(params, {"holes_filled": 1})])  # auto filled them already
+    assert not ocp.repeats_a_run(filled, [(params, {"holes_filled": 0})])
+
+
 def test_scattered_spot_top_passes_with_the_paper_energy_retry():
     """Points scattered over real/spot-top (5k): the Neumann map folds at its boundary whatever
     the other retries do (QC 2.4x scp-igl's); the paper energy refined on its uv mesh passes."""
