@@ -632,7 +632,7 @@ class ConformalProblem:
         system is near-singular and its solution a mix of the two set by roundoff (an open
         cylinder of 100 x 17 vertices: rims not round, QC mean 1.06, max 2.4); see
         :mod:`parambench.methods.spectral.tied_modes`. One more sparse eigen-solve (three
-        pairs) on surfaces with two or more loops and symmetric weights.
+        pairs) on surfaces with two or more loops.
         """
         if len(self.loops) < 2:
             return z

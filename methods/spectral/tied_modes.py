@@ -48,7 +48,8 @@ def outer_rim_mode(vectors: np.ndarray, values: np.ndarray, b: sp.spmatrix | np.
     Parameters
     ----------
     vectors : (V, m) numpy.ndarray of complex128
-        Eigenvectors of a Hermitian problem, by increasing eigenvalue.
+        Eigenvectors, by increasing real part of their eigenvalues (of a non-Hermitian
+        problem too: the combination is chosen by the loops' B-mass alone).
     values : (m,) numpy.ndarray
         Their eigenvalues (real parts used).
     b : (V, V) scipy.sparse matrix or numpy.ndarray of float64, or None
