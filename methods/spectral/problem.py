@@ -354,13 +354,14 @@ class ConformalProblem:
         m_kk = self._area_block(red.keep)
         op = (0.5 * k) * red.schur - m_kk
         several = len(self.loops) > 1
-        vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=3 if several else 1)
+        # Three values for the tie test, the second vector only where the first two tie.
+        vals, vecs = dense_smallest(op, hermitian=self.hermitian, count=3 if several else 1, vectors=1)
         self._counts["eigen_solves"] += 1
         local_loops = self._local_loops(red.keep)
         z_k, energy = vecs[:, 0], float(vals[0].real)
         if several and tied_pair(vals):
-            z_k, _ = outer_rim_mode(vecs, vals, None, local_loops,
-                                    None if self.points is None else self.points[red.keep], n_tied=2)
+            _, pair = dense_smallest(op, hermitian=self.hermitian, count=2)
+            z_k = outer_rim_mode(pair, None, local_loops, None if self.points is None else self.points[red.keep])
             energy = float(np.real(np.vdot(z_k, op @ z_k)) / np.real(np.vdot(z_k, z_k)))
         turning = loop_turning_numbers(z_k, local_loops)
         return KPoint(k=k, energy=energy, turning=turning, state=(z_k, complex(vals[0])))
@@ -620,7 +621,7 @@ class ConformalProblem:
         self._counts["triangular_solves"] += res.n_solves
         z, energy = res.vector, float(res.value.real)
         if len(self.loops) > 1 and tied_pair(res.values):
-            z, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points, n_tied=2)
+            z = outer_rim_mode(res.vectors, self.b, self.loops, self.points)
             energy = rayleigh_energy(z, self.operator(k), self.b)
         turning = loop_turning_numbers(z, self.loops)
         return KPoint(k=k, energy=energy, turning=turning, state=(z, res.value))
@@ -641,8 +642,7 @@ class ConformalProblem:
         self._counts["eigen_solves"] += 1
         if not tied_pair(res.values):
             return z
-        pure, _ = outer_rim_mode(res.vectors, res.values, self.b, self.loops, self.points, n_tied=2)
-        return pure
+        return outer_rim_mode(res.vectors, self.b, self.loops, self.points)
 
     def _dncp_sparse(self, k: float, pins: np.ndarray, pin_values: np.ndarray) -> KPoint:
         op = self.operator(k)

@@ -399,7 +399,8 @@ def deflation_basis(n: int) -> np.ndarray:
     return h[:, 1:]
 
 
-def dense_smallest(operator: np.ndarray, *, hermitian: bool, count: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def dense_smallest(operator: np.ndarray, *, hermitian: bool, count: int = 3,
+                   vectors: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eigenpairs of a dense operator with zero row sums, translations deflated.
 
     Parameters
@@ -409,32 +410,37 @@ def dense_smallest(operator: np.ndarray, *, hermitian: bool, count: int = 3) -> 
     hermitian : bool
     count : int
         How many of the smallest (by real part) to return.
+    vectors : int, optional
+        How many of their eigenvectors (the first ones; default all ``count``): each
+        costs a dense LU where ``operator`` is not Hermitian.
 
     Returns
     -------
     values : (count,) numpy.ndarray of complex128, increasing real part
-    vectors : (K, count) numpy.ndarray of complex128, zero-mean unit columns
+    vectors : (K, vectors) numpy.ndarray of complex128, zero-mean unit columns
     """
     with single_threaded_blas():
-        return _dense_smallest(operator, hermitian, count)
+        return _dense_smallest(operator, hermitian, count, count if vectors is None else vectors)
 
 
-def _dense_smallest(operator: np.ndarray, hermitian: bool, count: int) -> tuple[np.ndarray, np.ndarray]:
+def _dense_smallest(operator: np.ndarray, hermitian: bool, count: int,
+                    n_vectors: int) -> tuple[np.ndarray, np.ndarray]:
     q = deflation_basis(operator.shape[0])
     reduced = q.T @ operator @ q
     count = min(count, reduced.shape[0])
+    n_vectors = min(n_vectors, count)
     if hermitian:
         reduced = 0.5 * (reduced + reduced.conj().T)
         vals, vecs = la.eigh(reduced, subset_by_index=[0, count - 1])
-        vals = vals.astype(np.complex128)
+        vals, vecs = vals.astype(np.complex128), vecs[:, :n_vectors]
     else:
         # Eigenvalues only (about 3x cheaper than with vectors), then each wanted vector by
         # inverse iteration with one LU at a shift just off the eigenvalue.
         vals = la.eigvals(reduced)
         vals = vals[np.argsort(vals.real)[:count]]
         eye = np.eye(reduced.shape[0])
-        vecs = np.empty((reduced.shape[0], count), dtype=np.complex128)
-        for c, lam in enumerate(vals):
+        vecs = np.empty((reduced.shape[0], n_vectors), dtype=np.complex128)
+        for c, lam in enumerate(vals[:n_vectors]):
             shift = lam + 1e-10 * max(abs(lam), np.abs(reduced).max())
             lu = la.lu_factor(reduced - shift * eye, check_finite=False)
             v = np.ones(reduced.shape[0], dtype=np.complex128)

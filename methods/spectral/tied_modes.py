@@ -42,53 +42,40 @@ __all__ = ["TIE", "outer_rim_mode", "tied_pair"]
 TIE = 1e-2
 
 
-def outer_rim_mode(vectors: np.ndarray, values: np.ndarray, b: sp.spmatrix | np.ndarray | None,
-                   loops: Sequence[np.ndarray], points: np.ndarray | None = None, *,
-                   n_tied: int | None = None) -> tuple[np.ndarray, int]:
-    """The smallest eigenvector, or among tied ones the map with the longest loop outside.
+def outer_rim_mode(vectors: np.ndarray, b: sp.spmatrix | np.ndarray | None, loops: Sequence[np.ndarray],
+                   points: np.ndarray | None = None) -> np.ndarray:
+    """Of the span of two tied eigenvectors, the map with the longest loop outside.
+
+    The caller decides that they tie (:func:`tied_pair`).
 
     Parameters
     ----------
-    vectors : (V, m) numpy.ndarray of complex128
-        Eigenvectors, by increasing real part of their eigenvalues (of a non-Hermitian
-        problem too: the combination is chosen by the loops' B-mass alone).
-    values : (m,) numpy.ndarray
-        Their eigenvalues (real parts used).
+    vectors : (V, m) numpy.ndarray of complex128, m >= 2
+        Eigenvectors by increasing real part of their eigenvalues; the first two are
+        combined (of a non-Hermitian problem too: the combination is chosen by the loops'
+        B-mass alone).
     b : (V, V) scipy.sparse matrix or numpy.ndarray of float64, or None
         The problem's B (None: the identity).
     loops : sequence of (L_i,) numpy.ndarray of int64
-        Boundary loops as indices into the rows of ``vectors``.
+        Boundary loops as indices into the rows of ``vectors``, two or more.
     points : (V, 3) numpy.ndarray of float64, optional
         To measure the loops' lengths; without it the loop with the most vertices is the
         longest.
-    n_tied : int, optional
-        How many of the first eigenvectors tie, where the caller decided (:func:`tied_pair`);
-        without it, those within :data:`TIE` of the smallest, relative to it (a positive one).
 
     Returns
     -------
-    vector : (V,) numpy.ndarray of complex128
+    (V,) numpy.ndarray of complex128
         Unit 2-norm, mean-free.
-    n_tied : int
-        How many eigenvectors tied (1: the smallest one returned as it is).
     """
-    lam = np.real(np.asarray(values))
-    first = vectors[:, 0]
-    if len(loops) < 2 or vectors.shape[1] < 2 or (n_tied is None and not lam[0] > 0):
-        return first, 1
-    tied = np.flatnonzero(lam - lam[0] <= TIE * lam[0]) if n_tied is None else np.arange(min(n_tied, lam.size))
-    if tied.size < 2:
-        return first, 1
-    basis = vectors[:, tied]
+    basis = vectors[:, :2]
     outer = np.asarray(loops[int(np.argmax([_length(loop, points) for loop in loops]))], dtype=np.int64)
-    b_all = np.eye(basis.shape[0]) if b is None else b
-    on_outer = _restricted(b_all, outer)
+    b_all = sp.identity(basis.shape[0], format="csr") if b is None else b
     gram = basis.conj().T @ (b_all @ basis)
-    outer_gram = basis[outer].conj().T @ (on_outer @ basis[outer])
+    outer_gram = basis[outer].conj().T @ (_restricted(b_all, outer) @ basis[outer])
     _, coef = la.eigh(0.5 * (outer_gram + outer_gram.conj().T), 0.5 * (gram + gram.conj().T))
     z = basis @ coef[:, -1]
     z = z - z.mean()
-    return z / np.linalg.norm(z), int(tied.size)
+    return z / np.linalg.norm(z)
 
 
 def _length(loop: np.ndarray, points: np.ndarray | None) -> float:

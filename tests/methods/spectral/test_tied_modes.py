@@ -29,19 +29,14 @@ def test_a_mix_of_tied_maps_gives_the_one_with_the_long_rim_outside(angle):
     points, loops, pure_outer, pure_inner = _two_rims()
     mix = np.c_[np.cos(angle) * pure_outer + np.sin(angle) * 1j * pure_inner,
                 -np.sin(angle) * pure_outer + np.cos(angle) * 1j * pure_inner]
-    z, n_tied = outer_rim_mode(mix, np.array([1.0, 1.0 + 1e-9, 3.0]), None, loops, points, n_tied=2)
-    assert n_tied == 2
+    z = outer_rim_mode(mix, None, loops, points)
     assert _aligned(z, pure_outer) == pytest.approx(1.0, abs=1e-12)
     assert abs(z.mean()) < 1e-12 and np.linalg.norm(z) == pytest.approx(1.0)
-
-
-def test_without_a_tie_the_smallest_vector_is_kept():
-    points, loops, pure_outer, pure_inner = _two_rims()
-    vectors = np.c_[pure_inner, pure_outer]
-    z, n_tied = outer_rim_mode(vectors, np.array([1.0, 1.5, 3.0]), None, loops, points)
-    assert n_tied == 1 and np.array_equal(z, pure_inner)
-    z, _ = outer_rim_mode(vectors, np.array([1.0, 1.0 + 1e-9]), None, loops[:1], points)  # one loop: no choice
-    assert np.array_equal(z, pure_inner)
+    # Without the points the loop with more vertices is the outer one: here the second.
+    more = [loops[0][::2], loops[1]]
+    assert _aligned(outer_rim_mode(mix, None, more), pure_outer) == pytest.approx(1.0, abs=1e-12)
+    # The outer loop is the long one whichever is listed first.
+    assert _aligned(outer_rim_mode(mix, None, loops[::-1], points), pure_outer) == pytest.approx(1.0, abs=1e-12)
 
 
 def test_tied_pair_is_measured_against_the_third_value():
