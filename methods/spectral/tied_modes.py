@@ -37,8 +37,10 @@ __all__ = ["TIE", "outer_rim_mode", "tied_pair"]
 #: of an edge; 1,700 jittered points 5e-3; frustums with rims 2 % / 30 % apart in radius
 #: 9.6e-3 / 0.18, where the first eigenvector was pure to 4e-11 either way: the first of
 #: them now gets the map with the wider rim outside, whichever of the two ranked lower).
-#: Not looser: at 0.1 the ``slit`` mesh (a plane, whose smallest eigenvalue is zero and its
-#: map exact) got another map; the ratio cannot tell two maps near zero from one at zero.
+#: The ratio cannot tell two maps near zero from one at zero and a small second; there the
+#: combination with the most mass on the outer loop is the first map (up to a rotation:
+#: ``scp`` on the ``slit`` plane, ``holes-bumped`` and ``real/bunny10k``, 1e-16 apart
+#: after a similarity fit).
 TIE = 1e-2
 
 
