@@ -75,8 +75,9 @@ def test_jittered_points_of_an_open_cylinder_map_on_the_first_run():
 def test_random_points_of_an_open_cylinder_get_round_rims():
     """2,000 random points of a cylinder 1.5 high, rims sampled densely: its exact maps are
     annuli with radii e^1.5 apart. With ties judged at 1 % of the gap, the point-set pair
-    (0.7-7 % of it here, 49 eigen-solves) was left mixed: the map passed its self-check with rims 24 % off round
-    and a radius ratio of 4.68 (and the next seed raised ConvergenceError)."""
+    (0.7-7 % of it here over the k search) was left mixed: the map passed its self-check
+    with rims 24 % off round and a radius ratio of 4.68 (the next seed raised
+    ConvergenceError)."""
     from parambench.datasets_gen.surface import Surface
     from parambench.methods.registry import get_method
 
