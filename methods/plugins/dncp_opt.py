@@ -25,7 +25,7 @@ class DncpOpt(Method):
     ``weights="hybrid"`` with ``uniform_at="auto"`` (the default) is uniform only around
     the folds of the cotangent map (:mod:`parambench.methods.mesh.hybrid`, Fig. 12).
     ``holes``: ``"auto"`` (default) solves with the holes free and, where that fails or
-    turns a hole inside out, again with each hole filled by a fan
+    turns a hole inside out, again with each hole closed by a refined patch
     (:mod:`parambench.methods.mesh.holes`); ``"free"`` or ``"filled"`` forces one.
     Where the line search finds no bracket, k_opt is computed directly
     (``diagnostics["k_search_fallback"] = "direct"``).

@@ -27,7 +27,7 @@ class Scp(Method):
     map (:mod:`parambench.methods.mesh.hybrid`, Fig. 12); ``uniform_at="negative"`` or a vertex list
     fixes the uniform vertices instead. ``holes``: ``"auto"`` (default) solves with the
     holes free and, where that fails or turns a hole inside out, again with each hole
-    filled by a fan (:mod:`parambench.methods.mesh.holes`); ``"free"`` or ``"filled"``
+    closed by a refined patch (:mod:`parambench.methods.mesh.holes`); ``"free"`` or ``"filled"``
     forces one.
 
     ``weights="authalic"`` (without ``uniform_at``): where the plain authalic weights give

@@ -95,7 +95,7 @@ def test_scp_falls_back_to_the_exact_search_where_the_subspace_k_opt_spins(real_
 def test_fill_holes_makes_a_consistently_oriented_disk(real_meshes):
     s = real_meshes["real/bunny10k"]
     filled, n = fill_holes(s)
-    assert n == 4 and filled.n_points == s.n_points + 4
+    assert n == 4 and filled.n_points > s.n_points
     assert np.array_equal(filled.points[: s.n_points], s.points)
     assert len(igl.boundary_loop_all(filled.faces)) == 1
     v, e, f = filled.n_points, len(igl.edges(filled.faces)), len(filled.faces)
@@ -142,10 +142,12 @@ SOME_FALLBACK = {("real/bump-domain", "dncp-opt", "authalic", True)}
 #: cortex-lh's 451 boundary vertices, and the exact boundary search after the subspace one.
 SLOW = {("real/cortex-lh", "scp", "authalic", False), ("real/cortex-lh", "scp", "authalic", True),
         ("real/cortex-lh", "scp", "cotangent", True), ("real/cortex-lh", "scp", "hybrid", True)}
-#: Regular outer boundary, but one of bunny10k's filled holes collapses (turning number 0;
-#: 64 foldovers, 0.6 % of the faces): normalized authalic weights are the paper's "not
-#: particularly desirable" kind, and 17 of their rows here sum to <= 0.
-COLLAPSED_HOLE = {("real/bunny10k", "scp", "authalic", True)}
+#: Regular outer boundary, but a filled hole collapses (turning number 0). bunny10k's
+#: normalized authalic SCP did so with the holes filled by fans (64 foldovers, 0.6 % of the
+#: faces; 17 of those weights' rows sum to <= 0 there, the paper's "not particularly
+#: desirable" kind); with the refined patches (forty-third session) every hole stays open
+#: (57 foldovers, QC 4.50), so no case is left here.
+COLLAPSED_HOLE: set = set()
 
 
 CASES = [pytest.param(name, method, weights, normalized, id=f"{name[5:]}-{method}-{weights}-{'norm' if normalized else 'raw'}",
