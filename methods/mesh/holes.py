@@ -21,8 +21,8 @@ triangles, and where the rim is not convex seen from its centroid they overlap: 
 plane 1.0070 -> 1.0000 (6.3e-3 -> 2.5e-6 of the diameter from its exact map),
 ``holes-bumped`` 1.0103 -> 1.0076, pymeshlab's bunny cut into bands by two planes 1.0878
 with 1 foldover -> 1.0241 with 0, and with two small holes too 1.0876 with 32 foldovers ->
-1.0330 with 1; ``holes`` and bunny10k the same to 3e-4. It costs 0.4-3 s more (pymeshlab's
-mesh set-up), only where a hole is filled.
+1.0332 with 0; ``holes`` and bunny10k the same to 3e-4. It costs 0.4-0.9 s more (pymeshlab's
+import and mesh set-up), only where a hole is filled.
 """
 
 from __future__ import annotations
