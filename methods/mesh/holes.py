@@ -90,7 +90,7 @@ def _closed_by_pymeshlab(pts: np.ndarray, faces: np.ndarray, max_edges: int
                          ) -> tuple[np.ndarray, np.ndarray] | None:
     """Holes of at most ``max_edges`` edges closed by pymeshlab (refined patches), the input's
     vertices first and unchanged; None where pymeshlab fails or moves them."""
-    import pymeshlab  # only where a hole is filled: its import is most of a small solve's time
+    import pymeshlab  # imported only where a hole is filled
 
     n = pts.shape[0]
     try:
