@@ -36,7 +36,7 @@ from .operators import area_matrix, boundary_indicator, check_loops, conformal_o
 from .ordering import nested_dissection, nested_dissection_with_root
 from .reduction import BoundaryReduction, deflation_basis, dense_real_pencil, dense_smallest, pencil_k_estimates
 from .sparse_eigen import SparseFactor, smallest_eigenpair
-from .tied_modes import outer_rim_mode, tied_pair
+from .tied_modes import outer_rim_if_tied, outer_rim_mode, tied_pair
 from .subspace import DEFAULT_MODES, BoundarySubspace
 from .threads import single_threaded_blas
 from .turning import is_regular_turning, loop_turning_numbers
@@ -362,7 +362,7 @@ class ConformalProblem:
         if several and tied_pair(vals):
             _, pair = dense_smallest(op, hermitian=self.hermitian, count=2)
             z_k = outer_rim_mode(pair, None, local_loops, None if self.points is None else self.points[red.keep])
-            energy = float(np.real(np.vdot(z_k, op @ z_k)) / np.real(np.vdot(z_k, z_k)))
+            energy = rayleigh_energy(z_k, op, np.ones(op.shape[0]))
         turning = loop_turning_numbers(z_k, local_loops)
         return KPoint(k=k, energy=energy, turning=turning, state=(z_k, complex(vals[0])))
 
@@ -620,9 +620,9 @@ class ConformalProblem:
         self._counts["factorizations"] += res.n_factorizations
         self._counts["triangular_solves"] += res.n_solves
         z, energy = res.vector, float(res.value.real)
-        if len(self.loops) > 1 and tied_pair(res.values):
-            z = outer_rim_mode(res.vectors, self.b, self.loops, self.points)
-            energy = rayleigh_energy(z, self.operator(k), self.b)
+        untied = outer_rim_if_tied(res.values, res.vectors, self.b, self.loops, self.points)
+        if untied is not None:
+            z, energy = untied, rayleigh_energy(untied, self.operator(k), self.b)
         turning = loop_turning_numbers(z, self.loops)
         return KPoint(k=k, energy=energy, turning=turning, state=(z, res.value))
 
@@ -640,9 +640,8 @@ class ConformalProblem:
         res = smallest_eigenpair(self.operator(k), self.b, hermitian=self.hermitian, perm=self._order(),
                                  allow_negative=True, check_inertia=False, nev=3)
         self._counts["eigen_solves"] += 1
-        if not tied_pair(res.values):
-            return z
-        return outer_rim_mode(res.vectors, self.b, self.loops, self.points)
+        untied = outer_rim_if_tied(res.values, res.vectors, self.b, self.loops, self.points)
+        return z if untied is None else untied
 
     def _dncp_sparse(self, k: float, pins: np.ndarray, pin_values: np.ndarray) -> KPoint:
         op = self.operator(k)

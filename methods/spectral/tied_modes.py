@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-__all__ = ["TIE", "outer_rim_mode", "tied_pair"]
+__all__ = ["TIE", "outer_rim_mode", "outer_rim_if_tied", "tied_pair"]
 
 #: Two eigenvalues tie when their gap is at most this share of the gap to the third (an
 #: open cylinder's pair, k = 1: 1e-12 to 4e-5 of it, vertices exact or moved by up to 1e-2
@@ -112,3 +112,16 @@ def tied_pair(values: np.ndarray) -> bool:
     """
     lam = np.real(np.asarray(values))
     return lam.size >= 3 and lam[1] - lam[0] <= TIE * (lam[2] - lam[0])
+
+
+def outer_rim_if_tied(values: np.ndarray, vectors: np.ndarray, b: sp.spmatrix | np.ndarray | None,
+                      loops: Sequence[np.ndarray], points: np.ndarray | None = None) -> np.ndarray | None:
+    """:func:`outer_rim_mode` where the surface has two or more loops and the two smallest of
+    ``values`` tie (:func:`tied_pair`); None otherwise (the caller keeps its first vector).
+
+    Parameters are those of :func:`outer_rim_mode`, with ``values`` (m,), m >= 3, the
+    eigenvalues of ``vectors`` by increasing real part.
+    """
+    if len(loops) < 2 or not tied_pair(values):
+        return None
+    return outer_rim_mode(vectors, b, loops, points)

@@ -105,6 +105,21 @@ def test_fill_holes_makes_a_consistently_oriented_disk(real_meshes):
     assert len(np.unique(he, axis=0)) == len(he)
 
 
+def test_fill_holes_falls_back_to_fans_where_the_patches_fail(real_meshes, monkeypatch):
+    """Where pymeshlab's closing fails (or moves a vertex), each hole gets a fan round a new
+    centre vertex: one vertex and one triangle per rim edge per hole, still a disk."""
+    import parambench.methods.mesh.holes as holes
+
+    monkeypatch.setattr(holes, "_closed_by_pymeshlab", lambda *args: None)
+    s = real_meshes["real/bunny10k"]
+    filled, n = holes.fill_holes(s)
+    rims = sum(len(loop) for loop in igl.boundary_loop_all(s.faces)) - max(
+        len(loop) for loop in igl.boundary_loop_all(s.faces))
+    assert n == 4 and filled.n_points == s.n_points + 4 and len(filled.faces) == len(s.faces) + rims
+    assert np.array_equal(filled.points[: s.n_points], s.points)
+    assert len(igl.boundary_loop_all(filled.faces)) == 1
+
+
 def test_uniform_weights_keep_bunny_holes_open_once_filled(real_meshes):
     s = real_meshes["real/bunny10k"]
     free = SCP(s, weights="uniform", holes="free")
