@@ -33,6 +33,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 from scipy.spatial import cKDTree
 
+from .vectors import off_sheet
+
 __all__ = ["ahead_scores", "projected_candidates", "cover_successors", "COS_CONE", "LATERAL_PENALTY", "BRIDGE_K",
            "SKIP_COST"]
 
@@ -104,7 +106,10 @@ def projected_candidates(points: np.ndarray, e1: np.ndarray, e2: np.ndarray, can
     Returns
     -------
     near : (R, k') numpy.ndarray of int64
-        Point indices, -1 beyond reach (k' = min(k, number of candidates)).
+        Point indices, -1 beyond reach, or beyond half of it (the geodesic ball's radius
+        where ``reach`` is the walk's) and on another sheet (k' = min(k, number of
+        candidates); :func:`~parambench.methods.pointset.vectors.off_sheet`: the swiss
+        roll's next turn, projected, lay ahead of its outer end).
     c : (R, k', 2) numpy.ndarray of float64
         Their offsets projected on the row's tangent frame.
     """
@@ -115,6 +120,10 @@ def projected_candidates(points: np.ndarray, e1: np.ndarray, e2: np.ndarray, can
     dist = np.where(dist <= reach[:, None], dist, np.inf)
     near = np.where(np.isfinite(dist), cand_idx[np.minimum(near, cand_idx.size - 1)], -1)
     d = points[np.where(near >= 0, near, 0)] - points[rows, None, :]
+    # Beyond the geodesic ball (half the reach) a point off the tangent plane is another
+    # sheet; within it the neighbourhoods' own rule (``neighbours``) has decided.
+    across = off_sheet(d, np.cross(e1[rows], e2[rows])[:, None, :]) & (dist > 0.5 * reach[:, None])
+    near = np.where(across, -1, near)
     c = np.stack([np.einsum("nki,ni->nk", d, e1[rows]), np.einsum("nki,ni->nk", d, e2[rows])], axis=-1)
     return near, c
 

@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 
 from ..geometry2d import segments_cross
 from .normals import tangent_frames
-from .vectors import unit_vectors
+from .vectors import off_sheet, unit_vectors
 
 __all__ = ["wrap_outside_points", "MAX_WRAP_ROUNDS", "MAX_POCKET_SHARE", "NOTCH_DEPTH"]
 
@@ -105,8 +105,12 @@ def _crossings_chunk(points, normals, edges: _LoopEdges, p, q) -> np.ndarray:
         return np.stack([np.einsum("skj,sj->sk", vectors, e1), np.einsum("skj,sj->sk", vectors, e2)], axis=-1)
 
     pq = chart(points[q][:, None, :] - origin)
-    hit = segments_cross(np.zeros_like(pq), pq, chart(points[edges.a[near]] - origin),
-                         chart(points[edges.b[near]] - origin))
+    to_a, to_b = points[edges.a[near]] - origin, points[edges.b[near]] - origin
+    hit = segments_cross(np.zeros_like(pq), pq, chart(to_a), chart(to_b))
+    # A loop edge of another sheet (a rolled surface's next turn, straight across along
+    # the normal) can project onto the segment; it does not cut it.
+    n = normals[p][:, None, :]
+    hit &= ~(off_sheet(to_a, n) & off_sheet(to_b, n))
     first = np.argmax(hit, axis=1)
     return np.where(hit.any(axis=1), near[np.arange(p.size), first], -1)
 
