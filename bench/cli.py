@@ -262,13 +262,21 @@ def _holes_summary(diag: dict, params: dict | None = None) -> str:
     return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: {why})"
 
 
+#: ``ocp``'s first maps of its mesh fallback (``refined["first_map"]``), as the summary names them.
+_FIRST_MAPS = {"sdp": "an sdp map", "unrolled boundary": "the map of its unrolled boundary",
+               "plane projection": "the points' projection on a plane"}
+
+
 def _energy_summary(diag: dict) -> str:
     """Whether ``ocp``'s solve fell back to the paper's energy or to a mesh of the points, or refined its map
     (a retry says so in the self-check's summary)."""
     refined = diag.get("refined") or {}
     if diag.get("energy_used") == "mesh":
-        return (" (cotangent SCP on the mesh an sdp map triangulates: no point-set energy's k search found a"
-                " regular map)")
+        name = str(refined.get("first_map"))
+        first = _FIRST_MAPS.get(name.removesuffix(", holes filled"), "a first map")
+        if name.endswith(", holes filled"):
+            first += " with the holes filled"
+        return f" (cotangent SCP on the mesh {first} triangulates: no point-set energy's k search found a regular map)"
     if refined.get("error"):
         return f" (not refined: its uv mesh failed, {refined['error'].split(':')[0]})"
     if refined:

@@ -32,6 +32,7 @@ from ..hints import Hint, error_note, hinted
 from ..geometry2d import signed_area_2d
 from ..mesh.holes import HOLES_MODES, solve_with_holes
 from ..mesh.quad_splits import SPLIT_TOLERANCE_DEG
+from ..pointset.boundary_first_map import boundary_first_map
 from ..pointset.hole_filling import fill_point_holes, is_slot
 from ..pointset.laplacian import graph_laplacian
 from ..pointset.mesh_refine import MAX_MESH_PASSES, first_map_faces, mesh_passes, refine_on_uv_mesh
@@ -407,10 +408,11 @@ class Ocp(Method):
                     work, params, timer).W)
             front = front.without_balls()
             fronts.append(front)
-            if w_tan is not None and not first_pair:
-                # The Laplacian, for the exact searches run last, only where its memory
-                # does not count: from MULTILEVEL_FROM points on they are not run.
-                first_pair.append((front, w_tan, lap if small else None))
+            if w_tan is not None:
+                # The first attempt's Laplacian, for the exact searches run last, only
+                # where its memory does not count: from MULTILEVEL_FROM points on they are
+                # not run.
+                tried.append((front, w_tan, lap if small and not tried else None, work))
             # Handed over in a list: the two-level path reorders it and drops this copy.
             box = [lap]
             del lap
@@ -425,7 +427,9 @@ class Ocp(Method):
                                                        exact_fallbacks=small))
 
         thin = []  # holes filled before the first attempt
-        first_pair = []  # (front, W^tan, Laplacian) of the first attempt, for the fallbacks after it
+        # (front, W^tan, Laplacian of the first, input) of each attempt, for the fallbacks after them
+        tried = []
+        n_filled_in = {}  # id of a filled input -> holes filled
 
         def fill(work: MethodInput):
             if not fronts:  # holes="filled": the loops come from a front end of its own
@@ -433,7 +437,9 @@ class Ocp(Method):
             loops = fronts[0].boundary_loops
             rest = [loop for loop in loops[1:] if not any(loop is t for t in thin)]
             with timer("fill_holes"):
-                return fill_point_holes(work, fronts[0].normals, [loops[0], *rest], fronts[0].local_spacing)
+                filled, n = fill_point_holes(work, fronts[0].normals, [loops[0], *rest], fronts[0].local_spacing)
+            n_filled_in[id(filled)] = n
+            return filled, n
 
         start, n_thin = surface, 0
         try:
@@ -451,17 +457,16 @@ class Ocp(Method):
                     thin.clear()
                     (_, sol, counts, extra), work, n_filled = solve_with_holes(start, params["holes"], attempt, fill)
             except (ConvergenceError, SolverError) as exc:
-                if not first_pair:
+                if not tried:
                     raise
-                front, w_tan, lap = first_pair[0]
-                sol, counts, extra = _after_failed_searches(front, w_tan, lap, solver, params, timer, released(exc))
-                work, n_filled = front, 0
+                sol, counts, extra, which = _after_failed_searches(tried, solver, params, timer, released(exc))
+                work, n_filled = (tried[0][0], 0) if which == 0 else (tried[which][3], n_filled_in.get(id(tried[which][3]), 0))
         except SolverError as exc:  # no map came out: say so where the shape explains it
             named = with_shape_cause(exc, fronts[0] if fronts else None)
             if named is exc:
                 raise
             raise named from exc
-        del first_pair
+        del tried
         # fronts[0]: loops, spacing and neighbours of the points the user gave
         return sol, counts, extra, work, n_filled, n_thin, fronts[0]
 
@@ -697,44 +702,65 @@ def _refines(refine: str, extra: dict, lattice: bool = False) -> bool:
 
 
 def _mesh_fallback(front, w_tan, timer: StageTimer, exc: Exception, params: dict, solver: str = "direct"):
-    """(solution, counts, diagnostics) of cotangent SCP on the mesh an SDP map of ``front`` triangulates.
+    """(solution, counts, diagnostics) of cotangent SCP on the mesh a first map of ``front`` triangulates.
 
     After both energies' k searches failed (``refine="auto"`` or ``"mesh"``): on points
     scattered over a real mesh the point Laplacians have negative boundary modes, and no
-    k gives a regular map (:mod:`parambench.methods.pointset.mesh_refine`). The SDP pair
-    of the paper's ``I - W^tan`` (B-orthonormal, as ``sdp``) needs no k; its uv
-    triangulation gives the mesh; where it gives none and the points are a height field
-    over the plane across their mean normal (:func:`height_field_projection`), their
-    projection does, from ``k_nn = retry_k_nn`` on (uniform random points on flat 4:1 to
-    100:1 strips at 20k points, 10:1 at 8k: ConvergenceError before; now their own
-    plane's map to 1e-8 of the diagonal). If that fails too, ``exc`` (the first error)
-    is raised.
-    ``energy_used`` is ``"mesh"`` and ``energy_error`` keeps the first error. The pair
-    is solved on two levels where ``solver`` is ``"multilevel"`` (:func:`_sdp_pair`).
+    k gives a regular map (:mod:`parambench.methods.pointset.mesh_refine`). The first
+    maps, tried in this order until one's uv triangulation gives a mesh with a regular
+    map (:func:`_first_maps`), need no k:
+
+    - on a surface with one loop, that loop unrolled in the plane and the rest harmonic
+      (:func:`~parambench.methods.pointset.boundary_first_map.boundary_first_map`; second,
+      after the sdp pair, where ``solver`` is ``"multilevel"``: its solve is direct).
+      scikit-learn's swiss roll and S-curve (uniform random points, 2k-20k): no map
+      (ConvergenceError), or a map 3.8e-2 of the diameter off its exact unrolling that
+      passed its check (the roll, 2k, seed 2, from the sdp map's mesh), now 8e-6 to
+      2e-4 off; points scattered over ``real/lilium`` and ``real/bump-domain`` (20k),
+      where the sdp map came first: the same QC to 1e-6;
+    - the SDP pair of the paper's ``I - W^tan`` (B-orthonormal, as ``sdp``; on two levels
+      where ``solver`` is ``"multilevel"``, :func:`_sdp_pair`);
+    - from ``k_nn = retry_k_nn`` on, where the points are a height field over the plane
+      across their mean normal (:func:`height_field_projection`), their projection
+      (uniform random points on flat 4:1 to 100:1 strips at 20k points, 10:1 at 8k,
+      before the unrolled boundary: ConvergenceError; then their own plane's map to 1e-8
+      of the diagonal). Not at 8 neighbours: points scattered over the jacksboro DEM
+      (20k) map at 1.0007x scp-igl's QC with 12 neighbours through the sdp map, at 8
+      through the projection at 1.0073x with 2 folded reference triangles.
+
+    If none gives one, ``exc`` (the first error) is raised. ``energy_used`` is ``"mesh"``,
+    ``energy_error`` keeps the first error and ``refined["first_map"]`` names the first map.
     """
-    first = "sdp"
-    try:
-        pair = _sdp_pair(front, graph_laplacian(w_tan), solver, params, timer)
-        sol, info = _refined_from(front, pair, timer)
-    except ParambenchError:
-        # SDP's pair maps an elongated domain along its length twice over (the second
-        # eigenvector is the first one's overtone, not the cross direction); a height
-        # field's projection gives the mesh instead, once more neighbours (the retry after
-        # an error, Ocp.error_retry_params) have had their chance: points scattered over
-        # the jacksboro DEM (20k) map at 1.0007x scp-igl's QC with 12 neighbours, and
-        # through the projection at 8 at 1.0073x with 2 folded reference triangles.
-        if params["k_nn"] < params["retry_k_nn"]:
-            raise exc from None
-        projected = height_field_projection(front.points, front.normals)
-        if projected is None:
-            raise exc from None
+    for name, first_map in _first_maps(front, graph_laplacian(w_tan), solver, params, timer):
         try:
-            sol, info = _refined_from(front, projected, timer)
+            sol, info = _refined_from(front, first_map(), timer)
         except ParambenchError:
-            raise exc from None
-        first = "plane projection"
-    return sol, {}, {"energy_used": "mesh", "energy_error": error_note(exc, Ocp.defaults, params),
-                     "refined": {"first_map": first, **info}}
+            continue
+        return sol, {}, {"energy_used": "mesh", "energy_error": error_note(exc, Ocp.defaults, params),
+                         "refined": {"first_map": name, **info}}
+    raise exc from None
+
+
+def _first_maps(front, lap, solver: str, params: dict, timer: StageTimer) -> list:
+    """(name, function giving an (N, 2) first map) pairs of :func:`_mesh_fallback`, in its order."""
+
+    def unrolled():
+        with timer("solve"):
+            return boundary_first_map(front.points, front.normals, front.boundary_loops[0], lap)
+
+    def projected():
+        plane = height_field_projection(front.points, front.normals)
+        if plane is None:
+            raise SolverError("the points are no height field over a plane.")
+        return plane
+
+    maps = [("sdp", lambda: _sdp_pair(front, lap, solver, params, timer))]
+    if len(front.boundary_loops) == 1:
+        # On two levels the sdp pair is the cheaper: the unrolled map's solve is direct.
+        maps.insert(1 if solver == "multilevel" else 0, ("unrolled boundary", unrolled))
+    if params["k_nn"] >= params["retry_k_nn"]:
+        maps.append(("plane projection", projected))
+    return maps
 
 
 def _refined_from(front, first_map: np.ndarray, timer: StageTimer):
@@ -798,19 +824,44 @@ def _sdp_pair(front, lap, solver: str, params: dict, timer: StageTimer) -> np.nd
         return direct_sdp_pair(lap, front.boundary_mask, front.points)[1]
 
 
-def _after_failed_searches(front, w_tan: "TangentWeights", lap, solver: str, params: dict, timer: StageTimer,
-                           exc: Exception):
-    """(solution, counts, diagnostics) once both energies' searches failed: the mesh an sdp
-    map triangulates (not under ``refine="none"``), else the exact searches, last (``lap``
-    None: they ran in the first search, and ``exc`` is raised)."""
+def _after_failed_searches(tried: list, solver: str, params: dict, timer: StageTimer, exc: Exception):
+    """(solution, counts, diagnostics, index into ``tried``) once both energies' searches failed.
+
+    ``tried`` holds each attempt's (front end, W^tan, Laplacian, input): the surface's,
+    then with its holes filled (``holes="auto"``). The mesh a first map triangulates
+    (:func:`_mesh_fallback`; not under ``refine="none"``) on each in turn, the holes free
+    first. The unrolled boundary's map unrolls only one loop, so a surface with holes
+    reaches it filled; that map, of the filled surface, is then the first map of the
+    surface's own mesh with its holes free (:func:`_holes_freed`): scikit-learn's S-curve,
+    20k points less a disk 0.4 across, ConvergenceError before, now 9.0e-6 of the
+    diameter from the holed strip's unrolling. Else the first attempt's exact searches,
+    last (its Laplacian None: they ran in the first search, and ``exc`` is raised)."""
     if params["refine"] != "none":
-        try:
-            return _mesh_fallback(front, w_tan.matrix(), timer, exc, params, solver)
-        except (ConvergenceError, SolverError):
-            pass
+        for which, (front, w_tan, _, _) in enumerate(tried):
+            try:
+                sol, counts, extra = _mesh_fallback(front, w_tan.matrix(), timer, exc, params, solver)
+            except (ConvergenceError, SolverError):
+                continue
+            freed = _holes_freed(tried[0][0], sol, extra, timer) if which else None
+            return (*freed, 0) if freed is not None else (sol, counts, extra, which)
+    front, _, lap, _ = tried[0]
     if lap is None:
         raise exc
-    return _exact_last_resort(front, lap, solver, params, timer)
+    return (*_exact_last_resort(front, lap, solver, params, timer), 0)
+
+
+def _holes_freed(front, filled: "ConformalSolution", extra: dict, timer: StageTimer):
+    """(solution, counts, diagnostics) of cotangent SCP with the holes free on the mesh
+    ``filled``'s map (of the surface with its holes filled) triangulates on ``front``, or
+    None where that mesh has no regular map. The filled map is a map of another surface
+    (the fill patch's distortion: 4.2e-3 of the diameter off the unrolling of the holed
+    S-curve below); as a first map it gives the surface's own, 9.0e-6 off."""
+    try:
+        sol, info = _refined_from(front, filled.uv[:front.points.shape[0]], timer)
+    except ParambenchError:
+        return None
+    first = f"{extra['refined']['first_map']}, holes filled"
+    return sol, {}, {**extra, "refined": {**extra["refined"], **info, "first_map": first}}
 
 
 def _exact_last_resort(front, lap, solver: str, params: dict, timer: StageTimer):

@@ -51,7 +51,7 @@ import scipy.sparse as sp
 
 from parambench.datasets_gen.errors import ParambenchError
 
-from ..spectral.sparse_eigen import SparseFactor
+from .boundary_first_map import harmonic_extension
 from ..spectral.subspace import loop_arc_fraction
 from .neighbourhoods import KnnGraph, symmetric_adjacency
 from .stray_points import offsets_off_surface, stray_mask
@@ -220,19 +220,14 @@ def harmonic_scale(points: np.ndarray, knn_indices: np.ndarray, outer_loop: np.n
     SolverError
         The interior block is singular (a piece of the graph not connected to the loop).
     """
-    n = points.shape[0]
     outer = np.asarray(outer_loop, dtype=np.int64)
     knn = np.asarray(knn_indices, dtype=np.int64)
     lengths = np.linalg.norm(points[knn] - points[:, None, :], axis=2)
     adj = symmetric_adjacency(KnnGraph(knn, lengths, float(lengths.mean())))
     adj.data[:] = 1.0  # uniform weights
     lap = (sp.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj).tocsr()
-    free = np.ones(n, dtype=bool)
-    free[outer] = False
     angle = 2.0 * np.pi * loop_arc_fraction(points, outer)
-    uv = np.zeros((n, 2))
-    uv[outer] = np.column_stack([np.cos(angle), np.sin(angle)])
-    uv[free] = SparseFactor(lap[free][:, free]).solve(-(lap[free][:, ~free] @ uv[~free]))
+    uv = harmonic_extension(lap, outer, np.column_stack([np.cos(angle), np.sin(angle)]))
     uv_lengths = np.linalg.norm(uv[knn] - uv[:, None, :], axis=2)
     scale = uv_lengths.mean(axis=1) / np.maximum(lengths.mean(axis=1), np.finfo(float).tiny)
     return scale / max(float(np.median(scale)), np.finfo(float).tiny)

@@ -181,6 +181,10 @@ def test_the_summary_names_every_retry_and_the_energy_fallback():
     assert _energy_summary({"energy_used": "neumann"}) == ""
     assert "sdp map triangulates" in _energy_summary({"energy_used": "mesh", "energy_error": "ConvergenceError: x",
                                                       "refined": {"first_map": "sdp", "n_faces": 9}})
+    assert "the map of its unrolled boundary triangulates" in _energy_summary(
+        {"energy_used": "mesh", "refined": {"first_map": "unrolled boundary", "n_faces": 9}})
+    assert "the map of its unrolled boundary with the holes filled triangulates" in _energy_summary(
+        {"energy_used": "mesh", "refined": {"first_map": "unrolled boundary, holes filled", "n_faces": 9}})
     assert _energy_summary({"energy_used": "paper", "energy_error": "ConvergenceError: x",
                             "refined": {"first_map": "ocp (paper energy)", "n_faces": 9}}) == (
         " (refined by cotangent SCP on its own uv mesh, 9 triangles)")

@@ -1,7 +1,7 @@
 """The order of ``ocp``'s fallbacks after a failed Neumann k search on a point set.
 
-The cheap ones come first (the paper energy's search, then cotangent SCP on the mesh an
-sdp map triangulates); the exact searches on the dense boundary reduction, which cost
+The cheap ones come first (the paper energy's search, then cotangent SCP on the mesh a
+first map needing no k triangulates: the unrolled boundary's map, an sdp map); the exact searches on the dense boundary reduction, which cost
 most of ``ocp``'s time on points scattered over real meshes and rarely found a map
 there, come last and still run when everything else failed.
 """
@@ -127,8 +127,8 @@ def _folded(z: np.ndarray) -> np.ndarray:
 
 def test_a_paper_energy_map_whose_boundary_folds_goes_on_to_the_mesh_fallback(plane, monkeypatch):
     """A paper-energy map that gives no mesh of the surface (its triangulation holds a
-    fraction of the points) is not refined into a map of a few triangles: the mesh an
-    sdp map triangulates is used instead."""
+    fraction of the points) is not refined into a map of a few triangles: the mesh the
+    map of the unrolled boundary triangulates is used instead."""
     from dataclasses import replace
 
     _line_search_fails(monkeypatch, [])
@@ -144,7 +144,7 @@ def test_a_paper_energy_map_whose_boundary_folds_goes_on_to_the_mesh_fallback(pl
     diag = result.diagnostics
     # Neumann's search failed (stand-in); the paper energy's, by the direct k, mapped and folded.
     assert attempts == [False, True]
-    assert diag["energy_used"] == "mesh" and diag["refined"]["first_map"] == "sdp"
+    assert diag["energy_used"] == "mesh" and diag["refined"]["first_map"] == "unrolled boundary"
     assert diag["refined"]["n_unplaced"] <= 0.01 * plane.n_points
     quality = evaluate(plane.points, plane.faces, result.uv)
     assert quality["foldovers"] == 0 and quality["qc_mean"] < 1.01 and diag["selfcheck"]["passed"]
