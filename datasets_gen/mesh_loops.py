@@ -12,7 +12,9 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-__all__ = ["boundary_loops", "mesh_boundary", "orient_loop_with_faces", "pinched_vertices"]
+from .errors import InvalidInputError
+
+__all__ = ["boundary_loops", "mesh_boundary", "orient_loop_with_faces", "pinched_vertices", "one_fan_per_vertex"]
 
 
 def orient_loop_with_faces(loop: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -102,3 +104,70 @@ def pinched_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     rim = keys[counts == 1]
     per_vertex = np.bincount(np.concatenate([rim // n_vertices, rim % n_vertices]), minlength=n_vertices)
     return np.flatnonzero(per_vertex > 2)
+
+
+def one_fan_per_vertex(faces: np.ndarray, n_points: int) -> np.ndarray:
+    """The faces less the smaller fans at vertices where two or more meet.
+
+    A planar triangulation with triangles removed is edge-manifold, but a vertex can keep
+    several fans that touch only there (a pinch): its loops are then not defined. Each
+    such vertex keeps its largest fan; repeated until none is left (a drop can pinch a
+    neighbour).
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+        Edge-manifold triangles.
+    n_points : int
+
+    Returns
+    -------
+    (M', 3) numpy.ndarray of int64
+        A subset of ``faces``, in their order.
+
+    Raises
+    ------
+    InvalidInputError
+        Pinched vertices remain after 16 rounds.
+    """
+    for _ in range(16):
+        pinched = np.flatnonzero(_fan_counts(faces, n_points) > 1)
+        if pinched.size == 0:
+            return faces
+        keep = np.ones(faces.shape[0], dtype=bool)
+        for vertex in pinched:
+            keep &= ~_smaller_fans(faces, vertex)
+        faces = faces[keep]
+    raise InvalidInputError("the triangulation keeps vertices where separate fans meet after 16 rounds of "
+                            "dropping the smaller fans.")
+
+
+def _fan_counts(faces: np.ndarray, n_points: int) -> np.ndarray:
+    """Connected fans of triangles around each vertex (through edges at that vertex)."""
+    triangles = np.bincount(faces.ravel(), minlength=n_points)
+    # Interior edges at a vertex join fans: fans = triangles - interior edges there.
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    interior = unique[counts == 2]
+    joined = np.bincount(interior.ravel(), minlength=n_points)
+    return triangles - joined
+
+
+def _smaller_fans(faces: np.ndarray, vertex: int) -> np.ndarray:
+    """Mask of the triangles at ``vertex`` outside its largest fan."""
+    around = np.flatnonzero((faces == vertex).any(axis=1))
+    label = np.arange(around.size)
+    others = [set(faces[t].tolist()) - {vertex} for t in around]
+    changed = True
+    while changed:  # a fan is at most a few dozen triangles: label propagation suffices
+        changed = False
+        for i in range(around.size):
+            for j in range(i + 1, around.size):
+                if others[i] & others[j] and label[i] != label[j]:
+                    low = min(label[i], label[j])
+                    label[(label == label[i]) | (label == label[j])] = low
+                    changed = True
+    largest = np.bincount(label).argmax()
+    mask = np.zeros(faces.shape[0], dtype=bool)
+    mask[around[label != largest]] = True
+    return mask

@@ -28,7 +28,7 @@ from scipy.spatial import Delaunay, cKDTree
 
 from .build import MIN_GENERATED_POINTS
 from .errors import InvalidInputError, NotADiskError, TooFewPointsError
-from .mesh_loops import boundary_loops
+from .mesh_loops import boundary_loops, one_fan_per_vertex
 from .surface import Surface, circumradii
 
 __all__ = ["PEEL_RADIUS_SPACINGS", "scatter_on_mesh"]
@@ -162,7 +162,12 @@ def _reference_faces(points: np.ndarray, ref_uv: np.ndarray, mesh_uv: np.ndarray
     n_all = faces.shape[0]
     faces = faces[_inside_image(ref_uv, faces, mesh_uv, mesh_loops)]
     faces = _peeled(points, faces, PEEL_RADIUS_SPACINGS * spacing)
-    faces = _largest_piece(_one_fan_per_vertex(faces, points.shape[0]))
+    try:
+        faces = one_fan_per_vertex(faces, points.shape[0])
+    except InvalidInputError as exc:
+        raise InvalidInputError("the scattered points' reference triangulation keeps pinched vertices; "
+                                "use more points or another seed.") from exc
+    faces = _largest_piece(faces)
     return faces, n_all - faces.shape[0]
 
 
@@ -232,57 +237,6 @@ def _largest_piece(faces: np.ndarray) -> np.ndarray:
     """The faces of the largest edge-connected piece (islands a dropped triangle cut off go)."""
     pieces = np.asarray(igl.facet_components(faces)[1], dtype=np.int64)
     return faces[pieces == np.bincount(pieces).argmax()]
-
-
-def _one_fan_per_vertex(faces: np.ndarray, n_points: int) -> np.ndarray:
-    """Drop the smaller fans at vertices where dropped bridges left two or more.
-
-    A planar triangulation with triangles removed is edge-manifold, but a vertex can keep
-    several fans that touch only there (a pinch): its loops are then not defined. Each
-    such vertex keeps its largest fan; repeated until none is left (a drop can pinch a
-    neighbour).
-    """
-    for _ in range(16):
-        pinched = np.flatnonzero(_fan_counts(faces, n_points) > 1)
-        if pinched.size == 0:
-            return faces
-        keep = np.ones(faces.shape[0], dtype=bool)
-        for vertex in pinched:
-            keep &= ~_smaller_fans(faces, vertex)
-        faces = faces[keep]
-    raise InvalidInputError("the scattered points' reference triangulation keeps pinched vertices; "
-                            "use more points or another seed.")
-
-
-def _fan_counts(faces: np.ndarray, n_points: int) -> np.ndarray:
-    """Connected fans of triangles around each vertex (through edges at that vertex)."""
-    triangles = np.bincount(faces.ravel(), minlength=n_points)
-    # Interior edges at a vertex join fans: fans = triangles - interior edges there.
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    interior = unique[counts == 2]
-    joined = np.bincount(interior.ravel(), minlength=n_points)
-    return triangles - joined
-
-
-def _smaller_fans(faces: np.ndarray, vertex: int) -> np.ndarray:
-    """Mask of the triangles at ``vertex`` outside its largest fan."""
-    around = np.flatnonzero((faces == vertex).any(axis=1))
-    label = np.arange(around.size)
-    others = [set(faces[t].tolist()) - {vertex} for t in around]
-    changed = True
-    while changed:  # a fan is at most a few dozen triangles: label propagation suffices
-        changed = False
-        for i in range(around.size):
-            for j in range(i + 1, around.size):
-                if others[i] & others[j] and label[i] != label[j]:
-                    low = min(label[i], label[j])
-                    label[(label == label[i]) | (label == label[j])] = low
-                    changed = True
-    largest = np.bincount(label).argmax()
-    mask = np.zeros(faces.shape[0], dtype=bool)
-    mask[around[label != largest]] = True
-    return mask
 
 
 def _interpolated_normals(mesh: Surface, corners: np.ndarray, bary: np.ndarray) -> np.ndarray:

@@ -39,6 +39,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError, ParambenchError, SolverError
+from parambench.datasets_gen.mesh_loops import one_fan_per_vertex
 from parambench.datasets_gen.surface import DEGENERATE_AREA_TOL, MethodInput, flat_faces
 
 from ..base import StageTimer
@@ -260,7 +261,11 @@ def first_map_faces(points: np.ndarray, uv: np.ndarray, loops: list[np.ndarray],
     # consecutive along a loop, make such a face (the generated plane's edges); dropped,
     # the middle point is left to similarity_placed.
     flat = flat_faces(points, faces, 10.0 * DEGENERATE_AREA_TOL)
-    faces = faces[~flat]
+    # A point where two fans meet (the constrained triangulation of a hole's loop passing
+    # beside the rim; scikit-learn's swiss roll with its hole, 20k points: one such point
+    # made the whole mesh NotADiskError) keeps its largest; the others' points are placed
+    # by similarity_placed.
+    faces = one_fan_per_vertex(faces[~flat], points.shape[0])
     n_used = np.unique(faces).size
     if n_used < 3:
         raise InvalidInputError("the first map's triangulation has no triangles; it collapsed.")

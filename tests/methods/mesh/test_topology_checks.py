@@ -236,3 +236,16 @@ def test_the_moebius_message_sends_nobody_to_points_only():
     with pytest.raises(NotADiskError) as info:
         get_method("scp")(Surface(pts, faces, name="moebius"))
     assert "--points-only" not in str(info.value) and "cut once across is a disk" in str(info.value)
+
+
+def test_one_fan_per_vertex_keeps_the_largest_fan_at_a_pinch():
+    from parambench.datasets_gen.mesh_loops import one_fan_per_vertex, pinched_vertices
+
+    # Three triangles round vertex 0 (one fan) and a fourth touching them only at vertex 0.
+    faces = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 5, 6]])
+    assert pinched_vertices(faces, 7).tolist() == [0]
+    kept = one_fan_per_vertex(faces, 7)
+    assert kept.tolist() == faces[:3].tolist()
+    assert pinched_vertices(kept, 7).size == 0
+    # Nothing to drop: the same faces back.
+    assert one_fan_per_vertex(kept, 7).tolist() == kept.tolist()
