@@ -96,7 +96,7 @@ def test_scattered_boundary_loop_turns_once_in_the_true_map():
 
 
 @pytest.mark.parametrize("n,aspect,seed,first", [(3000, 1.0, 8, "stretches whole regions"),
-                                                 (4000, 4.0, 3, "images cross in uv"),
+                                                 (4000, 4.0, 3, None),
                                                  (3000, 1.0, 1, "stretches whole regions")])
 def test_a_stretched_map_of_a_developable_tile_is_caught_and_retried(n, aspect, seed, first):
     """Uniform random points on z = 0.06 sin(x) over [-a, a] x [-1, 1], as a LiDAR tile
@@ -109,8 +109,10 @@ def test_a_stretched_map_of_a_developable_tile_is_caught_and_retried(n, aspect, 
     outside), is a Neumann-energy map 5.6 % of the diameter off with a coherent coefficient
     of only 0.097, under the old limit of 0.15; clean inputs are now held to 0.06. The
     second seed's first map, stretched with a point outside its loop before the wrap took
-    corner points in too (fortieth session), now fails on its loop crossing itself in uv;
-    the retry gives the same development either way."""
+    corner points in too (fortieth session), then failed on its loop crossing itself in uv
+    (turning +2: the paper energy's map unrefined, its uv mesh having a vertex with two
+    fans); since the mesh keeps the larger fan (forty-fourth session) the first run gives
+    the development (9.3e-8 of the diameter off; the retry gave 8.8e-8)."""
     from scipy.integrate import cumulative_trapezoid
 
     from parambench.bench.metrics import similarity_align
@@ -125,7 +127,10 @@ def test_a_stretched_map_of_a_developable_tile_is_caught_and_retried(n, aspect, 
     result = get_method("ocp")(MethodInput(points))
     check = result.diagnostics["selfcheck"]
     assert check["passed"], check["reason"]
-    assert first in check["retry"]["first_reason"]
+    if first is None:
+        assert not check.get("retry")
+    else:
+        assert first in check["retry"]["first_reason"]
     assert check["coherent_beltrami"] < 0.01
     aligned = similarity_align(result.uv, exact)
     rms = np.sqrt(np.mean(np.sum((aligned - exact) ** 2, axis=1)))

@@ -90,3 +90,26 @@ def test_a_holed_s_curve_maps_to_its_unrolling_with_the_hole_free():
     assert diag["refined"]["first_map"] == "unrolled boundary, holes filled" and diag["holes_filled"] == 0
     assert diag["selfcheck"]["turning_numbers"] == [1.0, -1.0]
     assert _rms_over_diameter(result.uv, exact) < 1e-4
+
+
+@pytest.mark.parametrize("n", [2000, 5000])
+def test_the_swiss_rolls_hole_is_found(n):
+    """``make_swiss_roll(hole=True)`` cuts out the middle cell of its 3 x 3 grid in (t, y):
+    29.8 x 7 in the unrolled coordinates, 7 spacings across at 2,000 points. The plain
+    walk turned away at its corners and its chain ran into the outer loop; the hole came
+    back only from the walk with hairpin steps, which took slots alone (before: 1 loop,
+    and the map's triangles covered the hole). Its loop now encloses the hole: in the
+    unrolled coordinates, an area between the cell's and the cell's grown by 1.5 mean
+    spacings on every side (measured 1.26 and 1.16 times the cell's)."""
+    x, t = make_swiss_roll(n, random_state=0, hole=True)
+    arc = 0.5 * (t * np.sqrt(1.0 + t * t) + np.arcsinh(t))
+    front = build_frontend(x)
+    _, rows = cKDTree(x).query(front.points)
+    flat = np.c_[arc, x[:, 1]][rows]
+    assert len(front.boundary_loops) == 2
+    hole = flat[front.boundary_loops[1]]
+    area = 0.5 * abs(np.dot(hole[:, 0], np.roll(hole[:, 1], -1)) - np.dot(hole[:, 1], np.roll(hole[:, 0], -1)))
+    s_lo, s_hi = (0.5 * (v * np.sqrt(1.0 + v * v) + np.arcsinh(v)) for v in (2.5 * np.pi, 3.5 * np.pi))
+    # Its points are the rim's, up to a spacing or so outside the cell.
+    grow = 3.0 * front.mean_spacing
+    assert 0.9 * (s_hi - s_lo) * 7.0 < area < (s_hi - s_lo + grow) * (7.0 + grow)
