@@ -190,9 +190,10 @@ class Ocp(Method):
     clean points solved again on the refined map's own triangulation until it stops
     changing (:mod:`parambench.methods.pointset.mesh_refine`); ``"auto"`` (default) does so only
     where the Neumann energy gave no map (from the paper energy's map, or where that
-    failed too from an SDP map, or, where that gives no mesh and the surface is a height
-    field over the plane across its mean normal, from the points projected on it,
-    :func:`_mesh_fallback`, ``energy_used`` then ``"mesh"``;
+    failed too from the map of the unrolled boundary (one loop), an SDP map, or, where
+    those give no mesh and the surface is a height field over the plane across its mean
+    normal, from the points projected on it, :func:`_mesh_fallback`, ``energy_used`` then
+    ``"mesh"``, ``refined["first_map"]`` which;
     from :data:`MULTILEVEL_FROM` points on W^tan for these is rebuilt,
     :class:`TangentWeights`, and on the two-level path they keep to two levels), where
     the points are a lattice (a raster, a range image, a grid sampling; below
