@@ -794,6 +794,8 @@ def _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidate
                             hairpins=True)
     new = [c for c in _true_loops(points, again, ball_radius, typical_radius, min_loop_size, local_spacing)
            if not on_loop[c].any()]
+    if not new:
+        return []
     tree = cKDTree(points)
     out = []
     for c in new:
