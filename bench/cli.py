@@ -362,6 +362,21 @@ def _check_output_path(out: Path, source: Path) -> None:
                              "pass another output path.")
 
 
+def _note_first_compilation() -> None:
+    """One line on a terminal's stderr when the point-set kernels are not compiled yet (a fresh install's first use).
+
+    Only on a terminal, as progress is: a script reading stderr gets its one error line.
+    """
+    if not sys.stderr.isatty():
+        return
+    from parambench.methods.numba_cache import cached_on_disk
+    from parambench.methods.pointset.local_fits import pca_rows
+
+    if cached_on_disk(pca_rows) is False:
+        print("parambench: note: first use of this install: numba compiles the point-set kernels now (about "
+              "45 s on 2 cores, once; later runs load them from its cache)", file=sys.stderr)
+
+
 def _cmd_flatten(args: argparse.Namespace) -> int:
     from parambench.datasets_gen.io import load_surface
     from parambench.methods.pointset.selfcheck import coherent_limit, pointset_faces
@@ -383,6 +398,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         raise MissingFacesError(f"--points-only drops the faces, and method {method.name!r} needs them: leave out "
                                 "--points-only, or choose a point-set method (e.g. ocp).")
     params = parse_param_values(args.param or [], method.defaults, method.nullable)
+    if not method.needs_faces:
+        _note_first_compilation()
     n_input_rows = surface.n_points
     csv = out.suffix.lower() == ".csv"
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
@@ -465,6 +482,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         from parambench.datasets_gen.errors import UnknownNameError
 
         raise UnknownNameError(f"unknown front-end parameter(s) {', '.join(unknown)}; accepted: {', '.join(sorted(defaults))}.")
+    _note_first_compilation()
     surface = _repaired(_screened(surface, params.get("k_nn", defaults["k_nn"])), args.repair,
                         params.get("k_nn", defaults["k_nn"]))
     with _offer_repair(args.repair):

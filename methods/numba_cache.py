@@ -21,7 +21,7 @@ from pathlib import Path
 import numba.core.config
 from numba.misc.appdirs import AppDirs
 
-__all__ = ["configure_numba_cache", "can_write"]
+__all__ = ["configure_numba_cache", "can_write", "cached_on_disk"]
 
 ENV_VAR = "NUMBA_CACHE_DIR"
 
@@ -92,3 +92,23 @@ def configure_numba_cache(source_dir: Path) -> tuple[bool, str | None]:
     os.environ[ENV_VAR] = str(fallback)
     numba.core.config.CACHE_DIR = str(fallback)
     return True, str(fallback)
+
+
+def cached_on_disk(kernel) -> bool | None:
+    """Whether numba's on-disk cache holds compiled code of ``kernel`` (a ``numba.njit`` function).
+
+    A fresh install compiles its kernels on first use and caches them: ``parambench
+    flatten`` on 10k points took 44.6 s the first time against 2.0 s after (2 cores),
+    which without a word looks like a hang.
+
+    Returns
+    -------
+    bool or None
+        Whether the kernel's cache index file exists where numba looks for it; None when
+        that is not known (caching off, or a numba whose cache is laid out otherwise).
+    """
+    try:
+        index = kernel._cache._cache_file._index_path
+    except AttributeError:
+        return None
+    return os.path.exists(index)
