@@ -346,6 +346,27 @@ def _offer_repair(repair: bool):
         raise
 
 
+def _mesh_instead(surface) -> str:
+    """For a point set read from a mesh file with ``--points-only``: where its faces would help, else ''."""
+    n_faces = surface.params.get("faces_dropped")
+    if not n_faces:
+        return ""
+    return (f"flatten the file's {n_faces} faces instead: leave out --points-only (a mesh method such as scp maps "
+            "them where they mesh an open surface; --repair mends non-manifold parts)")
+
+
+@contextmanager
+def _offer_mesh(surface):
+    """Add the dropped faces to the message of a point-set method's error (``--points-only``)."""
+    try:
+        yield
+    except ParambenchError as exc:
+        hint = _mesh_instead(surface)
+        if hint:
+            exc.args = (f"{str(exc).rstrip('.')}; or {hint}.",)
+        raise
+
+
 def _check_output_path(out: Path, source: Path) -> None:
     """Refuse, before any work, an output that cannot be written or would overwrite the input.
 
@@ -404,7 +425,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     csv = out.suffix.lower() == ".csv"
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
                         params.get("k_nn", method.defaults.get("k_nn")), _CSV_ROWS_NOTE if csv else _VERTICES_NOTE)
-    with _offer_repair(args.repair):
+    with _offer_repair(args.repair), _offer_mesh(surface):
         result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
@@ -414,8 +435,9 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
         strays = "stray" in check.get("causes", {}) or "isolated" in (check.get("failed") or ())
         repair = "--repair drops the stray points; " if strays and not args.repair else ""
-        print(f"parambench: error: {failure_line(check, result.params, method.name)} "
-              f"({repair}--force writes the map anyway)", file=sys.stderr)
+        mesh = _mesh_instead(surface)
+        print(f"parambench: error: {failure_line(check, result.params, method.name)}"
+              f"{'; or ' + mesh if mesh else ''} ({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
     faces, points, uv = surface.faces, surface.points, result.uv
     if faces is None and not csv:

@@ -80,6 +80,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     normals = _file_normals(path, raw.normals)
     faces = None if points_only else raw.faces
     params = {"source": str(path), "format": ext[1:]}
+    if points_only and raw.faces is not None and len(raw.faces):
+        params["faces_dropped"] = int(len(raw.faces))  # so a failure can point back to them
     if faces is not None and drop_degenerate_faces:
         keep = ~(degenerate_faces(raw.points, faces))
         if not keep.all():

@@ -108,6 +108,25 @@ def test_bad_input_one_line_exit_2(case, tmp_path, capsys, write_obj):
         assert src.read_bytes() == before  # the input is never written over
 
 
+def test_a_point_set_failure_from_a_mesh_file_points_back_to_its_faces(tmp_path, capsys, write_obj):
+    # pymeshlab's range scan face000 with --points-only fails on its points (exit 2) while
+    # its own mesh maps through scp: the error says so. A 3 x 3 grid is too small for the
+    # points' boundary; its faces are a disk. A bare .xyz has no faces to point to.
+    src = tmp_path / "grid.obj"
+    write_obj(src, *_grid_mesh(3))
+    assert main(["flatten", str(src), "--points-only", "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "NoBoundaryError" in err
+    assert f"flatten the file's {len(_grid_mesh(3)[1])} faces instead: leave out --points-only" in err
+    assert main(["flatten", str(src), "-o", str(tmp_path / "o.csv")]) == 0  # and they do map
+    capsys.readouterr()
+    xyz = tmp_path / "grid.xyz"
+    np.savetxt(xyz, _grid_mesh(3)[0])
+    assert main(["flatten", str(xyz), "-o", str(tmp_path / "p.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "NoBoundaryError" in err and "--points-only" not in err
+
+
 def test_nan_coordinates_in_file(tmp_path, capsys):
     pts, faces = _grid_mesh(5)
     src = tmp_path / "nan.obj"
