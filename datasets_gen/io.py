@@ -51,7 +51,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
         An ``.off``, ``.obj``, ``.ply``, ``.stl`` mesh or ``.xyz`` (also ``.txt``, ``.csv``,
         ``.asc``), ``.pts``, ``.ply`` point cloud.
     points_only : bool
-        Drop the faces (keep the vertices as a point set).
+        Drop the faces (keep the vertices as a point set); their count goes to
+        ``params["faces_dropped"]``.
     name : str, optional
         Surface name; default: the file name without extension.
     drop_degenerate_faces : bool
