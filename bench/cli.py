@@ -347,11 +347,22 @@ def _offer_repair(repair: bool):
 
 
 def _mesh_instead(surface) -> str:
-    """For a point set read from a mesh file with ``--points-only``: where its faces would help, else ''."""
+    """For a point set read from a mesh file with ``--points-only``: what its faces say, else ''.
+
+    Where they mesh an open surface without handles, to flatten them instead; where they
+    mesh a closed one or one with handles, that a cut is needed (no route through the faces).
+    """
     n_faces = surface.params.get("faces_dropped")
     if not n_faces:
         return ""
-    return (f"flatten the file's {n_faces} faces instead: leave out --points-only (a mesh method such as scp maps "
+    topology = surface.params.get("faces_topology", {})
+    if topology.get("boundary_loops") == 0:
+        return (f"but the file's {n_faces} faces mesh a closed surface, which no method lays flat without a cut: "
+                "cut it open along a seam (with a mesh editor) and flatten that")
+    if topology.get("genus", 0) > 0:
+        return (f"but the file's {n_faces} faces mesh a surface with {topology['genus']} handle(s), which no method lays "
+                "flat without a cut: cut each handle open along a seam (with a mesh editor) and flatten that")
+    return (f"or flatten the file's {n_faces} faces instead: leave out --points-only (a mesh method such as scp maps "
             "them where they mesh an open surface; --repair mends non-manifold parts)")
 
 
@@ -363,7 +374,7 @@ def _offer_mesh(surface):
     except ParambenchError as exc:
         hint = _mesh_instead(surface)
         if hint:
-            exc.args = (f"{str(exc).rstrip('.')}; or {hint}.",)
+            exc.args = (f"{str(exc).rstrip('.')}; {hint}.",)
         raise
 
 
@@ -437,7 +448,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         repair = "--repair drops the stray points; " if strays and not args.repair else ""
         mesh = _mesh_instead(surface)
         print(f"parambench: error: {failure_line(check, result.params, method.name)}"
-              f"{'; or ' + mesh if mesh else ''} ({repair}--force writes the map anyway)", file=sys.stderr)
+              f"{'; ' + mesh if mesh else ''} ({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
     faces, points, uv = surface.faces, surface.points, result.uv
     if faces is None and not csv:

@@ -14,7 +14,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .mesh_loops import mesh_boundary
-from .repair import repair_surface
+from .repair import largest_piece, repair_surface
 from .surface import Surface
 
 __all__ = ["cut_by_plane"]
@@ -67,7 +67,10 @@ def cut_by_plane(surface: Surface, axis: int, quantile: float, *, keep_above: bo
     if not kept.any():
         raise InvalidInputError(f"{surface.name}: no face lies on the kept side of the plane.")
     label = name or f"{surface.name}-cut{axis}{'>' if keep_above else '<'}{quantile:g}"
-    piece, facts = repair_surface(Surface(points=surface.points, faces=surface.faces[kept], name=label,
+    # The cut's largest piece by construction, even beside pieces of comparable size (two ear
+    # tips), which repair_surface refuses to choose between for a user's file.
+    faces, _ = largest_piece(surface.faces[kept], len(surface.points))
+    piece, facts = repair_surface(Surface(points=surface.points, faces=faces, name=label,
                                           params={"cut": {"axis": axis, "quantile": quantile,
                                                           "keep_above": keep_above}}))
     loops, mask = mesh_boundary(piece.faces, len(piece.points))

@@ -12,8 +12,8 @@ decision about the data.
 For a mesh: the largest piece by face count (faces joined through shared vertices), then
 pymeshlab's duplicate-face removal, on each edge of more than two faces the two faces that
 continue each other across it kept (a fin or a folded flap dropped), pymeshlab's
-non-manifold edge repair for what is left (faces removed), non-manifold
-vertex repair (the fans split into copies of the vertex), unreferenced-vertex removal and
+non-manifold edge repair for what is left (faces removed), the fans of faces meeting
+at one vertex split into copies of it (:func:`.mesh_fans.split_fans`), unreferenced-vertex removal and
 coherent re-orientation of the faces (the minority winding of a piece reversed), then the
 largest piece again (a split vertex can disconnect what it joined). pymeshlab
 sees the arrays parambench's own reader validated, never the file. For a point set: the
@@ -26,10 +26,10 @@ The result is a new surface: its rows are the kept (and split) vertices, not the
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from .knn_pieces import comparable_pieces, disconnected_error, knn_labels
+from .mesh_fans import split_fans
+from .mesh_pieces import disconnected_mesh_error, face_pieces
 from .surface import Surface
 
 __all__ = ["repair_surface", "repair_summary", "largest_piece", "compact"]
@@ -37,12 +37,8 @@ __all__ = ["repair_surface", "repair_summary", "largest_piece", "compact"]
 
 def largest_piece(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, int]:
     """Faces of the largest vertex-connected piece (by face count) and the number of pieces."""
-    rows = np.repeat(np.arange(len(faces)), 3)
-    incidence = sp.csr_matrix((np.ones(faces.size), (rows, faces.ravel())), shape=(len(faces), n_vertices))
-    n_pieces, label = connected_components(incidence @ incidence.T, directed=False)
-    if n_pieces == 1:
-        return faces, 1
-    return faces[label == np.argmax(np.bincount(label))], int(n_pieces)
+    label, sizes = face_pieces(faces, n_vertices)
+    return (faces, 1) if sizes.size == 1 else (faces[label == 0], int(sizes.size))
 
 
 def compact(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -56,7 +52,10 @@ def compact(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
     import pymeshlab
 
-    piece, n_pieces = largest_piece(faces, len(points))
+    label, sizes = face_pieces(faces, len(points))
+    if comparable_pieces(sizes):
+        raise disconnected_mesh_error(points, faces, label, sizes)
+    piece, n_pieces = faces[label == 0], int(sizes.size)
     kept_faces = len(piece)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(points, dtype=np.float64),
@@ -72,11 +71,17 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
         ms.clear()
         ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v_now, face_matrix=f_now[~fins].astype(np.int32)))
     ms.meshing_repair_non_manifold_edges()
-    n_before_split = ms.current_mesh().vertex_number()
-    ms.meshing_repair_non_manifold_vertices()
-    n_split = ms.current_mesh().vertex_number() - n_before_split
-    ms.meshing_remove_unreferenced_vertices()
-    n_faces = ms.current_mesh().face_number()
+    # Our own split, not pymeshlab's meshing_repair_non_manifold_vertices: that one left 55
+    # of the 81 pinched vertices of the npm package snowden's bust (mis-wound faces beside
+    # them), and the methods then refused the "repaired" mesh.
+    mesh = ms.current_mesh()
+    v_now = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
+    f_now, source = split_fans(np.asarray(mesh.face_matrix(), dtype=np.int64), len(v_now))
+    n_split = len(source) - len(v_now)
+    v_now, f_now = compact(v_now[source], f_now)
+    ms.clear()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v_now, face_matrix=f_now.astype(np.int32)))
+    n_faces = len(f_now)
     before = np.asarray(ms.current_mesh().face_matrix(), dtype=np.int64)
     # Faces wound against their neighbours (files merged from tools that wind differently,
     # or a duplicate face kept in its reversed copy); a non-orientable piece stays as it is
@@ -186,8 +191,8 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
     InvalidInputError, DegenerateFacesError, TooFewPointsError
         The repaired surface fails :class:`Surface`'s validation (e.g. too few points left).
     DisconnectedError
-        A point set in pieces of comparable size (the second largest at least half the
-        largest): keeping one would drop about as much as it keeps.
+        A point set or mesh in pieces of comparable size (the second largest at least
+        half the largest): keeping one would drop about as much as it keeps.
     """
     points = np.asarray(surface.points, dtype=np.float64)
     if surface.faces is not None:

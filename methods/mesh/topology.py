@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import igl
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from parambench.datasets_gen.errors import DisconnectedError, NotADiskError, repairable
+# Half-edges and fans live below the methods, where the repair of input files uses them too.
+from parambench.datasets_gen.mesh_fans import HalfEdges as _HalfEdges
+from parambench.datasets_gen.mesh_fans import corner_fans
+from parambench.datasets_gen.mesh_fans import half_edges as _half_edges
 # The one definition of a mesh's loops lives below the methods, where the readers use it too.
 from parambench.datasets_gen.mesh_loops import boundary_loops
+from parambench.datasets_gen.mesh_pieces import disconnected_mesh_error, face_pieces
 
 __all__ = [
     "boundary_loops",
@@ -53,41 +56,6 @@ def duplicate_faces(faces: np.ndarray) -> np.ndarray:
     repeat, first = order[1:][same], order[run_start[1:][same]]
     by_repeat = np.argsort(repeat)
     return np.column_stack([repeat[by_repeat], first[by_repeat]]).astype(np.int64)
-
-
-class _HalfEdges(NamedTuple):
-    """Per half-edge ``3 f + k`` (corner ``3 f + k`` is vertex ``faces[f, k]`` in face f): its
-    start corner (= its index), end corner and undirected-edge id; the half-edges ordered by
-    edge id (stable), and each edge's number of half-edges."""
-
-    start: np.ndarray
-    end: np.ndarray
-    edge_id: np.ndarray
-    order: np.ndarray
-    counts: np.ndarray
-
-    def pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """The two half-edges (h1, h2) of each edge on exactly two faces, h1 the earlier."""
-        ptr = np.concatenate([[0], np.cumsum(self.counts)])
-        two = np.flatnonzero(self.counts == 2)
-        return self.order[ptr[two]], self.order[ptr[two] + 1]
-
-
-def _half_edges(faces: np.ndarray) -> _HalfEdges:
-    """The half-edges of ``faces`` (one sort of their undirected keys serves every check)."""
-    m = faces.shape[0]
-    start = np.arange(3 * m)
-    end = (3 * np.arange(m)[:, None] + (np.arange(3) + 1) % 3).ravel()
-    flat = faces.ravel()
-    lo, hi = np.minimum(flat[start], flat[end]), np.maximum(flat[start], flat[end])
-    # one int64 per undirected edge: a 1-D sort is several times faster than unique(axis=0)
-    key = lo * (int(flat.max()) + 1) + hi if m else lo
-    order = np.argsort(key, kind="stable")
-    ordered = key[order]
-    new_edge = np.concatenate([[True], ordered[1:] != ordered[:-1]]) if m else np.zeros(0, dtype=bool)
-    edge_id = np.empty(3 * m, dtype=np.int64)
-    edge_id[order] = np.cumsum(new_edge) - 1
-    return _HalfEdges(start, end, edge_id, order, np.bincount(edge_id))
 
 
 def interior_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -168,17 +136,7 @@ def non_manifold_vertices(faces: np.ndarray, n_vertices: int, half_edges: _HalfE
         Sorted vertex indices.
     """
     flat = faces.ravel()
-    he = _half_edges(faces) if half_edges is None else half_edges
-    start, end = he.start, he.end
-    h1, h2 = he.pairs()
-    # link the corners of the two faces that sit at the same vertex, at both ends of the edge
-    h2_at_start_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], start[h2], end[h2])
-    h2_at_end_of_h1 = np.where(flat[start[h2]] == flat[start[h1]], end[h2], start[h2])
-    i = np.concatenate([start[h1], end[h1]])
-    j = np.concatenate([h2_at_start_of_h1, h2_at_end_of_h1])
-    n_corners = flat.size
-    graph = sp.coo_matrix((np.ones(i.size), (i, j)), shape=(n_corners, n_corners))
-    _, fan = connected_components(graph, directed=False)
+    fan = corner_fans(faces, half_edges)
     vertex_fan = np.unique(flat * np.int64(fan.max() + 1) + fan)
     fans_per_vertex = np.bincount(vertex_fan // (fan.max() + 1), minlength=n_vertices)
     return np.flatnonzero(fans_per_vertex > 1).astype(np.int64)
@@ -306,13 +264,6 @@ def require_oriented(faces: np.ndarray, half_edges: _HalfEdges | None = None) ->
             "(pymeshlab meshing_re_orient_faces_coherently) or use --points-only."), "reverse them")
 
 
-def _component_count(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
-    i = np.repeat(faces, 2, axis=1).ravel()
-    j = np.roll(faces, -1, axis=1).repeat(2, axis=1).ravel()
-    adj = sp.coo_matrix((np.ones(i.size), (i, j)), shape=(n_vertices, n_vertices))
-    return connected_components(adj, directed=False)
-
-
 def require_no_handles(faces: np.ndarray, n_loops: int) -> None:
     """Raise when a connected mesh with ``n_loops`` boundary loops has a handle.
 
@@ -372,12 +323,9 @@ def require_connected_disk_like(points: np.ndarray, faces: np.ndarray, *, allow_
             f"{int((~used).sum())} vertex/vertices belong to no face; remove unreferenced vertices "
             "(pymeshlab meshing_remove_unreferenced_vertices) or use --points-only."
         ))
-    n_comp, _ = _component_count(faces, n)
-    if n_comp > 1:
-        raise repairable(DisconnectedError(
-            f"the mesh has {n_comp} connected components; flatten each component separately "
-            "(pymeshlab generate_splitting_by_connected_components)."
-        ))
+    label, sizes = face_pieces(faces, n)
+    if sizes.size > 1:
+        raise disconnected_mesh_error(points, faces, label, sizes)
     loops = boundary_loops(faces)
     if not loops:
         raise NotADiskError("the mesh is closed (no boundary loop); cut it open along a seam before flattening.")

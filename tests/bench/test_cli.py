@@ -127,6 +127,23 @@ def test_a_point_set_failure_from_a_mesh_file_points_back_to_its_faces(tmp_path,
     assert "NoBoundaryError" in err and "--points-only" not in err
 
 
+def test_a_closed_mesh_file_s_point_set_failure_says_a_cut_is_needed_not_to_use_its_faces(tmp_path, capsys, write_obj):
+    # The npm package snowden's bust (genus 5) with --points-only failed its self-check and
+    # was told to flatten its faces instead, which fails too: the faces say it is closed.
+    from scipy.spatial import ConvexHull
+
+    i = np.arange(2000) + 0.5
+    z, phi = 1.0 - i / 1000.0, np.pi * (1.0 + 5.0**0.5) * i
+    points = np.c_[np.sqrt(1.0 - z**2) * np.cos(phi), np.sqrt(1.0 - z**2) * np.sin(phi), z]
+    src = tmp_path / "sphere.obj"
+    write_obj(src, points, ConvexHull(points).simplices)
+    assert main(["flatten", str(src), "--points-only", "-o", str(tmp_path / "o.obj")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "NoBoundaryError" in err
+    assert "faces mesh a closed surface, which no method lays flat without a cut" in err
+    assert "faces instead" not in err
+
+
 def test_nan_coordinates_in_file(tmp_path, capsys):
     pts, faces = _grid_mesh(5)
     src = tmp_path / "nan.obj"

@@ -204,3 +204,72 @@ def test_inspect_with_repair_gives_loops_in_the_input_file_s_rows(tmp_path, caps
     on_boundary[5:5 + len(surface.points)] = surface.boundary_mask
     found = np.concatenate([np.asarray(loop) for loop in report["boundary_loops"]])
     assert on_boundary[found].mean() > 0.9
+
+
+def _three_fans_at_a_corner():
+    """A 10 x 10 grid with two single triangles standing on its corner vertex (0, 0, 0):
+    three fans meet there. pymeshlab's meshing_repair_non_manifold_vertices split off one
+    and left the vertex non-manifold (the npm package snowden's bust: 55 such vertices,
+    and the "repaired" mesh was refused)."""
+    points, faces = _grid(10)
+    extra = np.array([[0.0, 0.3, 1.0], [0.3, 0.0, 1.0], [0.0, -0.3, -1.0], [-0.3, 0.0, -1.0]])
+    n = len(points)
+    return np.r_[points, extra], np.r_[faces, [[0, n, n + 1], [0, n + 2, n + 3]]]
+
+
+def test_split_fans_gives_each_fan_at_a_vertex_its_own_copy():
+    from parambench.datasets_gen.mesh_fans import split_fans
+    from parambench.methods.mesh.topology import non_manifold_vertices
+
+    points, faces = _three_fans_at_a_corner()
+    assert non_manifold_vertices(faces, len(points)).tolist() == [0]
+    split, source = split_fans(faces, len(points))
+    assert len(source) == len(points) + 2 and source[len(points):].tolist() == [0, 0]
+    assert non_manifold_vertices(split, len(source)).size == 0
+    assert np.array_equal(points[source][split], points[faces])  # every face where it was
+    assert np.array_equal(split[:-2], faces[:-2])  # the grid keeps its vertices
+
+
+def test_repair_splits_every_fan_where_three_meet(tmp_path, capsys):
+    points, faces = _three_fans_at_a_corner()
+    repaired, facts = repair_surface(Surface(points=points, faces=faces, name="fans"))
+    assert facts["vertices_split"] == 2 and facts["pieces_after_repair"] == 3
+    assert facts["faces_out"] == 162 and facts["points_out"] == 100
+    assert len(require_connected_disk_like(repaired.points, repaired.faces)) == 1
+    src, out = tmp_path / "fans.obj", tmp_path / "uv.obj"
+    _write_obj(src, points, faces)
+    assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
+    capsys.readouterr()
+    _assert_the_plane_s_exact_map(out, _grid(10)[0])
+
+
+def test_comparable_mesh_pieces_are_refused_with_the_weld_advice_not_repaired(tmp_path, capsys):
+    """Two halves of a grid stored unwelded, their shared column as coincident vertices (as
+    patch exports store them: the npm package teapot's 32 Bezier patches). Keeping the
+    largest kept 32 of the teapot's 992 faces, exit 0; now refused, with the weld named."""
+    left, fl = _grid(6)
+    right, fr = _grid(6, (5.0, 0.0))
+    points, faces = np.r_[left, right], np.r_[fl, fr + len(left)]
+    src, out = tmp_path / "halves.obj", tmp_path / "uv.obj"
+    _write_obj(src, points, faces)
+    for extra in ([], ["--repair"]):
+        assert main(["flatten", str(src), *extra, "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "DisconnectedError: the mesh has 2 connected components (50, 50 faces)" in err
+        assert "they meet at 12 coincident vertices" in err and "meshing_merge_close_vertices" in err
+        assert "keeping the largest would drop 50 of 100 faces" in err and "pass --repair" not in err
+    assert not out.exists()
+    with pytest.raises(DisconnectedError):
+        repair_surface(Surface(points=points, faces=faces, name="halves"))
+
+
+def test_a_speck_beside_a_mesh_is_still_offered_to_repair(capsys):
+    from parambench.datasets_gen.mesh_pieces import disconnected_mesh_error, face_pieces
+
+    big, fb = _grid(10)
+    speck, fs = _grid(3, (100.0, 0.0))
+    points, faces = np.r_[speck, big], np.r_[fs, fb + len(speck)]
+    label, sizes = face_pieces(faces, len(points))
+    assert sizes.tolist() == [162, 8] and (label[len(fs):] == 0).all()  # the largest is piece 0
+    exc = disconnected_mesh_error(points, faces, label, sizes)
+    assert getattr(exc, "repairable", False) and "coincident" not in str(exc)

@@ -1,0 +1,63 @@
+"""Pieces of a mesh, and whether the largest meshes an open surface without handles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+from parambench.datasets_gen.mesh_pieces import face_pieces, largest_piece_topology
+
+
+def _sphere(n=400):
+    """A closed triangulated sphere: the convex hull of a Fibonacci spiral's points."""
+    i = np.arange(n) + 0.5
+    z, phi = 1.0 - 2.0 * i / n, np.pi * (1.0 + 5.0**0.5) * i
+    r = np.sqrt(1.0 - z**2)
+    points = np.c_[r * np.cos(phi), r * np.sin(phi), z]
+    return points, ConvexHull(points).simplices.astype(np.int64)
+
+
+def _torus(n=24, m=12):
+    """A closed torus, n x m quads split in two, wrapped both ways."""
+    u, v = np.meshgrid(np.arange(n) * 2 * np.pi / n, np.arange(m) * 2 * np.pi / m, indexing="ij")
+    points = np.c_[((2 + np.cos(v)) * np.cos(u)).ravel(), ((2 + np.cos(v)) * np.sin(u)).ravel(), np.sin(v).ravel()]
+    idx = np.arange(n * m).reshape(n, m)
+    a, b = idx, np.roll(idx, -1, axis=0)
+    c, d = np.roll(b, -1, axis=1), np.roll(a, -1, axis=1)
+    faces = np.r_[np.c_[a.ravel(), b.ravel(), c.ravel()], np.c_[a.ravel(), c.ravel(), d.ravel()]]
+    return points, faces
+
+
+def _grid(n=8):
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    i = np.arange(n * n).reshape(n, n)[:-1, :-1].ravel()
+    return np.c_[x.ravel(), y.ravel(), np.zeros(n * n)], np.r_[np.c_[i, i + 1, i + n + 1], np.c_[i, i + n + 1, i + n]]
+
+
+@pytest.mark.parametrize("shape,holes,expected", [
+    ("sphere", 0, {"boundary_loops": 0, "genus": 0}),
+    ("sphere", 2, {"boundary_loops": 2, "genus": 0}),
+    ("torus", 0, {"boundary_loops": 0, "genus": 1}),
+    ("torus", 1, {"boundary_loops": 1, "genus": 1}),
+    ("grid", 0, {"boundary_loops": 1, "genus": 0}),
+])
+def test_the_largest_piece_s_loops_and_genus(shape, holes, expected):
+    points, faces = {"sphere": _sphere, "torus": _torus, "grid": _grid}[shape]()
+    # holes: drop every face at a vertex, at vertices far apart (one hole each)
+    for vertex in (0, len(points) // 2)[:holes]:
+        faces = faces[~(faces == vertex).any(axis=1)]
+    # a speck far away must not count: the largest piece is judged
+    speck_points, speck_faces = _grid(3)
+    points = np.r_[points, speck_points + 100.0]
+    faces = np.r_[faces, speck_faces + len(points) - len(speck_points)]
+    assert largest_piece_topology(faces, len(points)) == expected
+
+
+def test_face_pieces_are_numbered_largest_first():
+    sphere, fs = _sphere(60)
+    grid, fg = _grid(12)
+    points, faces = np.r_[sphere, grid + 10.0], np.r_[fs, fg + len(sphere)]
+    label, sizes = face_pieces(faces, len(points))
+    assert sizes.tolist() == [len(fg), len(fs)]
+    assert (label[:len(fs)] == 1).all() and (label[len(fs):] == 0).all()
