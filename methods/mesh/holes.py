@@ -35,6 +35,7 @@ from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, 
 from parambench.datasets_gen.surface import MethodInput
 
 from ..spectral.turning import is_regular_turning
+from .map_check import boundary_crossings
 from .topology import require_connected_disk_like
 
 __all__ = ["HOLES_MODES", "fill_holes", "solve_with_holes"]
@@ -123,6 +124,21 @@ def _fans(pts: np.ndarray, faces: np.ndarray, holes: list[np.ndarray]) -> tuple[
     return np.vstack([pts, centres]), np.vstack([faces, *fans])
 
 
+def _holes_cross(surface: MethodInput, sol) -> bool:
+    """Whether a mesh's free map has boundary images that cross (a hole over another, or over the rim).
+
+    Each loop can turn once and the loops still overlap: pymeshfix's Stanford bunny,
+    repaired (5 scan holes and 52 of 3-8 edges where faces on non-manifold edges were
+    dropped), mapped by ``scp`` with every loop turning once and 26 crossings, a failed
+    check with advice about helical strips; filled, the crossings are gone.
+    """
+    z = getattr(sol, "z", None)
+    if surface.faces is None or z is None or not np.all(np.isfinite(z)):
+        return False
+    z = np.asarray(z)[: surface.n_points]
+    return boundary_crossings(np.column_stack([z.real, z.imag]), surface.faces) > 0
+
+
 def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[MethodInput], tuple],
                      fill: Callable[[MethodInput], tuple[MethodInput, int]] = fill_holes) -> tuple[tuple, MethodInput, int]:
     """Run a method's ``attempt`` with the holes free, filled, or filled where free fails.
@@ -134,7 +150,7 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         ``"auto"``: free first (the natural boundary condition; plain cotangent weights
         keep holes open, and filling would change their map), then filled when that
         attempt raises :class:`SolverError` / :class:`ConvergenceError` or returns a map
-        whose boundary is not regular. Free is also all there is for one boundary loop.
+        whose boundary is not regular, or (a mesh) whose boundary images cross. Free is also all there is for one boundary loop.
     attempt : callable
         ``attempt(surface) -> (problem, solution, ...)``: ``result[1]`` is the solution
         (its ``turning`` and ``diagnostics`` are read).
@@ -171,7 +187,8 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         first_error = released(err)  # held through the filled attempt: not its frames
     else:
         sol = result[1]
-        if holes == "free" or (sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)):
+        if holes == "free" or (sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)
+                               and not _holes_cross(surface, sol)):
             return result, surface, 0
     work, n = fill(surface)
     if n == 0:

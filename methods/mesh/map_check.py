@@ -27,7 +27,7 @@ import numpy as np
 from ..geometry2d import COLLAPSE_REL_TOL, crossing_segment_pairs, flipped_triangles, triangle_signed_areas
 from .topology import interior_edges
 
-__all__ = ["check_mesh_map", "MESH_THRESHOLDS"]
+__all__ = ["check_mesh_map", "boundary_crossings", "MESH_THRESHOLDS"]
 
 #: Foldovers allowed, collapsed triangles allowed.
 MESH_THRESHOLDS = {"max_flipped": 0, "max_collapsed": 0, "collapse_rel_tol": COLLAPSE_REL_TOL}
@@ -76,7 +76,7 @@ def check_mesh_map(points: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> dic
              "n_degenerate": int(collapsed.sum()), "n_nonfinite": int((~finite_rows).sum()),
              "flipped_faces": flipped_idx[:_EXAMPLES].tolist(),
              "n_folded_3d": int(_folded_in_3d(points, faces, flipped_idx).sum()),
-             "n_boundary_crossings": _boundary_crossings(uv, faces) if finite_rows.all() else 0}
+             "n_boundary_crossings": boundary_crossings(uv, faces) if finite_rows.all() else 0}
     failed = []
     if facts["n_flipped"] > MESH_THRESHOLDS["max_flipped"]:
         failed.append("flipped")
@@ -89,8 +89,19 @@ def check_mesh_map(points: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> dic
     return facts
 
 
-def _boundary_crossings(uv: np.ndarray, faces: np.ndarray) -> int:
-    """Pairs of boundary edges (edges of one face) whose uv images cross properly."""
+def boundary_crossings(uv: np.ndarray, faces: np.ndarray) -> int:
+    """Pairs of boundary edges (edges of one face) whose uv images cross properly.
+
+    Parameters
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+        Finite.
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    int
+    """
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     unique, count = np.unique(edges, axis=0, return_counts=True)
     return int(len(crossing_segment_pairs(uv, unique[count == 1])))

@@ -12,6 +12,7 @@ from parambench.datasets_gen.registry import make_surface
 from parambench.methods.base import StageTimer
 from parambench.methods.mesh.conformal_setup import build_mesh_problem, k_start_estimate, resolve_pins
 from parambench.methods.mesh.holes import fill_holes
+from parambench.methods.mesh.map_check import check_mesh_map
 from parambench.methods.mesh.weights import WEIGHT_KINDS, laplacian, mesh_weights, negative_weight_rows
 from parambench.methods.registry import get_method
 
@@ -64,13 +65,20 @@ def test_dncp_falls_back_to_the_direct_k_where_the_good_region_is_too_narrow(rea
     pins = resolve_pins("farthest", s.points, loops)
     with pytest.raises(ConvergenceError, match="no t = 1 crossing"):
         prob.solve("dncp", "line", pins=pins)
-    res = DNCP(s)
+    res = DNCP(s, holes="free")
     assert res.diagnostics["k_search_fallback"] == "direct"
     assert res.diagnostics["turning_numbers"] == [1, -1, -1, -1, -1]
     assert abs(res.diagnostics["k_opt"] - prob.k_direct(pins)[0]) < 1e-12
     m = evaluate(s.points, s.faces, res.uv)
     assert m["foldovers"] == 0
-    assert abs(m["qc_mean"] / evaluate(s.points, s.faces, SCP(s).uv)["qc_mean"] - 1) < 0.01
+    scp_qc = evaluate(s.points, s.faces, SCP(s).uv)["qc_mean"]
+    assert abs(m["qc_mean"] / scp_qc - 1) < 0.01
+    # but its holes' images cross the rim's (4 crossings: a failed check), so with holes
+    # left to the method they are filled, and the map passes
+    assert check_mesh_map(s.points, s.faces, res.uv)["n_boundary_crossings"] > 0
+    auto = DNCP(s)
+    assert auto.diagnostics["holes_filled"] == 4 and check_mesh_map(s.points, s.faces, auto.uv)["passed"]
+    assert abs(evaluate(s.points, s.faces, auto.uv)["qc_mean"] / scp_qc - 1) < 0.01
 
 
 @pytest.mark.slow
