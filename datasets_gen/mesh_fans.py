@@ -12,9 +12,9 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-__all__ = ["HalfEdges", "half_edges", "corner_fans", "split_fans"]
+__all__ = ["HalfEdges", "half_edges", "corner_fans", "split_fans", "orientation_signs"]
 
 
 class HalfEdges(NamedTuple):
@@ -61,7 +61,7 @@ def half_edges(faces: np.ndarray) -> HalfEdges:
     return HalfEdges(start, end, edge_id, order, np.bincount(edge_id))
 
 
-def corner_fans(faces: np.ndarray, he: HalfEdges | None = None) -> np.ndarray:
+def corner_fans(faces: np.ndarray, he: HalfEdges | None = None, unlinked: np.ndarray | None = None) -> np.ndarray:
     """The fan each corner belongs to: faces at a vertex linked through its edges on two faces.
 
     Two faces sharing an edge at a vertex are in one fan there, whichever way each is
@@ -73,6 +73,9 @@ def corner_fans(faces: np.ndarray, he: HalfEdges | None = None) -> np.ndarray:
     faces : (M, 3) numpy.ndarray of int64
     he : HalfEdges, optional
         ``half_edges(faces)``, when already computed.
+    unlinked : (E2,) numpy.ndarray of bool, optional
+        Per edge on two faces (in ``he.pairs()`` order): True where the edge links
+        nothing, as if cut.
 
     Returns
     -------
@@ -84,6 +87,8 @@ def corner_fans(faces: np.ndarray, he: HalfEdges | None = None) -> np.ndarray:
     he = half_edges(faces) if he is None else he
     start, end = he.start, he.end
     h1, h2 = he.pairs()
+    if unlinked is not None:
+        h1, h2 = h1[~unlinked], h2[~unlinked]
     # link the corners of the two faces that sit at the same vertex, at both ends of the edge
     same_way = flat[start[h2]] == flat[start[h1]]
     i = np.concatenate([start[h1], end[h1]])
@@ -92,7 +97,7 @@ def corner_fans(faces: np.ndarray, he: HalfEdges | None = None) -> np.ndarray:
     return connected_components(graph, directed=False)[1].astype(np.int64)
 
 
-def split_fans(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+def split_fans(faces: np.ndarray, n_vertices: int, unlinked: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Give every fan after the first at a vertex a copy of that vertex of its own.
 
     Where separate fans of faces meet at one vertex (two cones touching at their tips, a
@@ -104,6 +109,9 @@ def split_fans(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarr
     faces : (M, 3) numpy.ndarray of int64
         Edge-manifold faces (edges on three or more faces are left joined).
     n_vertices : int
+    unlinked : (E2,) numpy.ndarray of bool, optional
+        Edges to cut (see :func:`corner_fans`): a vertex where they break its fan is split
+        too, so that a path of such edges becomes a slit.
 
     Returns
     -------
@@ -116,7 +124,7 @@ def split_fans(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarr
     """
     faces = np.asarray(faces, dtype=np.int64)
     flat = faces.ravel()
-    fan = corner_fans(faces)
+    fan = corner_fans(faces, unlinked=unlinked)
     # (vertex, fan) pairs in vertex order; a vertex's first pair keeps its index
     base = np.int64(fan.max() + 1 if fan.size else 1)
     pair, corner_pair = np.unique(flat * base + fan, return_inverse=True)
@@ -126,3 +134,58 @@ def split_fans(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarr
     new_index[extra] = n_vertices + np.arange(int(extra.sum()))
     source = np.concatenate([np.arange(n_vertices, dtype=np.int64), pair_vertex[extra]])
     return new_index[corner_pair.ravel()].reshape(faces.shape), source
+
+
+def orientation_signs(faces: np.ndarray, he: HalfEdges | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Wind the faces alike along a spanning forest of the face graph; the edges that disagree.
+
+    Faces are linked through edges on exactly two faces. Along a breadth-first spanning
+    tree of each piece, a face keeps its parent's winding (reversed where the two run
+    their edge the same way). On an orientable piece every edge then agrees; on a
+    non-orientable one (a Moebius band, a scan's twisted flap) the edges that still
+    disagree cross the twist: cut there, the piece is orientable.
+
+    Parameters
+    ----------
+    faces : (M, 3) numpy.ndarray of int64
+    he : HalfEdges, optional
+        ``half_edges(faces)``, when already computed.
+
+    Returns
+    -------
+    sign : (M,) numpy.ndarray of int64
+        +1 to keep a face as given, -1 to reverse it; in each piece the winding of more
+        faces is kept.
+    conflict : (E2,) numpy.ndarray of bool
+        Per edge on two faces (``he.pairs()`` order): still run the same way by both
+        faces after the reversals.
+    """
+    m = faces.shape[0]
+    flat = faces.ravel()
+    he = half_edges(faces) if he is None else he
+    h1, h2 = he.pairs()
+    f1, f2 = h1 // 3, h2 // 3
+    alike = flat[he.start[h1]] == flat[he.start[h2]]  # both run the edge the same way
+    # a virtual root m joined to one face of each piece: one search covers the forest
+    n_pieces, piece = connected_components(
+        sp.coo_matrix((np.ones(f1.size), (f1, f2)), shape=(m, m)), directed=False)
+    seeds = np.unique(piece, return_index=True)[1]
+    step = np.where(alike, 2.0, 1.0)  # 2: the child reverses its parent's winding
+    graph = sp.coo_matrix((np.r_[step, np.ones(n_pieces)], (np.r_[f1, np.full(n_pieces, m)], np.r_[f2, seeds])),
+                          shape=(m + 1, m + 1)).tocsr()
+    graph = graph.maximum(graph.T)
+    _, parent = breadth_first_order(graph, m, directed=False, return_predecessors=True)
+    parent = parent[:m]
+    # winding relative to the root by pointer jumping: log(depth) vectorised passes
+    flip = np.where(parent == m, 1, np.asarray(graph[np.arange(m), np.maximum(parent, 0)]).ravel().astype(np.int64))
+    sign = np.where(flip == 2, -1, 1)
+    up = np.where(parent == m, -1, parent)
+    while (up >= 0).any():
+        has = up >= 0
+        sign[has] *= sign[up[has]]
+        up = np.where(has, up[np.maximum(up, 0)], -1)
+    # keep the winding of more faces in each piece
+    reversed_share = np.bincount(piece, weights=(sign < 0).astype(float), minlength=n_pieces)
+    sign *= np.where(reversed_share > 0.5 * np.bincount(piece, minlength=n_pieces), -1, 1)[piece]
+    conflict = alike == (sign[f1] == sign[f2])
+    return sign, conflict

@@ -14,7 +14,8 @@ pymeshlab's duplicate-face removal, on each edge of more than two faces the two 
 continue each other across it kept (a fin or a folded flap dropped), pymeshlab's
 non-manifold edge repair for what is left (faces removed), the fans of faces meeting
 at one vertex split into copies of it (:func:`.mesh_fans.split_fans`), unreferenced-vertex removal and
-coherent re-orientation of the faces (the minority winding of a piece reversed), then the
+coherent re-orientation of the faces (the minority winding of a piece reversed; where no
+winding is coherent, the faces on the edges that cross the twist dropped first), then the
 largest piece again (a split vertex can disconnect what it joined). pymeshlab
 sees the arrays parambench's own reader validated, never the file. For a point set: the
 largest component of the symmetrised k-nearest-neighbour graph, the graph the point-set
@@ -28,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .knn_pieces import comparable_pieces, disconnected_error, knn_labels
-from .mesh_fans import split_fans
+from .mesh_fans import half_edges, orientation_signs, split_fans
 from .mesh_pieces import disconnected_mesh_error, face_pieces
 from .surface import Surface
 
@@ -93,13 +94,52 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     # pymeshlab leaves a non-orientable piece (a Moebius band) half re-oriented: not a repair.
     orientable = _runs_each_edge_once(f)
     n_reversed = _reversed_faces(before, f) if len(f) == n_faces and orientable else 0
+    n_twist = 0
+    if not orientable:
+        v, f, n_twist, n_reversed = _drop_twist(v_now, before)
+        orientable = _runs_each_edge_once(f)
     f, n_after = largest_piece(f, len(v))
     v, f = compact(v, f)
     facts = {"kind": "mesh", "pieces": n_pieces, "pieces_after_repair": n_after,
              "points_in": int(len(points)), "faces_in": int(len(faces)), "points_out": int(len(v)),
              "faces_out": int(len(f)), "faces_removed_in_repair": int(kept_faces - len(f)),
-             "vertices_split": int(n_split), "faces_reversed": int(n_reversed), "orientable": bool(orientable)}
+             "vertices_split": int(n_split), "faces_reversed": int(n_reversed), "orientable": bool(orientable),
+             "faces_dropped_to_orient": int(n_twist)}
     return v, f, facts
+
+
+def _drop_twist(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Drop the faces on the edges where a mesh's faces cannot be wound alike, and wind the rest.
+
+    pymeshfix's example ``planar_mesh.ply`` (a sheet with 40 holes) has a twisted flap: 2
+    edges whose faces run them the same way however the rest is wound, and every method
+    refused it as a Moebius band. Without the 4 faces on those edges (a hole, as where
+    faces on a non-manifold edge are dropped) it is orientable. Cutting the edges open
+    instead (a slit) gave a hole of zero area, whose free boundary crossed itself in uv
+    and which no patch fills. Vertices where the drop pinches two fans together are
+    split (:func:`.mesh_fans.split_fans`); where the rest is still not orientable, nothing
+    is dropped.
+
+    Returns
+    -------
+    points, faces : numpy.ndarray
+        The mesh less those faces, wound alike where it became orientable.
+    n_dropped : int
+        Faces dropped.
+    n_reversed : int
+        Faces reversed.
+    """
+    he = half_edges(faces)
+    _, conflict = orientation_signs(faces, he)
+    h1, h2 = he.pairs()
+    drop = np.zeros(len(faces), dtype=bool)
+    drop[h1[conflict] // 3] = drop[h2[conflict] // 3] = True
+    kept, source = split_fans(faces[~drop], len(points))
+    sign, still = orientation_signs(kept)
+    if still.any():
+        return points, faces, 0, 0
+    kept[sign < 0] = kept[sign < 0, ::-1]
+    return points[source], kept, int(drop.sum()), int((sign < 0).sum())
 
 
 def _fin_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -183,8 +223,10 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
         ``kind`` ("mesh" or "points"), ``pieces`` (components found), ``points_in``,
         ``points_out``; for meshes also ``faces_in``, ``faces_out``,
         ``faces_removed_in_repair``, ``vertices_split``, ``pieces_after_repair``,
-        ``faces_reversed`` (faces whose winding the re-orientation changed), ``orientable``
-        (False when no winding of the faces is coherent).
+        ``faces_reversed`` (faces whose winding the re-orientation changed),
+        ``faces_dropped_to_orient`` (faces on the edges of a twisted flap, dropped so that
+        the rest can be wound alike; among ``faces_removed_in_repair``), ``orientable``
+        (False when no winding of the faces is coherent even then).
 
     Raises
     ------
@@ -217,6 +259,8 @@ def repair_summary(facts: dict) -> str:
             f"{facts['vertices_split']} vertex copies from splitting non-manifold vertices, "
             f"{facts['faces_removed_in_repair']} face(s) of that piece removed (duplicates, non-manifold edges, "
             "pieces the split cut off)"
+            + (f", {facts['faces_dropped_to_orient']} of them on a twisted flap that no winding of the faces "
+               "could hold (a Moebius-like twist)" if facts.get("faces_dropped_to_orient") else "")
             + (f", {facts['faces_reversed']} face(s) reversed to match their neighbours' winding"
                if facts.get("faces_reversed") else "")
             + ("; its faces cannot all be wound alike (a non-orientable surface)"

@@ -32,8 +32,9 @@ from collections.abc import Callable
 import numpy as np
 
 from parambench.datasets_gen.errors import ConvergenceError, InvalidInputError, SolverError, TopologyError, released
-from parambench.datasets_gen.surface import MethodInput
+from parambench.datasets_gen.surface import MethodInput, degenerate_faces
 
+from ..geometry2d import flipped_triangles
 from ..spectral.turning import is_regular_turning
 from .map_check import boundary_crossings
 from .topology import require_connected_disk_like
@@ -77,6 +78,11 @@ def fill_holes(surface: MethodInput) -> tuple[MethodInput, int]:
         try:
             left = require_connected_disk_like(*patched)
         except TopologyError:  # a patch that is not a disk's: the fans instead
+            left = None
+        # A hole whose rim passes a vertex twice (two copies where a pinch was split) got
+        # a patch triangle joining the copies: no area, refused. The fans join no two
+        # rim vertices.
+        if left is not None and degenerate_faces(*patched).any():
             left = None
         if left is not None:
             keep = int(np.argmax([loop.size for loop in left]))
@@ -124,19 +130,22 @@ def _fans(pts: np.ndarray, faces: np.ndarray, holes: list[np.ndarray]) -> tuple[
     return np.vstack([pts, centres]), np.vstack([faces, *fans])
 
 
-def _holes_cross(surface: MethodInput, sol) -> bool:
-    """Whether a mesh's free map has boundary images that cross (a hole over another, or over the rim).
+def _overlaps(surface: MethodInput, sol) -> int:
+    """Flipped triangles and crossing boundary edges of a mesh's map, on the surface's own faces; 0 for a point set.
 
     Each loop can turn once and the loops still overlap: pymeshfix's Stanford bunny,
     repaired (5 scan holes and 52 of 3-8 edges where faces on non-manifold edges were
     dropped), mapped by ``scp`` with every loop turning once and 26 crossings, a failed
-    check with advice about helical strips; filled, the crossings are gone.
+    check with advice about helical strips; filled, 1 flipped triangle and no crossing.
     """
     z = getattr(sol, "z", None)
-    if surface.faces is None or z is None or not np.all(np.isfinite(z)):
-        return False
+    if surface.faces is None or z is None:
+        return 0
     z = np.asarray(z)[: surface.n_points]
-    return boundary_crossings(np.column_stack([z.real, z.imag]), surface.faces) > 0
+    if not np.all(np.isfinite(z)):
+        return surface.faces.shape[0]
+    uv = np.column_stack([z.real, z.imag])
+    return int(flipped_triangles(uv, surface.faces).sum()) + boundary_crossings(uv, surface.faces)
 
 
 def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[MethodInput], tuple],
@@ -150,7 +159,8 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         ``"auto"``: free first (the natural boundary condition; plain cotangent weights
         keep holes open, and filling would change their map), then filled when that
         attempt raises :class:`SolverError` / :class:`ConvergenceError` or returns a map
-        whose boundary is not regular, or (a mesh) whose boundary images cross. Free is also all there is for one boundary loop.
+        whose boundary is not regular; for a mesh also when the free map overlaps itself
+        (flipped triangles, boundary images that cross) and the filled one less. Free is also all there is for one boundary loop.
     attempt : callable
         ``attempt(surface) -> (problem, solution, ...)``: ``result[1]`` is the solution
         (its ``turning`` and ``diagnostics`` are read).
@@ -187,17 +197,25 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         first_error = released(err)  # held through the filled attempt: not its frames
     else:
         sol = result[1]
-        if holes == "free" or (sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)
-                               and not _holes_cross(surface, sol)):
+        regular = sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)
+        overlaps = _overlaps(surface, sol) if regular and holes != "free" else 0
+        if holes == "free" or (regular and not overlaps):
             return result, surface, 0
-    work, n = fill(surface)
-    if n == 0:
-        if first_error is not None:
-            raise first_error
-        return result, surface, 0
     try:
-        return attempt(work), work, n
-    except (SolverError, TopologyError, InvalidInputError):
+        work, n = fill(surface)
+        if n == 0:
+            if first_error is not None:
+                raise first_error
+            return result, surface, 0
+        filled = attempt(work)
+        # a regular free map that overlaps is kept unless filling overlaps less (face000:
+        # free 1 flip and 2 crossings, filled 2 and 3)
+        if first_error is None and regular and _overlaps(surface, filled[1]) >= overlaps:
+            return result, surface, 0
+        return filled, work, n
+    except (SolverError, TopologyError, InvalidInputError) as err:
+        if err is first_error:
+            raise
         # The filled surface is ours, not the caller's: its input errors are this
         # fallback failing (fill points that split a point set's kNN graph, scan lines
         # 10 spacings apart at k_nn=12), not advice about the input.

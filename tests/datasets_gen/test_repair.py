@@ -273,3 +273,4 @@ def test_a_speck_beside_a_mesh_is_still_offered_to_repair(capsys):
     assert sizes.tolist() == [162, 8] and (label[len(fs):] == 0).all()  # the largest is piece 0
     exc = disconnected_mesh_error(points, faces, label, sizes)
     assert getattr(exc, "repairable", False) and "coincident" not in str(exc)
+

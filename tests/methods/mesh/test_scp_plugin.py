@@ -120,3 +120,31 @@ def test_a_filled_slot_keeps_the_exact_map(rms):
     result = get_method("scp")(s, holes="filled")
     assert result.diagnostics["holes_filled"] == 1
     assert rms(result.uv, s.exact_uv) < 1e-4
+
+
+def test_a_hole_through_a_split_pinch_is_filled_without_zero_area_patches():
+    """Two cells of a grid missing that touch at a corner: --repair splits the pinch, and the
+    hole's rim passes the two copies. pymeshlab's patch joined them (7 triangles of zero
+    area: DegenerateFacesError from holes="filled"); the fans join no two rim vertices."""
+    from parambench.bench.metrics import evaluate
+    from parambench.datasets_gen.repair import repair_surface
+    from parambench.datasets_gen.surface import MethodInput, Surface, degenerate_faces
+    from parambench.methods.mesh.holes import fill_holes
+    from parambench.methods.mesh.map_check import check_mesh_map
+
+    n = 9
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    points = np.c_[x.ravel(), y.ravel(), 0.05 * (x.ravel() - 4.0) ** 2]
+    i = np.arange(n * n).reshape(n, n)[:-1, :-1].ravel()
+    faces = np.r_[np.c_[i, i + 1, i + n + 1], np.c_[i, i + n + 1, i + n]]
+    cells = [3 * (n - 1) + 3, 4 * (n - 1) + 4]  # cells (3, 3) and (4, 4): they share a corner
+    drop = np.r_[cells, np.add(cells, (n - 1) ** 2)]
+    repaired, facts = repair_surface(Surface(points=points, faces=np.delete(faces, drop, axis=0), name="pinch"))
+    assert facts["vertices_split"] == 1
+    surface = MethodInput(repaired.points, repaired.faces, name="pinch")
+    filled, n_holes = fill_holes(surface)
+    assert n_holes == 1 and not degenerate_faces(filled.points, filled.faces).any()
+    res = get_method("scp")(surface, holes="filled")
+    assert check_mesh_map(surface.points, surface.faces, res.uv)["passed"]
+    # a developable sheet (a parabolic cylinder): the filled map stays near conformal
+    assert evaluate(surface.points, surface.faces, res.uv)["qc_mean"] < 1.01

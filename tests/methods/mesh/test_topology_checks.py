@@ -190,19 +190,39 @@ def test_faces_wound_against_their_neighbours_are_refused_with_the_repair(method
     assert "meshing_re_orient_faces_coherently" in str(err.value)
 
 
-def test_repair_says_a_moebius_band_cannot_be_wound_alike():
-    """pymeshlab's re-orientation turns some of its faces and stops; the note said "N face(s)
-    reversed to match their neighbours' winding", and the methods then refused the surface."""
+def test_repair_drops_the_faces_across_a_moebius_twist(tmp_path, capsys):
+    """pymeshlab's re-orientation turns some of a band's faces and stops; the methods then
+    refused the surface (pymeshfix's planar_mesh.ply, a sheet with a twisted flap, too).
+    Without the faces on the edges where the windings meet it is a twisted strip, which maps."""
+    from parambench.bench.cli import main
     from parambench.datasets_gen.repair import repair_summary, repair_surface
 
     pts, faces = _moebius()
     repaired, facts = repair_surface(Surface(pts, faces, name="moebius"))
-    assert facts["orientable"] is False and facts["faces_reversed"] == 0
-    assert "cannot all be wound alike" in repair_summary(facts)
+    assert facts["orientable"] is True and 1 <= facts["faces_dropped_to_orient"] <= 6
+    assert facts["faces_out"] == len(faces) - facts["faces_dropped_to_orient"]
+    assert f"{facts['faces_dropped_to_orient']} of them on a twisted flap" in repair_summary(facts)
+    assert len(require_connected_disk_like(repaired.points, repaired.faces)) == 1  # a strip: one loop
+    src, out = tmp_path / "band.obj", tmp_path / "uv.obj"
+    src.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in pts)
+                   + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    assert main(["flatten", str(src), "--method", "scp", "--repair", "-o", str(out)]) == 0
+    capsys.readouterr()
     pts, faces = _grid(8)
     faces[:10] = faces[:10, ::-1]
     _, facts = repair_surface(Surface(pts, faces, name="mixed"))
-    assert facts["orientable"] is True and facts["faces_reversed"] == 10
+    assert facts["orientable"] is True and facts["faces_reversed"] == 10 and facts["faces_dropped_to_orient"] == 0
+
+
+def test_orientation_signs_reverse_the_minority_and_find_the_twist_of_a_band_only():
+    from parambench.datasets_gen.mesh_fans import orientation_signs
+
+    _, faces = _grid(9)
+    faces[5:25] = faces[5:25, ::-1]
+    sign, conflict = orientation_signs(faces)
+    assert np.flatnonzero(sign < 0).tolist() == list(range(5, 25)) and not conflict.any()
+    sign, conflict = orientation_signs(_moebius()[1])
+    assert 1 <= conflict.sum() <= 3  # the edges across the band where the windings meet
 
 
 def _torus_with_a_hole(n: int = 24, m: int = 12):
