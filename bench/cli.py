@@ -359,7 +359,7 @@ def _mesh_instead(surface) -> str:
     if topology.get("boundary_loops") == 0:
         return (f"but the file's {n_faces} faces mesh a closed surface, which no method lays flat without a cut: "
                 "cut it open along a seam (with a mesh editor) and flatten that")
-    if topology.get("genus", 0) > 0:
+    if (topology.get("genus") or 0) > 0:
         return (f"but the file's {n_faces} faces mesh a surface with {topology['genus']} handle(s), which no method lays "
                 "flat without a cut: cut each handle open along a seam (with a mesh editor) and flatten that")
     return (f"or flatten the file's {n_faces} faces instead: leave out --points-only (a mesh method such as scp maps "

@@ -123,8 +123,9 @@ def largest_piece_topology(faces: np.ndarray, n_vertices: int) -> dict:
     -------
     dict
         ``boundary_loops`` (int: components of the edges on one face) and ``genus`` (int,
-        from the Euler characteristic: exact on an oriented manifold piece, an estimate on a
-        non-manifold one, never negative).
+        from the Euler characteristic; None unless the piece is edge-manifold and wound
+        alike, where the count would mislead: pymeshfix's planar_mesh.ply, an open sheet
+        with a twisted flap, came out as genus 1).
     """
     label, _ = face_pieces(faces, n_vertices)
     piece = faces[label == 0]
@@ -141,4 +142,7 @@ def largest_piece_topology(faces: np.ndarray, n_vertices: int) -> dict:
     else:
         n_loops = 0
     euler = np.unique(flat).size - he.counts.size + len(piece)
-    return {"boundary_loops": n_loops, "genus": max(0, (2 - n_loops - int(euler)) // 2)}
+    h1, h2 = he.pairs()
+    oriented_manifold = bool((he.counts <= 2).all() and not (flat[he.start[h1]] == flat[he.start[h2]]).any())
+    genus = max(0, (2 - n_loops - int(euler)) // 2) if oriented_manifold else None
+    return {"boundary_loops": n_loops, "genus": genus}

@@ -15,7 +15,10 @@ def _sphere(n=400):
     z, phi = 1.0 - 2.0 * i / n, np.pi * (1.0 + 5.0**0.5) * i
     r = np.sqrt(1.0 - z**2)
     points = np.c_[r * np.cos(phi), r * np.sin(phi), z]
-    return points, ConvexHull(points).simplices.astype(np.int64)
+    faces = ConvexHull(points).simplices.astype(np.int64)
+    p = points[faces]
+    outward = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p.mean(axis=1)) > 0
+    return points, np.where(outward[:, None], faces, faces[:, ::-1])  # wound alike: outward
 
 
 def _torus(n=24, m=12):
@@ -61,3 +64,13 @@ def test_face_pieces_are_numbered_largest_first():
     label, sizes = face_pieces(faces, len(points))
     assert sizes.tolist() == [len(fg), len(fs)]
     assert (label[:len(fs)] == 1).all() and (label[len(fs):] == 0).all()
+
+
+def test_the_genus_is_not_claimed_for_a_non_manifold_or_mis_wound_piece():
+    points, faces = _grid()
+    a, b = faces[12, 0], faces[12, 1]
+    fin = np.r_[faces, [[a, b, len(points)]]]  # a third face on an interior edge
+    assert largest_piece_topology(fin, len(points) + 1)["genus"] is None
+    mixed = faces.copy()
+    mixed[:5] = mixed[:5, ::-1]
+    assert largest_piece_topology(mixed, len(points)) == {"boundary_loops": 1, "genus": None}
