@@ -306,6 +306,17 @@ _VERTICES_NOTE = "the output holds these vertices"
 _CSV_ROWS_NOTE = "the .csv has one row per input row, the {n_dropped} dropped ones nan,nan"
 
 
+def _welded(surface, weld: bool):
+    """``surface`` itself, or with ``--weld`` (a mesh) its coincident vertices merged; one line on stderr says so."""
+    if not weld or surface.faces is None:
+        return surface
+    from parambench.datasets_gen.weld import weld_coincident, weld_summary
+
+    surface, facts = weld_coincident(surface)
+    print(f"parambench: note: {weld_summary(facts)}; {_VERTICES_NOTE}", file=sys.stderr)
+    return surface
+
+
 def _repaired(surface, repair: bool, k_nn: Any, output_note: str = _VERTICES_NOTE):
     """``surface`` itself, or with ``--repair`` its largest piece repaired, a point set's stray points dropped.
 
@@ -422,7 +433,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         raise InputFileError(f"cannot write {out.name!r}: output must end in {', '.join(UV_FORMATS)}.")
     _check_output_path(out, Path(args.input))
     with _offer_repair(args.repair):
-        surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)
+        surface = _welded(load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair),
+                          args.weld)
     method = get_method(args.method or _default_method(surface))
     if args.points_only and method.needs_faces:
         from parambench.datasets_gen.errors import MissingFacesError
@@ -661,6 +673,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="write a map (point set or mesh) that fails its self-check, with a warning and exit code 0 "
                            "(otherwise exit code 3, nothing written)")
     flat.add_argument("--repair", action="store_true", help=REPAIR_HELP)
+    flat.add_argument("--weld", action="store_true",
+                      help="merge a mesh's coincident vertices first (patches stored unwelded; not for a seam cut on "
+                           "purpose); says on stderr how many; the output then holds the welded vertices")
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")

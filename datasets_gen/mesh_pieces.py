@@ -100,7 +100,7 @@ def disconnected_mesh_error(points: np.ndarray, faces: np.ndarray, label: np.nda
     each = "flatten each component separately (pymeshlab generate_splitting_by_connected_components)"
     if touching:
         each = (f"they meet at {touching} coincident vertices (patches stored unwelded): if they are one surface, "
-                f"weld them (pymeshlab meshing_merge_close_vertices) and flatten that; else {each}")
+                f"weld them (pass --weld, or pymeshlab meshing_merge_close_vertices) and flatten that; else {each}")
     comparable = comparable_pieces(sizes)
     keep = (f"; keeping the largest would drop {int(sizes.sum() - sizes[0])} of {int(sizes.sum())} faces"
             if comparable else "")

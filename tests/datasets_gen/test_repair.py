@@ -256,21 +256,30 @@ def test_comparable_mesh_pieces_are_refused_with_the_weld_advice_not_repaired(tm
         assert main(["flatten", str(src), *extra, "-o", str(out)]) == 2
         err = capsys.readouterr().err
         assert "DisconnectedError: the mesh has 2 connected components (50, 50 faces)" in err
-        assert "they meet at 12 coincident vertices" in err and "meshing_merge_close_vertices" in err
+        assert "they meet at 12 coincident vertices" in err and "pass --weld" in err
         assert "keeping the largest would drop 50 of 100 faces" in err and "pass --repair" not in err
     assert not out.exists()
     with pytest.raises(DisconnectedError):
         repair_surface(Surface(points=points, faces=faces, name="halves"))
+    # welded as the error says, they are the 6 x 11 grid, and its map is the plane's own
+    assert main(["flatten", str(src), "--weld", "-o", str(out)]) == 0
+    assert "welded: merged 6 coincident vertices" in capsys.readouterr().err
+    from parambench.datasets_gen.formats import read_file
+
+    mesh = read_file(out)
+    assert len(mesh.points) == 66 and len(mesh.faces) == 100
+    _assert_the_plane_s_exact_map(out, mesh.points)
 
 
-def test_a_speck_beside_a_mesh_is_still_offered_to_repair(capsys):
-    from parambench.datasets_gen.mesh_pieces import disconnected_mesh_error, face_pieces
+def test_weld_merges_coincident_vertices_into_the_first():
+    from parambench.datasets_gen.weld import weld_coincident
 
-    big, fb = _grid(10)
-    speck, fs = _grid(3, (100.0, 0.0))
-    points, faces = np.r_[speck, big], np.r_[fs, fb + len(speck)]
-    label, sizes = face_pieces(faces, len(points))
-    assert sizes.tolist() == [162, 8] and (label[len(fs):] == 0).all()  # the largest is piece 0
-    exc = disconnected_mesh_error(points, faces, label, sizes)
-    assert getattr(exc, "repairable", False) and "coincident" not in str(exc)
-
+    points, faces = _grid(4)
+    points = np.r_[points, points[5:6]]  # a copy of vertex 5, used by the faces at 5 of one row
+    uses = np.flatnonzero((faces == 5).any(axis=1))[:2]
+    faces[uses] = np.where(faces[uses] == 5, 16, faces[uses])
+    welded, facts = weld_coincident(Surface(points=points, faces=faces, name="w"))
+    assert facts["vertices_merged"] == 1 and facts["faces_dropped"] == 0
+    assert np.array_equal(welded.points, _grid(4)[0]) and np.array_equal(welded.faces, _grid(4)[1])
+    same, none = weld_coincident(Surface(points=_grid(4)[0], faces=_grid(4)[1], name="g"))
+    assert none["vertices_merged"] == 0 and np.array_equal(same.faces, _grid(4)[1])
