@@ -366,7 +366,7 @@ def _mesh_instead(surface) -> str:
     n_faces = surface.params.get("faces_dropped")
     if not n_faces:
         return ""
-    topology = surface.params.get("faces_topology", {})
+    topology = _dropped_faces_topology(surface.params.get("source"))
     if topology.get("boundary_loops") == 0:
         return (f"but the file's {n_faces} faces mesh a closed surface, which no method lays flat without a cut: "
                 "cut it open along a seam (with a mesh editor) and flatten that")
@@ -375,6 +375,21 @@ def _mesh_instead(surface) -> str:
                 "flat without a cut: cut each handle open along a seam (with a mesh editor) and flatten that")
     return (f"or flatten the file's {n_faces} faces instead: leave out --points-only (a mesh method such as scp maps "
             "them where they mesh an open surface; --repair mends non-manifold parts)")
+
+
+def _dropped_faces_topology(source: str | None) -> dict:
+    """Boundary loops and genus of the largest piece of a file's faces; {} where it cannot be read again.
+
+    Read again only on a failure's path: at a million faces the count takes 1-2 s.
+    """
+    from parambench.datasets_gen.formats import read_file
+    from parambench.datasets_gen.mesh_pieces import largest_piece_topology
+
+    try:
+        raw = read_file(Path(source))
+    except (ParambenchError, TypeError):
+        return {}
+    return largest_piece_topology(raw.faces, len(raw.points)) if raw.faces is not None and len(raw.faces) else {}
 
 
 @contextmanager

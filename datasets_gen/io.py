@@ -32,7 +32,6 @@ import numpy as np
 
 from .formats import READERS, read_file
 from .mesh_loops import mesh_boundary
-from .mesh_pieces import largest_piece_topology
 from .surface import Surface, degenerate_faces
 
 __all__ = ["load_surface", "SUPPORTED_EXTENSIONS"]
@@ -53,9 +52,7 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
         ``.asc``), ``.pts``, ``.ply`` point cloud.
     points_only : bool
         Drop the faces (keep the vertices as a point set); their count goes to
-        ``params["faces_dropped"]``, with the boundary loops and genus of their largest piece
-        in ``params["faces_topology"]``
-        (:func:`~parambench.datasets_gen.mesh_pieces.largest_piece_topology`).
+        ``params["faces_dropped"]``.
     name : str, optional
         Surface name; default: the file name without extension.
     drop_degenerate_faces : bool
@@ -86,7 +83,6 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     params = {"source": str(path), "format": ext[1:]}
     if points_only and raw.faces is not None and len(raw.faces):
         params["faces_dropped"] = int(len(raw.faces))  # so a failure can point back to them
-        params["faces_topology"] = largest_piece_topology(raw.faces, len(raw.points))  # ... where they could help
     if faces is not None and drop_degenerate_faces:
         keep = ~(degenerate_faces(raw.points, faces))
         if not keep.all():
