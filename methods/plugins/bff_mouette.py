@@ -15,8 +15,12 @@ Two things about ``mouette.processing.parametrization.BoundaryFirstFlattening`` 
   input index); the uv rows are put back in input order, after checking that the
   renumbered positions are the input's.
 
-Topological disks only (one boundary loop): a mesh with holes raises NotADiskError
-before mouette is called. mouette assembles its matrices in Python loops: about 11 s at
+mouette maps topological disks only (one boundary loop). As the reference BFF
+application does (its ``HoleFiller``: every hole but the longest loop filled), holes are
+closed by patches (:func:`~parambench.methods.mesh.holes.fill_holes`, the fill of the
+mesh methods' ``holes="filled"``) and the patches' vertices dropped from the output;
+``holes="refuse"`` raises NotADiskError instead, as every mesh with holes did before (the
+quick sweep's one failed cell, ``holes``). mouette assembles its matrices in Python loops: about 11 s at
 20k vertices on one core (measured), so it is the slowest mesh baseline.
 """
 
@@ -28,6 +32,7 @@ from parambench.datasets_gen.errors import NotADiskError, SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
+from ..mesh.holes import fill_holes
 from ..mesh.topology import require_connected_disk_like
 from ..registry import register
 
@@ -84,20 +89,25 @@ class BffMouette(Method):
     """Baseline: Boundary First Flattening (``mouette``), zero boundary scale factors.
 
     Free boundary, no pins; uv in input vertex order, centred, at the surface's own scale
-    (boundary lengths kept). Disks only.
+    (boundary lengths kept). Holes filled by default (``holes="filled"``), or refused.
     """
 
     name = "bff-mouette"
     description = "Boundary First Flattening, zero boundary scale factors (Sawhney & Crane 2017; mouette; baseline)"
     needs_faces = True
+    defaults = {"holes": "filled"}
+    choices = {"holes": ("filled", "refuse")}
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
             loops = require_connected_disk_like(surface.points, surface.faces)
-            if len(loops) != 1:
+            if len(loops) != 1 and params["holes"] == "refuse":
                 raise NotADiskError(f"{surface.name!r} has {len(loops)} boundary loops; BFF (bff-mouette) maps "
-                                    "topological disks only. Use 'scp-igl' or 'scp' for surfaces with holes.")
+                                    "topological disks only: leave holes='filled' (the default) to fill them, or use "
+                                    "'scp-igl' or 'scp'.")
+            work, n_filled = fill_holes(surface) if len(loops) > 1 else (surface, 0)
         with timer("solve"):
-            uv = bff_uv(surface.points, surface.faces)
+            uv = bff_uv(work.points, work.faces)[: surface.n_points]
         uv -= uv.mean(axis=0)
-        return MethodOutput(uv, {"n_boundary_loops": len(loops), "boundary_scale_factor": 0.0})
+        return MethodOutput(uv, {"n_boundary_loops": len(loops), "boundary_scale_factor": 0.0,
+                                 "holes_filled": n_filled})

@@ -69,8 +69,18 @@ def test_vertex_reordering_is_undone(cap):
     assert ev["foldovers"] == 0
 
 
-def test_holes_and_point_sets_are_refused():
+def test_holes_are_filled_as_the_bff_application_does_and_the_plane_keeps_its_map():
+    """The quick sweep's one failed cell (``holes``: "not a disk"): its 3 holes are now closed
+    by patches, as BFF's own HoleFiller does; the planar surface's map is still isometric."""
+    holes = make_surface("holes", 1000, sampling="jittered", seed=0)
+    res = get_method("bff-mouette")(holes)
+    assert res.diagnostics["holes_filled"] == 3 and res.uv.shape == (holes.n_points, 2)
+    ev = _metrics(holes, res.uv)
+    assert ev["foldovers"] == 0 and ev["exact_error"] < 1e-6  # the plane's own coordinates, rigidly moved
     with pytest.raises(NotADiskError, match="4 boundary loops"):
-        get_method("bff-mouette")(make_surface("holes", 1000, sampling="jittered", seed=0))
+        get_method("bff-mouette")(holes, holes="refuse")
+
+
+def test_point_sets_are_refused():
     with pytest.raises(MissingFacesError):
         get_method("bff-mouette")(make_surface("cap", 500, sampling="jittered", seed=0).points_only())
