@@ -111,7 +111,7 @@ def _repair_mesh(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
 def _drop_twist(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Drop the faces on the edges where a mesh's faces cannot be wound alike, and wind the rest.
 
-    pymeshfix's example ``planar_mesh.ply`` (a sheet with 40 holes) has a twisted flap: 2
+    pymeshfix's example ``planar_mesh.ply`` (a sheet with 16 small holes) has a twisted flap: 2
     edges whose faces run them the same way however the rest is wound, and every method
     refused it as a Moebius band. Without the 4 faces on those edges (a hole, as where
     faces on a non-manifold edge are dropped) it is orientable. Cutting the edges open

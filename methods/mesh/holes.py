@@ -160,7 +160,8 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
         keep holes open, and filling would change their map), then filled when that
         attempt raises :class:`SolverError` / :class:`ConvergenceError` or returns a map
         whose boundary is not regular; for a mesh also when the free map overlaps itself
-        (flipped triangles, boundary images that cross) and the filled one less. Free is also all there is for one boundary loop.
+        (flipped triangles, boundary images that cross) and the filled one less. Free is
+        also all there is for one boundary loop.
     attempt : callable
         ``attempt(surface) -> (problem, solution, ...)``: ``result[1]`` is the solution
         (its ``turning`` and ``diagnostics`` are read).
@@ -188,7 +189,7 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
     if holes == "filled":
         work, n = fill(surface)
         return attempt(work), work, n
-    first_error = None
+    first_error, regular, overlaps = None, False, 0
     try:
         result = attempt(surface)
     except (SolverError, ConvergenceError) as err:
