@@ -105,8 +105,9 @@ def mesh_advice(check: dict, params: dict, method: str) -> str:
     """What to try after a mesh map failed its check (:func:`~parambench.methods.mesh.map_check.check_mesh_map`).
 
     Where every flipped face sits at a fold of the mesh itself, no weights help; a non-finite
-    uv is a failed solve; a boundary that crosses itself with no flipped triangle is a
-    surface that winds round (no weights help either); collapsed triangles alone are a
+    uv is a failed solve; holes whose images cross each other or the rim drifted (filled,
+    they cannot); a boundary that crosses itself with no flipped triangle is a surface that
+    winds round (no weights help either); collapsed triangles alone are a
     protrusion the conformal map shrank. Otherwise the hybrid weights (Sec. 5), made to remove folds, then ``scp`` with
     them, then remeshing.
     """
@@ -115,6 +116,12 @@ def mesh_advice(check: dict, params: dict, method: str) -> str:
         return "the mesh folds back on itself at those faces: repair its geometry there"
     if check.get("n_nonfinite"):
         return "the solve gave no uv at some vertices: try another method (parambench list)"
+    if check.get("n_crossings_of_holes"):
+        # holes' images drifting over each other or the rim: a filled hole cannot drift
+        if params.get("holes") == "free":  # "auto" tried the filled holes already
+            return "its holes' images overlap: try --param holes=filled"
+        if "holes" not in params:
+            return "its holes' images overlap: try --method scp (it fills holes whose free images overlap)"
     if not n_flipped and check.get("n_boundary_crossings") and not check.get("n_degenerate"):
         return ("the surface winds round further than one flat map can hold without overlap (as a helical strip "
                 "does): cut it into pieces that each lie flat")

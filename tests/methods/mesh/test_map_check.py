@@ -126,6 +126,7 @@ def test_a_map_that_winds_over_itself_fails_without_a_flip(method):
     pts, faces = _helical_ribbon()
     check = get_method(method)(Surface(pts, faces, name="ribbon")).diagnostics["selfcheck"]
     assert check["n_flipped"] == 0 and check["n_boundary_crossings"] > 0
+    assert check["n_crossings_of_holes"] == 0  # its one loop, apart on the surface: no hole drifted
     assert not check["passed"] and check["failed"] == ["boundary-crossing"]
     assert "crosses itself" in check["reason"]
     # Less than one turn lies flat: the same strip of 0.8 turns passes.

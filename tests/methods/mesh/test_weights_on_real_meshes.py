@@ -13,6 +13,7 @@ from parambench.methods.base import StageTimer
 from parambench.methods.mesh.conformal_setup import build_mesh_problem, k_start_estimate, resolve_pins
 from parambench.methods.mesh.holes import fill_holes
 from parambench.methods.mesh.map_check import check_mesh_map
+from parambench.methods.pointset.selfcheck_advice import mesh_advice
 from parambench.methods.mesh.weights import WEIGHT_KINDS, laplacian, mesh_weights, negative_weight_rows
 from parambench.methods.registry import get_method
 
@@ -75,7 +76,11 @@ def test_dncp_falls_back_to_the_direct_k_where_the_good_region_is_too_narrow(rea
     assert abs(m["qc_mean"] / scp_qc - 1) < 0.01
     # but its holes' images cross the rim's (4 crossings: a failed check), so with holes
     # left to the method they are filled, and the map passes
-    assert check_mesh_map(s.points, s.faces, res.uv)["n_boundary_crossings"] > 0
+    free_check = check_mesh_map(s.points, s.faces, res.uv)
+    assert free_check["n_boundary_crossings"] > 0
+    # holes' images, not a surface winding round: the advice is the filled holes, not a cut
+    assert free_check["n_crossings_of_holes"] == free_check["n_boundary_crossings"]
+    assert mesh_advice(free_check, res.params, "dncp-opt") == "its holes' images overlap: try --param holes=filled"
     auto = DNCP(s)
     assert auto.diagnostics["holes_filled"] == 4 and check_mesh_map(s.points, s.faces, auto.uv)["passed"]
     assert abs(evaluate(s.points, s.faces, auto.uv)["qc_mean"] / scp_qc - 1) < 0.01
