@@ -170,8 +170,11 @@ def orientation_signs(faces: np.ndarray, he: HalfEdges | None = None) -> tuple[n
     n_pieces, piece = connected_components(
         sp.coo_matrix((np.ones(f1.size), (f1, f2)), shape=(m, m)), directed=False)
     seeds = np.unique(piece, return_index=True)[1]
-    step = np.where(alike, 2.0, 1.0)  # 2: the child reverses its parent's winding
-    graph = sp.coo_matrix((np.r_[step, np.ones(n_pieces)], (np.r_[f1, np.full(n_pieces, m)], np.r_[f2, seeds])),
+    # one edge per pair of faces (two faces sharing two edges would sum their steps)
+    once = np.unique(np.minimum(f1, f2) * np.int64(m) + np.maximum(f1, f2), return_index=True)[1]
+    step = np.where(alike[once], 2.0, 1.0)  # 2: the child reverses its parent's winding
+    graph = sp.coo_matrix((np.r_[step, np.ones(n_pieces)],
+                           (np.r_[f1[once], np.full(n_pieces, m)], np.r_[f2[once], seeds])),
                           shape=(m + 1, m + 1)).tocsr()
     graph = graph.maximum(graph.T)
     _, parent = breadth_first_order(graph, m, directed=False, return_predecessors=True)

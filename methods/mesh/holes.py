@@ -199,7 +199,9 @@ def solve_with_holes(surface: MethodInput, holes: str, attempt: Callable[[Method
     else:
         sol = result[1]
         regular = sol.diagnostics.get("regular_boundary", True) and is_regular_turning(sol.turning)
-        overlaps = _overlaps(surface, sol) if regular and holes != "free" else 0
+        # one loop: nothing to fill, and the method's own check counts its overlaps anyway
+        holed = np.size(sol.turning) > 1
+        overlaps = _overlaps(surface, sol) if regular and holed and holes != "free" else 0
         if holes == "free" or (regular and not overlaps):
             return result, surface, 0
     try:
