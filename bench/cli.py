@@ -573,11 +573,11 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         return EXIT_SELFCHECK
     if cov and not cov["passed"]:
         # The diagnostics are written either way; the exit code says the loops are doubtful.
+        from parambench.methods.pointset.selfcheck import uncovered_phrase
         from parambench.methods.pointset.selfcheck_advice import suggest_fix
 
-        print(f"parambench: error: inspect: {cov['largest_uncovered_group']} connected boundary candidates lie "
-              f"on no detected loop (a missed hole or boundary); {suggest_fix(['coverage'], report['params'], 'ocp')}",
-              file=sys.stderr)
+        print(f"parambench: error: inspect: {uncovered_phrase(cov)} (a missed hole or boundary); "
+              f"{suggest_fix(['coverage'], report['params'], 'ocp')}", file=sys.stderr)
         return EXIT_SELFCHECK
     return 0
 

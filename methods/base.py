@@ -524,8 +524,14 @@ class Method:
         ``diagnostics["selfcheck"]["retry"]`` says what was tried last (``params``: the
         changed ones), whether it passed and why the first failed, and ``earlier`` lists
         the attempts before it, when there were several.
+
+        By default, after loops that missed boundary candidates, the front end's angle
+        criterion lowered (:func:`~parambench.methods.pointset.plugin_support.coverage_retries`:
+        nothing for a method without ``boundary_angle_deg``).
         """
-        return None
+        from .pointset.plugin_support import coverage_retries
+
+        return coverage_retries(params, check) or None
 
     def repeats_a_run(self, retry: dict[str, Any], runs: list[tuple[dict, dict]]) -> bool:
         """Whether the retry ``retry`` (parameters) would only run again what one of ``runs``

@@ -105,8 +105,8 @@ from ..mesh.pins import farthest_pair
 from ..mesh.weights import laplacian
 from ..pointset.local_delaunay import drop_outside_boundary, local_delaunay_rings, one_ring_cotangent_weights
 from ..pointset.neighbourhoods import knn_graph
-from ..pointset.plugin_support import (FRONTEND_DEFAULTS, frontend_diagnostics, require_neighbours, run_frontend,
-                                       scale_to_spacing)
+from ..pointset.plugin_support import (FRONTEND_DEFAULTS, coverage_retries, frontend_diagnostics, require_neighbours,
+                                      run_frontend, scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
 
@@ -253,8 +253,10 @@ class FbcpPc(Method):
         return {**params, "k_local": sizes[0]} if sizes else None
 
     def retry_params(self, params: dict, check: dict) -> list:
-        """``k_local = retry_k_local``, then halfway back, after a map that fails its self-check."""
-        return [{**params, "k_local": k} for k in self._retry_sizes(params)]
+        """After a map that fails its self-check: a lower ``boundary_angle_deg`` where its
+        loops missed candidates (:func:`~parambench.methods.pointset.plugin_support.coverage_retries`),
+        then ``k_local = retry_k_local``, then halfway back."""
+        return coverage_retries(params, check) + [{**params, "k_local": k} for k in self._retry_sizes(params)]
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         boundary, solver, k_local = params["boundary"], params["free_boundary"], params["k_local"]

@@ -38,8 +38,9 @@ from ..pointset.laplacian import graph_laplacian
 from ..pointset.mesh_refine import MAX_MESH_PASSES, first_map_faces, mesh_passes, refine_on_uv_mesh
 from ..pointset.two_level import coarse_subsample, two_level_sdp_pair
 from ..pointset.neumann_laplacian import DEFAULT_AREA_FACTOR, neumann_laplacian
-from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
-                                      scale_to_spacing, with_shape_cause)
+from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, check_inputs_of, coverage_retries,
+                                      frontend_diagnostics, restore_check_inputs, run_frontend, scale_to_spacing,
+                                      with_shape_cause)
 from ..registry import register
 from ..spectral import ConformalProblem
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
@@ -286,7 +287,9 @@ class Ocp(Method):
         return None
 
     def retry_params(self, params: dict, check: dict) -> dict | None:
-        """``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours;
+        """First, after loops that missed boundary candidates, a lower ``boundary_angle_deg``
+        (:func:`~parambench.methods.pointset.plugin_support.coverage_retries`); then
+        ``k_nn = retry_k_nn`` after a map with flipped triangles, if that is more neighbours;
         then the paper's energy after a Neumann-energy map that folds at its boundary or spins;
         then, with ``refine="auto"``, the map refined on its own uv mesh (``refine="mesh"``),
         after flipped triangles refined with ``k_nn = retry_k_nn``, and last after flipped
@@ -321,7 +324,7 @@ class Ocp(Method):
         the other surfaces (spot-top's QC 1.008x at 8, 1.011x at 12).
         """
         failed = set(check.get("failed", ()))
-        retries = []
+        retries = coverage_retries(params, check)  # first: loops that missed candidates
         if "flipped" in failed and params["retry_k_nn"] > params["k_nn"]:
             retries.append({**params, "k_nn": int(params["retry_k_nn"])})
         if params["energy"] == ENERGY_FALLBACK_FROM and failed & {"boundary-crossing", "turning"}:
@@ -376,8 +379,10 @@ class Ocp(Method):
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         solver = resolve_solver(params["solver"], surface.n_points, params["k_search"])
-        sol, counts, extra, work, n_filled, n_thin, front = _memoised(
-            _unrefined_key(params, surface.n_points), lambda: self._unrefined(surface, params, timer, solver))
+        unrefined, inputs = _memoised(_unrefined_key(params, surface.n_points), lambda: (
+            self._unrefined(surface, params, timer, solver), check_inputs_of(surface)))
+        restore_check_inputs(surface, inputs)  # a reused map is checked on its own front end's facts
+        sol, counts, extra, work, n_filled, n_thin, front = unrefined
         lattice = bool(front.diagnostics.get("lattice")) and surface.n_points < MULTILEVEL_FROM
         if _refines(params["refine"], extra, lattice):
             sol, extra = _refined(sol, extra, front, surface.n_points, params, timer)

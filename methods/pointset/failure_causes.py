@@ -34,6 +34,15 @@ reason names them:
   random in its bounding box, 100 there, or 50 points lifted 1.9 spacings off the surface
   failed the self-check with a ``k_nn`` hint before.
 
+* **noisy** (named by the self-check, which has the front end's fit facts): a failed map
+  of points whose 8-neighbour plane fits predict a median normal error of
+  ``NOISY_FIT_DEG`` = 12 degrees or more (:mod:`.selfcheck`; normal noise of 0.25 / 0.5 / 1
+  spacings predicts about 8 / 15-16.6 / 18.6 degrees, clean real scans 0.8-1.5). The
+  advice: thin the points or smooth them. laspy's test tile ``plane.laz`` (18,335 distinct
+  points 1-2 cm apart, heights rounded to 1 cm: 15.4 degrees) failed every retry of
+  ``ocp``, ``sdp`` too, and the parameter hints led from one to the next; thinned by
+  Poisson-disk sampling to 3 cm (2,685 points) or 5 cm it passes.
+
 Where no map came out at all (every k search of ``ocp`` failed), :func:`protrusion_shrink`
 looks for the same shape in a map that always exists: the harmonic map of the points'
 kNN graph (uniform weights) with the outer loop fixed on a circle. It shrinks a
@@ -287,6 +296,9 @@ def describe_causes(causes: dict) -> str:
         parts.append(f"{100 * c['share']:.0f} % of the failing triangles have a corner off the surface "
                      f"({c['points']} stray point(s) in all, a median {c['offset_spacings']:g} spacings off their "
                      "neighbours' tangent planes)")
+    if "noisy" in causes:
+        parts.append(f"the points are noisy: plane fits on 8 neighbours err by {causes['noisy']['normal_fit_error_deg']:g} "
+                     "degrees at the median, as under noise of about half their spacing or more")
     if "hanging" in causes:
         parts.append(f"{causes['hanging']['points']} points hang on the rest by single points (the harmonic map "
                      "of the points is constant on them: loose flaps or strands)")
@@ -331,6 +343,9 @@ def cause_advice(causes: dict, failed: list[str]) -> tuple[str, bool]:
         advice.append("remove the stray points off the surface (a scan's outliers) before flattening")
     if "hanging" in causes:
         advice.append("remove the parts that hang on by single points (a scan's loose flaps and strands)")
+    if "noisy" in causes:
+        advice.append("thin the points to a spacing several times their noise (e.g. pymeshlab's "
+                      "generate_sampling_poisson_disk on the point cloud) or smooth them before flattening")
     if "collapse" in causes or "protrusion" in causes:
         advice.append("cut the shrunk protrusion off, or cut a seam along it, before flattening")
     if "isolated" in failed:

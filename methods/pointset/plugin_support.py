@@ -21,7 +21,8 @@ from .params import frontend_params, method_defaults
 from .row_chunks import for_each_chunk
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
-           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause"]
+           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause",
+           "check_inputs_of", "restore_check_inputs", "coverage_retries", "COVERAGE_RETRY_ANGLES_DEG"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
@@ -97,6 +98,24 @@ class _CheckInputs:
 #: Front-end facts of the last run on each surface, taken (and dropped) by
 #: :func:`selfcheck_result` so the check does not recompute normals and neighbours.
 _CHECK_INPUTS: "weakref.WeakKeyDictionary[MethodInput, _CheckInputs]" = weakref.WeakKeyDictionary()
+
+
+def check_inputs_of(surface: MethodInput) -> _CheckInputs | None:
+    """The front-end facts the next self-check on ``surface`` will take, or None."""
+    return _CHECK_INPUTS.get(surface)
+
+
+def restore_check_inputs(surface: MethodInput, inputs: _CheckInputs | None) -> None:
+    """Give the next self-check on ``surface`` the facts of a front end run earlier.
+
+    For a run that reuses an earlier attempt's map (``ocp``'s retry with only ``refine``
+    changed runs no front end): without them its check estimated normals and neighbours
+    and had no boundary candidates, so a map whose loops missed a hole passed (a hole 5
+    spacings across in a jittered grid: the first map failed for the ring of candidates
+    round it, the refined one passed).
+    """
+    if inputs is not None:
+        _CHECK_INPUTS[surface] = inputs
 
 
 #: Rows of balls per chunk when the candidates are recomputed.
@@ -193,6 +212,41 @@ def selfcheck_result(surface: MethodInput, result, conformal: bool = False) -> d
     return check
 
 
+#: ``boundary_angle_deg`` of the retries after a map whose loops miss boundary candidates, in order.
+COVERAGE_RETRY_ANGLES_DEG = (100.0, 90.0)
+
+
+def coverage_retries(params: dict, check: dict) -> list[dict]:
+    """Retries with a lower ``boundary_angle_deg`` after a check whose loops missed candidates.
+
+    The angle criterion's own remedy, which the check's line offers too, as
+    :meth:`~parambench.methods.base.Method.retry_params` answers (every point-set
+    method's default). A hole of a LiDAR tile's ground returns 5.7 mean spacings across
+    (laspy's test tile ``file_with_both_wkt_and_geotiff_vlrs.las``, class 2, 9,808
+    points): at 120 degrees 15 of its ~20 rim points pass and no loop closes; at 100 it is
+    a loop and the map passes. Holes 5.4 grid steps across in flat jittered grids: 100
+    finds some, 90 the others.
+
+    Parameters
+    ----------
+    params : dict
+        The run's parameters; none are offered without ``boundary_angle_deg``, or with
+        loops given (``boundary="given"``), or below the angle already used.
+    check : dict
+        Its self-check facts (``failed``).
+
+    Returns
+    -------
+    list of dict
+        Parameters of the retries, in order.
+    """
+    if "coverage" not in (check.get("failed") or ()) or "boundary_angle_deg" not in params \
+            or params.get("boundary") == "given":
+        return []
+    return [{**params, "boundary_angle_deg": angle} for angle in COVERAGE_RETRY_ANGLES_DEG
+            if angle < float(params["boundary_angle_deg"])]
+
+
 #: Remedies for loops that miss boundary candidates, in the order offered (the
 #: parameters of every point-set method; :func:`~parambench.methods.hints.fit_hints`
 #: drops those a method lacks); first in errors that point upstream.
@@ -225,7 +279,7 @@ def boundary_doubt(surface: MethodInput, exc: ParambenchError) -> ParambenchErro
         An error of the same type to raise from ``exc``; None when the loops pass (or
         there is nothing to check them with).
     """
-    from .selfcheck import loop_coverage
+    from .selfcheck import loop_coverage, uncovered_phrase
 
     inputs = _CHECK_INPUTS.pop(surface, None)
     if inputs is None or inputs.candidates is None:
@@ -234,8 +288,8 @@ def boundary_doubt(surface: MethodInput, exc: ParambenchError) -> ParambenchErro
     if cov["passed"]:
         return None
     stem, hints = getattr(exc, "parambench_hints", None) or (str(exc).rstrip("."), ())
-    doubt = (f"the detected boundary looks wrong: {cov['largest_uncovered_group']} connected boundary candidates "
-             f"lie on no loop ({cov['n_uncovered']} of {cov['n_candidates']} off the {len(inputs.loops)} loops: "
+    doubt = (f"the detected boundary looks wrong: {uncovered_phrase(cov)} "
+             f"({cov['n_uncovered']} of {cov['n_candidates']} off the {len(inputs.loops)} loops: "
              f"a missed boundary or hole), and the solve on it failed ({stem})")
     return hinted(type(exc), doubt, *BOUNDARY_HINTS, *hints)
 

@@ -269,3 +269,4 @@ def test_when_the_second_run_fails_too_the_error_says_so_and_offers_something_el
     message = str(info.value)
     assert "with k_nn=12, tried after ConvergenceError with k_nn=8" in message
     assert "ball_eps_factor" in message and "raise k_nn" not in message
+

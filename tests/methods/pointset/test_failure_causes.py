@@ -293,3 +293,25 @@ def test_ocp_after_failed_retries_also_offers_sdp_and_isolated_points_stand_alon
     far = {"reason": "1 point(s) lie far from all the others", "failed": ["isolated", "flipped"]}
     line = failure_line(far, {"k_nn": 8}, "ocp")
     assert line.endswith("before flattening") and "--param" not in line
+
+
+@pytest.mark.parametrize("noise, named", [(0.0, False), (0.25, False), (0.6, True)])
+def test_a_failed_map_of_noisy_points_says_to_thin_them(noise, named):
+    """Noise of about half the spacing or more (laspy's plane.laz tile: heights rounded to
+    steps about the size of the spacing) is named, with thinning as the advice; the
+    check's verdict is the triangles', not the noise's."""
+    rng = np.random.default_rng(1)
+    points = _sheet(40, rng)
+    spacing = 1.0 / 40
+    points[:, 2] += rng.normal(0.0, noise * spacing, len(points))
+    normals = np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    uv = points[:, :2].copy()
+    fold = np.linalg.norm(uv - 0.5, axis=1) < 0.1
+    uv[fold] = 0.5 + (0.5 - uv[fold]) * [1.0, -1.0] * 0.8  # a mirrored patch: flipped triangles
+    check = check_pointset_map(points, uv, normals, None)
+    assert not check["passed"] and "flipped" in check["failed"]
+    assert ("noisy" in check.get("causes", {})) is named
+    line = failure_line(check, dict(FRONTEND_DEFAULTS), "ocp")
+    assert ("thin the points to a spacing several times their noise" in line) is named
+    clean = check_pointset_map(points, points[:, :2], normals, None)
+    assert "noisy" not in clean.get("causes", {})  # a map that passes has no causes to name

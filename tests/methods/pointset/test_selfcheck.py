@@ -219,7 +219,43 @@ def test_coverage_passes_when_every_candidate_is_near_a_loop():
     candidates[outer] = candidates[rim] = True
     cov = loop_coverage(pts, [outer, rim], candidates, knn, spacing=1.0)
     assert cov == {"n_candidates": len(outer) + len(rim), "n_uncovered": 0, "largest_uncovered_group": 0,
-                   "n_scattered": 0, "applicable": True, "passed": True}
+                   "n_scattered": 0, "applicable": True, "empty_ring": 0, "passed": True}
+
+
+def _two_of_three_rim_points(pts, rim):
+    """Candidates on two of every three points of a hole's innermost rim, as where the
+    angle criterion passes only some of a small hole's rim points: kNN groups of two."""
+    c = (pts[:, 0].max() + pts[:, 0].min()) / 2
+    order = rim[np.argsort(np.arctan2(pts[rim, 1] - c, pts[rim, 0] - c))]
+    inner = order[np.hypot(pts[order, 0] - c, pts[order, 1] - c) < 3.5]  # the innermost ring of the rim
+    return inner[np.arange(inner.size) % 3 != 2]
+
+
+def test_coverage_fails_scattered_candidates_ringing_an_empty_disk():
+    """A hole the loops missed whose rim passes the angle criterion only here and there:
+    the kNN graph groups its candidates in twos, so the group rule (MIN_MISSED_RING)
+    passes it; chained within 2.5 spacings they ring an empty disk."""
+    from parambench.methods.pointset.selfcheck import MIN_MISSED_RING, uncovered_phrase
+
+    n = 41  # a large enough grid that the ring's candidates are under 2 % of the points
+    pts, outer, rim = _grid_with_hole(n=n, hole=2.6)
+    ring = _two_of_three_rim_points(pts, rim)
+    cov = _coverage_of(pts, outer, ring)
+    assert cov["applicable"] and cov["largest_uncovered_group"] < MIN_MISSED_RING
+    assert cov["empty_ring"] == len(ring) >= 5 and not cov["passed"]
+    assert uncovered_phrase(cov) == f"{len(ring)} boundary candidates ring an empty disk on no detected loop"
+    # The same candidates round a disk that holds points: a void of the sampling, not a hole.
+    full, full_outer, _ = _grid_with_hole(n=n, hole=-1.0)
+    cov = _coverage_of(full, full_outer, cKDTree(full).query(pts[ring])[1])
+    assert cov["n_uncovered"] == len(ring) and cov["empty_ring"] == 0 and cov["passed"]
+
+
+def _coverage_of(pts, outer, ring):
+    """loop_coverage of the outer loop alone, with ``outer`` and ``ring`` as the candidates."""
+    knn = cKDTree(pts).query(pts, k=9)[1][:, 1:]
+    candidates = np.zeros(len(pts), dtype=bool)
+    candidates[outer] = candidates[ring] = True
+    return loop_coverage(pts, [outer], candidates, knn, spacing=1.0)
 
 
 def test_non_finite_map_fails_without_raising():
@@ -574,7 +610,7 @@ def test_a_solver_error_on_loops_that_miss_candidates_is_restated_with_front_end
     ocp = get_method("ocp")
     fit_hints(doubt, ocp.defaults, ocp.defaults)
     text = str(doubt)
-    assert text.startswith(f"the detected boundary looks wrong: {len(rim)} connected boundary candidates lie on no loop")
+    assert text.startswith(f"the detected boundary looks wrong: {len(rim)} connected boundary candidates lie on no detected loop")
     assert "no t = 1 crossing found" in text
     assert text.index("boundary_angle_deg") < text.index("k_search='direct'")
     for hint in support.BOUNDARY_HINTS:  # restating adds no remedy twice (real/cortex-lh said each twice)
