@@ -167,3 +167,27 @@ def test_a_zero_area_fan_along_a_straight_rim_is_not_degenerate():
     facts, _, _ = _face_facts(points, uv, normals, faces, np.ones(side * side), drop_bridging=False, tol_deg=0.0,
                               on_loop=rim)
     assert facts["n_degenerate"] >= 1
+
+
+def test_a_neumann_map_whose_k_opt_is_far_from_one_is_refined(monkeypatch):
+    """refine="auto" refines a Neumann-energy map whose k_opt lies off 1 by more than the
+    tolerance (its area and Dirichlet terms disagree; a LiDAR tile's ground gave 1.15 and a
+    fan-shaped map 6 % of its extent off the exact one). Made to fire here by a tolerance
+    below the cap's own |k_opt - 1|: the map is then the refined one, nearer the cap's
+    exact stereographic map."""
+    from parambench.methods.plugins import ocp as ocp_module
+
+    surf = make_surface("cap", 2000, sampling="random", seed=0)
+    ocp = get_method("ocp")
+    plain = ocp.run(surf.method_input(False), **ocp.defaults)
+    off = abs(plain.diagnostics["k_opt"] - 1.0)
+    assert plain.diagnostics["refined"] is None and 1e-4 < off <= ocp_module.NEUMANN_K_TOLERANCE
+    monkeypatch.setattr(ocp_module, "NEUMANN_K_TOLERANCE", off / 2)
+    refined = ocp.run(surf.method_input(False), **ocp.defaults)
+    assert refined.diagnostics["refined"] is not None
+    assert exact_map_error(refined.uv, surf.exact_uv) < exact_map_error(plain.uv, surf.exact_uv)
+    # Only the Neumann energy's own k speaks for its terms; "none" and the paper energy are left alone.
+    assert not ocp_module._refines("none", {}, k=1.5)
+    assert not ocp_module._refines("auto", {}, k=12.0, energy="paper")
+    assert ocp_module._refines("auto", {}, k=1.0 + 2 * ocp_module.NEUMANN_K_TOLERANCE)
+    assert not ocp_module._refines("auto", {}, k=1.0 + ocp_module.NEUMANN_K_TOLERANCE / 2)
