@@ -404,8 +404,9 @@ def empty_ring(points: np.ndarray, uncovered: np.ndarray, spacing: float) -> int
     chains = np.flatnonzero(sizes >= MIN_EMPTY_RING)
     if not chains.size:
         return 0
-    centroids = np.stack([points[uncovered[labels == c]].mean(axis=0) for c in chains])
-    gap, _ = cKDTree(points).query(centroids, k=1)
+    xyz = points[uncovered]
+    centroids = np.stack([np.bincount(labels, weights=xyz[:, axis])[chains] for axis in range(3)], axis=1)
+    gap, _ = cKDTree(points).query(centroids / sizes[chains, None], k=1)
     empty = gap >= RING_EMPTY * spacing
     return int(sizes[chains[empty]].max()) if empty.any() else 0
 
