@@ -75,7 +75,7 @@ SUITES = {
         name="full",
         datasets=("plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions",
                   "gnome-strip", "slit", "fold", "real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet",
-                  "real/spot-top", "real/cortex-lh", "real/bunny10k", "real/chameleon"),
+                  "real/spot-top", "real/cortex-lh", "real/bunny10k", "real/chameleon", "real/lidar-ground"),
         sizes=(2000, 10000, 50000),
         samplings=("grid", "jittered", "random", "graded"),
         seeds=(0, 1, 2),
@@ -248,11 +248,11 @@ def real_dataset_note(suite: Suite) -> str | None:
 
 
 def _points_only(dataset: str) -> bool:
-    """A real dataset stored as points without faces (``real/chameleon``)."""
+    """A real dataset of points with no faces at all (``real/chameleon``; not one given a reference mesh)."""
     from parambench.datasets_gen.real import REAL_DATASETS
 
     entry = REAL_DATASETS.get(dataset)
-    return entry is not None and entry.points_only
+    return entry is not None and entry.points_only and entry.reference is None
 
 
 def expand_cells(suite: Suite) -> list[Cell]:

@@ -4,7 +4,10 @@
   libigl tutorial data; ``real/meg-helmet``: a MEG helmet surface, an example mesh of the
   bfieldtools package (BSD-3-Clause); ``real/spot-top``: Keenan Crane's Spot (public domain)
   cut open by a plane; ``real/cortex-lh``: pycortex's demo cortex (BSD-2-Clause) cut to its
-  flat map and decimated. All are shipped as package data in ``datasets_gen/data/real/`` (sources,
+  flat map and decimated; ``real/lidar-ground``: the ground returns of an airborne LiDAR
+  tile from laspy's test data (BSD-2-Clause), bare points with a hole where no return came
+  back, given a reference triangulation in the xy plane
+  (:func:`parambench.datasets_gen.height_field.height_field_surface`). All are shipped as package data in ``datasets_gen/data/real/`` (sources,
   licences and the cut in ``SOURCES.md`` there), so a clone anywhere and an installed wheel
   both find them; the environment variable ``PARAMBENCH_REAL_DATA`` points the loader at
   another folder.
@@ -103,6 +106,9 @@ class RealDataset:
     location: str  # "package" (shipped with parambench, see real_data_dir) or "pymeshlab"
     description: str
     points_only: bool = False
+    #: "height-field": a point file given the reference triangulation of
+    #: :func:`~parambench.datasets_gen.height_field.height_field_surface`.
+    reference: str | None = None
 
     def path(self) -> Path:
         folder = real_data_dir() if self.location == "package" else pymeshlab_samples_dir()
@@ -126,6 +132,10 @@ REAL_DATASETS = {d.name: d for d in (
                 "Stanford bunny, 5051 vertices, open with 5 holes (pymeshlab sample)"),
     RealDataset("real/chameleon", "chameleon.pts", "pymeshlab",
                 "chameleon point set with normals, 4594 points, no faces (pymeshlab sample)", points_only=True),
+    RealDataset("real/lidar-ground", "lidar-ground.xyz", "package",
+                "airborne LiDAR ground returns (LAS class 2), 9808 points, a hole where no return came back; "
+                "reference mesh: xy Delaunay less voids and rim slivers (laspy test data)",
+                points_only=True, reference="height-field"),
 )}
 
 
@@ -169,6 +179,10 @@ def load_real(name: str, *, seed: int | None = 0, noise: float = 0.0, requested:
                      f"or set {ENV_VAR} to a folder holding {spec.filename})")
         raise InputFileError(f"{name}: {spec.filename} not found in {where}.")
     surface = load_surface(path, name=name, points_only=spec.points_only)
+    if spec.reference == "height-field":
+        from .height_field import height_field_surface
+
+        surface = height_field_surface(surface.points, name)
     normals = surface.normals
     if normals is None and surface.faces is not None:
         normals = np.asarray(igl.per_vertex_normals(surface.points, surface.faces,
@@ -182,7 +196,8 @@ def load_real(name: str, *, seed: int | None = 0, noise: float = 0.0, requested:
         points = add_normal_noise(points, normals, noise * spacing, np.random.default_rng(seed))
     normals_from = "file" if surface.normals is not None else ("mesh, area-weighted" if normals is not None else None)
     params = {"n_points": surface.n_points, "sampling": None, "noise": float(noise), "file": spec.filename,
-              "normals": normals_from, "ignored": dict(requested or {})}
+              "normals": normals_from, "ignored": dict(requested or {}),
+              **({"reference": spec.reference, **surface.params} if spec.reference else {})}
     return Surface(points=points, faces=surface.faces, normals=normals, name=name, params=params, seed=seed,
                    boundary_mask=surface.boundary_mask, boundary_loops=surface.boundary_loops)
 

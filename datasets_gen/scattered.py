@@ -31,7 +31,7 @@ from .errors import InvalidInputError, NotADiskError, TooFewPointsError
 from .mesh_loops import boundary_loops, one_fan_per_vertex
 from .surface import Surface, circumradii
 
-__all__ = ["PEEL_RADIUS_SPACINGS", "scatter_on_mesh"]
+__all__ = ["PEEL_RADIUS_SPACINGS", "peel_rim", "scatter_on_mesh"]
 
 #: Rim triangles whose circumradius exceeds this many mean spacings are peeled off the
 #: reference triangulation (an alpha shape from outside). Not smaller: for area-uniform
@@ -161,7 +161,7 @@ def _reference_faces(points: np.ndarray, ref_uv: np.ndarray, mesh_uv: np.ndarray
     faces[clockwise] = faces[clockwise][:, [0, 2, 1]]
     n_all = faces.shape[0]
     faces = faces[_inside_image(ref_uv, faces, mesh_uv, mesh_loops)]
-    faces = _peeled(points, faces, PEEL_RADIUS_SPACINGS * spacing)
+    faces = peel_rim(points, faces, PEEL_RADIUS_SPACINGS * spacing)
     try:
         faces = one_fan_per_vertex(faces, points.shape[0])
     except InvalidInputError as exc:
@@ -171,7 +171,7 @@ def _reference_faces(points: np.ndarray, ref_uv: np.ndarray, mesh_uv: np.ndarray
     return faces, n_all - faces.shape[0]
 
 
-def _peeled(points: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
+def peel_rim(points: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
     """Rim triangles with a 3D circumradius above ``radius`` peeled off, from outside inwards.
 
     The Delaunay triangulation closes the rim's notches with slivers along the outermost
@@ -180,6 +180,19 @@ def _peeled(points: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
     corner is not on the rim yet: the triangulation stays a disk, no point is left out
     and no vertex gets two fans (every drawn point is kept, so the sampling near the rim
     stays uniform).
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+    faces : (M, 3) numpy.ndarray of int64
+        An edge-manifold triangulation; its boundary edges are where the peel starts.
+    radius : float
+        Circumradius (length units) above which a rim triangle is peeled.
+
+    Returns
+    -------
+    (K, 3) numpy.ndarray of int64
+        The faces kept, in their order.
     """
     too_wide = circumradii(points, faces) > radius
     edge_faces: dict[tuple[int, int], set[int]] = {}

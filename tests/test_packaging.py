@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj", "meg-helmet.obj", "spot-top.obj", "cortex-lh.obj")
+SHIPPED = ("camelhead.off", "lilium.obj", "bump-domain.obj", "meg-helmet.obj", "spot-top.obj", "cortex-lh.obj",
+           "lidar-ground.xyz")
 DATA_IN_PACKAGE = "datasets_gen/data/real"  # in the source tree
 DATA_IN_WHEEL = f"parambench/{DATA_IN_PACKAGE}"
 TOP_FOLDERS = ("methods", "datasets_gen", "bench", "reports")
@@ -31,13 +32,17 @@ from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.real import real_data_dir
 print(parambench.datasets_gen.__file__)
 print(real_data_dir())
-for name in ("real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh"):
+for name in ("real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh",
+             "real/lidar-ground"):
     s = make_surface(name)
     print(name, s.n_points, len(s.faces), len(s.boundary_loops))
 """
 
-EXPECTED_COUNTS = {"real/camelhead": (11381, 22704), "real/lilium": (3389, 6590), "real/bump-domain": (4172, 8058),
-                   "real/meg-helmet": (2044, 3987), "real/spot-top": (2089, 4112), "real/cortex-lh": (12226, 23999)}
+# points, faces, boundary loops (the LiDAR tile: its points and their reference triangulation)
+EXPECTED_COUNTS = {"real/camelhead": (11381, 22704, 1), "real/lilium": (3389, 6590, 1),
+                   "real/bump-domain": (4172, 8058, 1), "real/meg-helmet": (2044, 3987, 1),
+                   "real/spot-top": (2089, 4112, 1), "real/cortex-lh": (12226, 23999, 1),
+                   "real/lidar-ground": (9808, 19322, 2)}
 
 
 def _clean_env(pythonpath: Path) -> dict:
@@ -59,7 +64,7 @@ def _check_loaded(lines: list[str], tree: Path, data_dir_expected: Path) -> None
     assert Path(module_file).resolve().is_relative_to(tree.resolve())
     assert Path(data_dir).resolve() == data_dir_expected.resolve()
     loaded = {row.split()[0]: tuple(int(x) for x in row.split()[1:]) for row in rows}
-    assert loaded == {name: (*counts, 1) for name, counts in EXPECTED_COUNTS.items()}
+    assert loaded == EXPECTED_COUNTS
 
 
 @pytest.fixture(scope="module")
@@ -134,6 +139,10 @@ def test_sources_file_credits_every_shipped_mesh():
     assert "potpourri3d-1.4.0.tar.gz" in text and "Keenan Crane" in text and "public domain" in text
     assert "y >= -0.23" in text
     assert "pycortex-1.4.0.tar.gz" in text and "BSD-2-Clause" in text and "targetfacenum=24000" in text
+    # The LiDAR tile: package, file, its hash, the licence's notice, and what was kept.
+    assert "laspy-2.7.0.tar.gz" in text and "file_with_both_wkt_and_geotiff_vlrs.las" in text
+    assert "58bc14d3268eecf5f286d463b2de4d99e1d045bb6e0f626827d9c2f0ee6053c8" in text
+    assert "Copyright (c) 2020, Thomas Montaigu" in text and "classification 2 (ground)" in text
 
 
 def test_every_shipped_mesh_file_is_listed_and_small():

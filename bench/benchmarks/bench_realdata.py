@@ -16,7 +16,8 @@ rims that zigzag across triangles, 8.4k-15.5k points), and its cow, airplane and
 cut open and Loop-subdivided (``*-loop*``, :data:`PYMESHLAB_CUTS`), its fractal terrains
 (``terrain-*``, :data:`PYMESHLAB_TERRAINS`), matplotlib's two elevation rasters (``dem-*``,
 :data:`MATPLOTLIB_DEMS`) and points scattered over one (:data:`MATPLOTLIB_DEMS_SCATTERED`);
-every generated surface with ``random`` and ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
+airborne LiDAR ground returns, points as a scanner gives them (``real-lidar-ground``,
+:data:`LIDAR`); every generated surface with ``random`` and ``graded`` sampling at the sizes of ``PARAMBENCH_REALDATA_SIZES`` (comma-separated,
 default ``2000,20000``; add 100000 for the issue's full set); a few surfaces at normal
 noise 0.5 spacings (jittered and random, 2000 points); and the five real meshes with one
 boundary loop scattered with random points, none on the rim, as a scan leaves them
@@ -30,7 +31,7 @@ Timed (one round): ``ocp`` end to end on the bare points. In ``extra_info``:
 - the detector of the previous release (``old_*``) and of this one (``new_*``): loops
   found (``*_loops``, against ``true_loops``), recall and precision of the detected
   boundary points against the mesh's boundary vertices (``boundary_truth`` "vertices";
-  for the scattered cases "rim": against the mesh's rim curve, within 3 mean spacings,
+  for the scattered and LiDAR cases "rim": against the mesh's rim curve, within 3 mean spacings,
   :func:`parambench.bench.metrics.rim.rim_recall_precision`), and the error when the front end
   finds no loop. "Old" is the same front end with the rules that need the local spacing
   off (``find_boundary(..., local_spacing=None)``: loop spacing, empty disk inside small
@@ -135,6 +136,14 @@ MATPLOTLIB_DEMS = [("jacksboro", 2, 0.0), ("topobathy", 1, 0.0)]
 #: ... and points scattered over one (name, step, points), as a scan of the terrain leaves
 #: them: none on the rim; scored as the scattered real meshes are.
 MATPLOTLIB_DEMS_SCATTERED = [("jacksboro", 2, 20000)]
+
+
+#: Real point clouds with a reference triangulation (``real/lidar-ground``: laspy's test
+#: tile, its ground returns with a hole under vegetation; the mesh is
+#: :func:`parambench.datasets_gen.height_field.height_field_surface`'s). Scored against the
+#: reference's rim as the scattered meshes are: the triangulation's rim is one choice
+#: among the ragged outlines the points allow.
+LIDAR = ["real/lidar-ground"]
 
 
 def _pymeshlab_cut_id(file: str, axis: int, quantile: float, keep_above: bool, rounds: int) -> str:
@@ -302,6 +311,13 @@ def test_realdata_dem(benchmark, monkeypatch, case):
     surface = matplotlib_dem(*case)
     label = surface.name.replace("/", "-")
     _measure(benchmark, monkeypatch, surface, "realdata-real", label, surface.name, None, 0.0)
+
+
+@pytest.mark.parametrize("dataset", LIDAR, ids=[name.replace("/", "-") for name in LIDAR])
+def test_realdata_lidar(benchmark, monkeypatch, dataset):
+    surface = make_surface(dataset, 0, seed=0)
+    _measure(benchmark, monkeypatch, surface, "realdata-real", dataset.replace("/", "-"), dataset, None, 0.0,
+             _rim_truth(surface, surface))
 
 
 @pytest.mark.parametrize("case", MATPLOTLIB_DEMS_SCATTERED,

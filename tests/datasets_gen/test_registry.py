@@ -11,7 +11,7 @@ from parambench.datasets_gen.registry import SAMPLINGS, dataset_info, dataset_na
 PROCEDURAL = ["plane", "saddle", "bump", "holes", "holes-bumped", "cap", "cylinder", "protrusions", "gnome-strip",
               "slit", "fold"]
 REAL = ["real/camelhead", "real/lilium", "real/bump-domain", "real/meg-helmet", "real/spot-top", "real/cortex-lh",
-        "real/bunny10k", "real/chameleon"]
+        "real/bunny10k", "real/chameleon", "real/lidar-ground"]
 
 
 def test_names_and_info():

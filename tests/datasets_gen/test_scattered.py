@@ -76,7 +76,7 @@ def test_the_rim_notches_are_opened_not_bridged(lilium, scattered, monkeypatch):
     alpha = PEEL_RADIUS_SPACINGS * scattered.params["spacing"]
     # Only rim triangles the peel must keep (ears, or a peel that would pinch) stay wide.
     assert np.mean(_rim_radii(scattered) > alpha) < 0.02
-    monkeypatch.setattr(scattered_module, "_peeled", lambda points, faces, radius: faces)
+    monkeypatch.setattr(scattered_module, "peel_rim", lambda points, faces, radius: faces)
     unpeeled = scatter_on_mesh(lilium, 3000, seed=0)
     assert np.mean(_rim_radii(unpeeled) > alpha) > 0.2
 
