@@ -262,6 +262,12 @@ def _holes_summary(diag: dict, params: dict | None = None) -> str:
     return f" ({n} hole(s) filled{f' with {points} points' if points else ''}: {why})"
 
 
+def _angle_summary(diag: dict) -> str:
+    """Whether the front end lowered the angle criterion to close a hole its loops missed."""
+    angle = diag.get("boundary_angle_lowered_to")
+    return f" (boundary found at {angle:g} degrees: a hole the angle asked for missed)" if angle else ""
+
+
 #: ``ocp``'s first maps of its mesh fallback (``refined["first_map"]``), as the summary names them.
 _FIRST_MAPS = {"sdp": "an sdp map", "unrolled boundary": "the map of its unrolled boundary",
                "plane projection": "the points' projection on a plane"}
@@ -468,7 +474,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
     summary = (f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
-               + _holes_summary(result.diagnostics, result.params) + _energy_summary(result.diagnostics))
+               + _holes_summary(result.diagnostics, result.params) + _angle_summary(result.diagnostics)
+               + _energy_summary(result.diagnostics))
     if failed and not args.force:
         print(f"{summary}{_selfcheck_summary(check)}; nothing written")
         strays = "stray" in check.get("causes", {}) or "isolated" in (check.get("failed") or ())

@@ -59,6 +59,7 @@ from .slot_tips import put_back_slot_tips
 from .vectors import unit_vectors
 
 __all__ = [
+    "LOWER_ANGLES_DEG",
     "BoundaryLoops",
     "angular_gaps",
     "successors",
@@ -75,6 +76,14 @@ __all__ = [
 _CACHE, _ = configure_numba_cache(Path(__file__).resolve().parent)
 
 DEFAULT_MIN_LOOP_SIZE = 8
+
+#: Angles the front end's boundary stage tries, in order, when its loops leave boundary
+#: candidates that ring a missed hole (:func:`parambench.methods.pointset.frontend.boundary_stage`);
+#: a point-set method's retries after a map whose check finds the same use them too. A
+#: hole of a LiDAR tile's ground returns (``real/lidar-ground``, 8 spacings across): 14
+#: of its 16 rim points pass 120 degrees and no loop closes, at 100 it is a loop. Holes
+#: 5.4 grid steps across in flat jittered grids: 100 finds some, 90 the others.
+LOWER_ANGLES_DEG = (100.0, 90.0)
 
 #: Balls per batch of :func:`angular_gaps` (batches run on worker threads).
 _GAP_CHUNK = 32768

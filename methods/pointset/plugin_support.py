@@ -15,6 +15,7 @@ from parambench.datasets_gen.surface import MethodInput
 from ..base import StageTimer
 from ..hints import Hint, hinted
 from .failure_causes import cause_advice, describe_causes, protrusion_shrink
+from .boundary import LOWER_ANGLES_DEG
 from .frontend import STAGES, FrontEnd, build_frontend
 from .loop_side import surface_on_the_left
 from .params import frontend_params, method_defaults
@@ -127,7 +128,8 @@ def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
 
     Taken from ``front.boundary_candidates`` when the front end keeps them, otherwise
     recomputed with :func:`parambench.methods.pointset.boundary.angular_gaps` on its balls (None
-    once the balls are dropped).
+    once the balls are dropped), at the angle its loops were found at (lowered where the
+    one asked for missed a hole).
     """
     given = getattr(front, "boundary_candidates", None)
     if given is not None:
@@ -136,7 +138,9 @@ def frontend_candidates(front: FrontEnd) -> np.ndarray | None:
         return None
     from .boundary import angular_gaps  # the angle criterion of the front end, on its own balls
 
-    threshold = np.deg2rad(float(front.params.get("boundary_angle_deg", FRONTEND_DEFAULTS["boundary_angle_deg"])))
+    angle = ((front.diagnostics.get("boundary") or {}).get("angle_lowered_to")
+             or front.params.get("boundary_angle_deg", FRONTEND_DEFAULTS["boundary_angle_deg"]))
+    threshold = np.deg2rad(float(angle))
     out = np.empty(front.n_points, dtype=bool)
     for lo in range(0, front.n_points, _CANDIDATE_CHUNK):  # bounded temporaries at 1M points
         sl = slice(lo, lo + _CANDIDATE_CHUNK)
@@ -212,8 +216,10 @@ def selfcheck_result(surface: MethodInput, result, conformal: bool = False) -> d
     return check
 
 
-#: ``boundary_angle_deg`` of the retries after a map whose loops miss boundary candidates, in order.
-COVERAGE_RETRY_ANGLES_DEG = (100.0, 90.0)
+#: ``boundary_angle_deg`` of the retries after a map whose loops miss boundary candidates, in
+#: order: the angles the front end's boundary stage tries itself (``LOWER_ANGLES_DEG``), run
+#: again as a whole method where those loops still fail a map's check.
+COVERAGE_RETRY_ANGLES_DEG = LOWER_ANGLES_DEG
 
 
 def coverage_retries(params: dict, check: dict) -> list[dict]:
@@ -380,12 +386,15 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
     """The facts of the front end worth keeping with a result (JSON-serialisable).
 
     ``slots`` (:mod:`parambench.methods.pointset.slot_cuts`' facts) is there only where
-    edges across a slot were cut; ``dem`` is the DEM kind the balls were built with
+    edges across a slot were cut; ``boundary_angle_lowered_to`` only where the loops at
+    the angle asked for missed a hole and a lower angle's did not
+    (:func:`~parambench.methods.pointset.frontend.boundary_stage`); ``dem`` is the DEM kind the balls were built with
     (what ``dem="auto"`` chose); ``lattice`` whether the points are a lattice
     (:func:`~parambench.methods.pointset.lattice.is_lattice`).
     """
     diag = front.diagnostics
     slots = diag.get("neighbours", {}).get("slots") or {}
+    lowered = (diag.get("boundary") or {}).get("angle_lowered_to")
     return {
         "mean_spacing": front.mean_spacing,
         "n_boundary_points": int(front.boundary_mask.sum()),
@@ -397,4 +406,5 @@ def frontend_diagnostics(front: FrontEnd) -> dict:
         "reconstruction_error": diag["reconstruction_error"],
         "boundary_loops": [loop.tolist() for loop in front.boundary_loops],
         **({"slots": dict(slots)} if slots.get("n_slot_edges") else {}),
+        **({"boundary_angle_lowered_to": float(lowered)} if lowered else {}),
     }
