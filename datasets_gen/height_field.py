@@ -102,7 +102,11 @@ def _counter_clockwise(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def _voids(points: np.ndarray, faces: np.ndarray, neighbours: np.ndarray, spacing: float) -> tuple[np.ndarray, int]:
-    """Mask of the interior voids' triangles (wide, in groups of VOID_MIN_TRIANGLES or more, off the hull) and their count."""
+    """Mask of the interior voids' triangles and their count.
+
+    Void triangles are wide, in edge-connected groups of ``VOID_MIN_TRIANGLES`` or more,
+    none of whose members lies on the hull.
+    """
     wide = circumradii(points, faces) > VOID_RADIUS_SPACINGS * spacing
     rows, slots = np.nonzero((neighbours >= 0) & wide[:, None])
     cols = neighbours[rows, slots]

@@ -7,8 +7,9 @@
   flat map and decimated; ``real/lidar-ground``: the ground returns of an airborne LiDAR
   tile from laspy's test data (BSD-2-Clause), bare points with a hole where no return came
   back, given a reference triangulation in the xy plane
-  (:func:`parambench.datasets_gen.height_field.height_field_surface`). All are shipped as package data in ``datasets_gen/data/real/`` (sources,
-  licences and the cut in ``SOURCES.md`` there), so a clone anywhere and an installed wheel
+  (:func:`parambench.datasets_gen.height_field.height_field_surface`). All are shipped as
+  package data in ``datasets_gen/data/real/`` (sources, licences and the cut in
+  ``SOURCES.md`` there), so a clone anywhere and an installed wheel
   both find them; the environment variable ``PARAMBENCH_REAL_DATA`` points the loader at
   another folder.
 - ``real/bunny10k``, ``real/chameleon``: files shipped in the pymeshlab wheel
