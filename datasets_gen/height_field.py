@@ -32,7 +32,7 @@ from .errors import InvalidInputError
 from .mesh_loops import mesh_boundary, one_fan_per_vertex
 from .repair import compact, largest_piece
 from .scattered import PEEL_RADIUS_SPACINGS, peel_rim
-from .surface import Surface, circumradii
+from .surface import Surface, circumradii, counter_clockwise
 
 __all__ = ["VOID_RADIUS_SPACINGS", "VOID_MIN_TRIANGLES", "height_field_surface"]
 
@@ -79,8 +79,7 @@ def height_field_surface(points: np.ndarray, name: str, params: dict | None = No
         tri = Delaunay(pts[:, :2] - pts[:, :2].mean(axis=0))
     except Exception as exc:  # qhull's own error type; collinear or too few distinct xy positions
         raise InvalidInputError(f"{name}: the points' xy positions span no area ({exc}).") from exc
-    faces = np.asarray(tri.simplices, dtype=np.int64)
-    faces = _counter_clockwise(pts, faces)
+    faces = counter_clockwise(pts, np.asarray(tri.simplices, dtype=np.int64))
     void, n_voids = _voids(pts, faces, np.asarray(tri.neighbors), spacing)
     faces = peel_rim(pts, faces[~void], PEEL_RADIUS_SPACINGS * spacing)
     faces = largest_piece(one_fan_per_vertex(faces, len(pts)), len(pts))[0]
@@ -90,15 +89,6 @@ def height_field_surface(points: np.ndarray, name: str, params: dict | None = No
     info = {**dict(params or {}), "spacing": spacing, "n_voids": n_voids, "n_dropped_faces": int(n_dropped),
             "n_left_out": int(len(pts) - len(kept))}
     return Surface(points=kept, faces=faces, name=name, params=info, boundary_loops=loops, boundary_mask=mask)
-
-
-def _counter_clockwise(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    e1 = points[faces[:, 1], :2] - points[faces[:, 0], :2]
-    e2 = points[faces[:, 2], :2] - points[faces[:, 0], :2]
-    clockwise = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
-    out = faces.copy()
-    out[clockwise] = out[clockwise][:, [0, 2, 1]]
-    return out
 
 
 def _voids(points: np.ndarray, faces: np.ndarray, neighbours: np.ndarray, spacing: float) -> tuple[np.ndarray, int]:

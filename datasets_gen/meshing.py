@@ -13,6 +13,7 @@ import numpy as np
 from igl.triangle import triangulate
 
 from .errors import TopologyError
+from .surface import counter_clockwise
 
 __all__ = ["delaunay_in_chart", "ordered_loops"]
 
@@ -50,12 +51,7 @@ def delaunay_in_chart(chart: np.ndarray, segments: np.ndarray, hole_seeds: np.nd
     if vertices.shape != chart.shape or not np.array_equal(vertices, chart):
         raise TopologyError("internal error: the triangulator changed the points; please report this "
                             "with the dataset name and seed.")
-    faces = np.asarray(faces, dtype=np.int64)
-    a, b, c = chart[faces[:, 0]], chart[faces[:, 1]], chart[faces[:, 2]]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    flip = area2 < 0
-    faces[flip] = faces[flip][:, [0, 2, 1]]
-    return np.ascontiguousarray(faces)
+    return np.ascontiguousarray(counter_clockwise(chart, np.asarray(faces, dtype=np.int64)))
 
 
 def ordered_loops(faces: np.ndarray, labels: np.ndarray, chart: np.ndarray) -> list[np.ndarray]:

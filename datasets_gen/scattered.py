@@ -29,7 +29,7 @@ from scipy.spatial import Delaunay, cKDTree
 from .build import MIN_GENERATED_POINTS
 from .errors import InvalidInputError, NotADiskError, TooFewPointsError
 from .mesh_loops import boundary_loops, one_fan_per_vertex
-from .surface import Surface, circumradii
+from .surface import Surface, circumradii, counter_clockwise
 
 __all__ = ["PEEL_RADIUS_SPACINGS", "peel_rim", "scatter_on_mesh"]
 
@@ -155,10 +155,7 @@ def _reference_faces(points: np.ndarray, ref_uv: np.ndarray, mesh_uv: np.ndarray
 
     Returns the faces (counter-clockwise in ``ref_uv``) and how many were dropped.
     """
-    faces = np.asarray(Delaunay(ref_uv).simplices, dtype=np.int64)
-    e1, e2 = ref_uv[faces[:, 1]] - ref_uv[faces[:, 0]], ref_uv[faces[:, 2]] - ref_uv[faces[:, 0]]
-    clockwise = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
-    faces[clockwise] = faces[clockwise][:, [0, 2, 1]]
+    faces = counter_clockwise(ref_uv, np.asarray(Delaunay(ref_uv).simplices, dtype=np.int64))
     n_all = faces.shape[0]
     faces = faces[_inside_image(ref_uv, faces, mesh_uv, mesh_loops)]
     faces = peel_rim(points, faces, PEEL_RADIUS_SPACINGS * spacing)

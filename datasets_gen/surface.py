@@ -31,7 +31,8 @@ from .errors import (
     repairable,
 )
 
-__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "flat_faces", "circumradii", "validate_normals",
+__all__ = ["Surface", "MethodInput", "validate_points", "validate_faces", "flat_faces", "circumradii",
+           "counter_clockwise", "validate_normals",
            "find_duplicate_points", "require_unique_points", "require_no_collapsed_edges", "duplicate_tolerance", "core_box",
            "degenerate_faces",
            "MIN_POINTS"]
@@ -235,6 +236,27 @@ def degenerate_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(M,) bool: the faces :func:`validate_faces` refuses a mesh for (a repeated vertex, or zero area)."""
     repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
     return repeated | flat_faces(points, faces)
+
+
+def counter_clockwise(xy: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The faces, each with its corners counter-clockwise in the plane ``xy`` (a copy).
+
+    Parameters
+    ----------
+    xy : (N, 2+) numpy.ndarray of float64
+        Plane coordinates (the first two columns are used).
+    faces : (M, 3) numpy.ndarray of int64
+
+    Returns
+    -------
+    (M, 3) numpy.ndarray of int64
+        Clockwise faces with their last two corners swapped; the others as they were.
+    """
+    a, b, c = (xy[faces[:, i], :2] for i in range(3))
+    clockwise = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    out = np.array(faces, dtype=np.int64, copy=True)
+    out[clockwise] = out[clockwise][:, [0, 2, 1]]
+    return out
 
 
 def circumradii(points: np.ndarray, faces: np.ndarray) -> np.ndarray:

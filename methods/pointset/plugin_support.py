@@ -23,7 +23,7 @@ from .row_chunks import for_each_chunk
 
 __all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
            "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause",
-           "check_inputs_of", "restore_check_inputs", "coverage_retries", "COVERAGE_RETRY_ANGLES_DEG"]
+           "check_inputs_of", "restore_check_inputs", "coverage_retries"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
@@ -216,12 +216,6 @@ def selfcheck_result(surface: MethodInput, result, conformal: bool = False) -> d
     return check
 
 
-#: ``boundary_angle_deg`` of the retries after a map whose loops miss boundary candidates, in
-#: order: the angles the front end's boundary stage tries itself (``LOWER_ANGLES_DEG``), run
-#: again as a whole method where those loops still fail a map's check.
-COVERAGE_RETRY_ANGLES_DEG = LOWER_ANGLES_DEG
-
-
 def coverage_retries(params: dict, check: dict) -> list[dict]:
     """Retries with a lower ``boundary_angle_deg`` after a check whose loops missed candidates.
 
@@ -249,7 +243,9 @@ def coverage_retries(params: dict, check: dict) -> list[dict]:
     if "coverage" not in (check.get("failed") or ()) or "boundary_angle_deg" not in params \
             or params.get("boundary") == "given":
         return []
-    return [{**params, "boundary_angle_deg": angle} for angle in COVERAGE_RETRY_ANGLES_DEG
+    # The angles the front end's boundary stage tries itself, run again as a whole method
+    # where a map's check still finds candidates off its loops.
+    return [{**params, "boundary_angle_deg": angle} for angle in LOWER_ANGLES_DEG
             if angle < float(params["boundary_angle_deg"])]
 
 
