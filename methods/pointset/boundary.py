@@ -591,7 +591,7 @@ def _smaller_angle(angle_deg: float) -> float:
 
 
 def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
-                      n_points: int | None = None) -> NoBoundaryError:
+                      n_points: int | None = None, note: str = "") -> NoBoundaryError:
     """The error for "no loop", worded by how many points passed the angle criterion.
 
     Most of the points (``n_points``, when given): too few points to have an inside
@@ -601,8 +601,16 @@ def no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
     smaller than the balls (a sphere without a 15-degree cap, 2,949 points: 16
     candidates, refused as "closed"; at 100 degrees one loop, and a map matching the
     mesh's ``scp``). Many that do not close into a loop: the
-    boundary is too ragged or sparse for balls of this size.
+    boundary is too ragged or sparse for balls of this size. ``note``, a sentence on a
+    cause told from elsewhere (the front end's noisy plane fits,
+    :func:`~parambench.methods.pointset.failure_causes.noisy_points_note`), ends the message.
     """
+    error = _no_boundary_error(n_candidates, angle_deg, min_loop_size, n_points)
+    return NoBoundaryError(f"{error} {note}") if note else error
+
+
+def _no_boundary_error(n_candidates: int, angle_deg: float, min_loop_size: int,
+                       n_points: int | None) -> NoBoundaryError:
     if n_points is not None and n_candidates > _MOSTLY_BOUNDARY * n_points:
         return NoBoundaryError(
             f"{n_candidates} of the {n_points} points pass the {angle_deg:g}-degree angle criterion, so "

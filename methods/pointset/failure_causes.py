@@ -36,12 +36,13 @@ reason names them:
 
 * **noisy** (named by the self-check, which has the front end's fit facts): a failed map
   of points whose 8-neighbour plane fits predict a median normal error of
-  ``NOISY_FIT_DEG`` = 12 degrees or more (:mod:`.selfcheck`; normal noise of 0.25 / 0.5 / 1
+  :data:`NOISY_FIT_DEG` = 12 degrees or more (:func:`noisy_cause`; normal noise of 0.25 / 0.5 / 1
   spacings predicts about 8 / 15-16.6 / 18.6 degrees, clean real scans 0.8-1.5). The
   advice: thin the points or smooth them. laspy's test tile ``plane.laz`` (18,335 distinct
   points 1-2 cm apart, heights rounded to 1 cm: 15.4 degrees) failed every retry of
   ``ocp``, ``sdp`` too, and the parameter hints led from one to the next; thinned by
-  Poisson-disk sampling to 3 cm (2,685 points) or 5 cm it passes.
+  Poisson-disk sampling to 3 cm (2,685 points) or 5 cm it passes. The front end names the
+  same cause where it finds no boundary at all (:func:`noisy_points_note`).
 
 Where no map came out at all (every k search of ``ocp`` failed), :func:`protrusion_shrink`
 looks for the same shape in a map that always exists: the harmonic map of the points'
@@ -277,6 +278,53 @@ def _scale_factors(points, uv, faces) -> np.ndarray:
 
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.nan_to_num(longest(uv) / longest(points), nan=0.0, posinf=0.0)
+
+
+#: Median predicted error (degrees) of the points' plane fits on 8 neighbours from which
+#: the points are called noisy (:func:`noisy_cause`).
+NOISY_FIT_DEG = 12.0
+
+
+def noisy_cause(fit_error_deg: float | None, k: int) -> dict | None:
+    """The ``noisy`` cause from the median predicted error of plane fits on ``k`` neighbours.
+
+    The fits' error falls as 1/K with the K neighbours fitted (measured: 15.4 degrees at 8,
+    10.0 at 12 on the same noisy points), so it is judged as on 8.
+
+    Parameters
+    ----------
+    fit_error_deg : float or None
+        Median predicted normal error of the K-neighbour fits, degrees (None: unknown).
+    k : int
+        Neighbours per fit.
+
+    Returns
+    -------
+    dict or None
+        ``{"normal_fit_error_deg": e}`` (rounded to 0.1) where the error on 8 neighbours is
+        at least :data:`NOISY_FIT_DEG`, else None.
+    """
+    if fit_error_deg is None:
+        return None
+    on_eight = float(fit_error_deg) * int(k) / 8
+    return {"normal_fit_error_deg": round(on_eight, 1)} if on_eight >= NOISY_FIT_DEG else None
+
+
+def noisy_points_note(fit_error_deg: float | None, k: int) -> str:
+    """A sentence naming noise as the likely reason no boundary was found ("" for clean points).
+
+    A rim drowns in noise of half a spacing where two sheets of the surface lie a few
+    spacings apart (``fold`` at noise 0.5: its 8-neighbour fits predict 17.9 degrees), and
+    points that fill a volume fit planes as badly as points under noise of a spacing (a
+    uniform cube: 18.7 degrees); without this note either read as "a closed surface".
+    """
+    cause = noisy_cause(fit_error_deg, k)
+    if cause is None:
+        return ""
+    said = describe_causes({"noisy": cause})
+    advice, _ = cause_advice({"noisy": cause}, [])
+    return (f"{said[0].upper()}{said[1:]} (or two sheets of the surface lie within a few spacings of each other, or "
+            f"the points fill a volume): {advice}.")
 
 
 def describe_causes(causes: dict) -> str:

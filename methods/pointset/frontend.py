@@ -516,10 +516,16 @@ def resolved_dem(params: FrontEndParams, normal_fit: dict | None, close_pairs: f
     return "projected" if projected else "upwind"
 
 
+def fit_error_median(normal_fit: dict | None) -> float | None:
+    """The normals stage's median predicted plane-fit error (degrees), None where it has none."""
+    median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
+    return None if median is None else float(median)
+
+
 def noisy_fits(normal_fit: dict | None) -> bool:
     """Whether the normals stage's fits say noise (median predicted error >= :data:`AUTO_PROJECTED_ERROR_DEG`)."""
-    median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
-    return median is not None and float(median) >= AUTO_PROJECTED_ERROR_DEG
+    median = fit_error_median(normal_fit)
+    return median is not None and median >= AUTO_PROJECTED_ERROR_DEG
 
 
 def close_pair_share(points: np.ndarray, normals: np.ndarray, knn_indices: np.ndarray, spacing: np.ndarray) -> float:
@@ -618,7 +624,7 @@ def weights_stage(points: np.ndarray, balls, weights: str = "tangent",
 
 
 def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params: FrontEndParams,
-                   lattice: bool = False, given: list | None = None):
+                   lattice: bool = False, given: list | None = None, fit_error_deg: float | None = None):
     """Stage ``boundary``: the boundary loops, in kd-tree order.
 
     With ``boundary_method="angle"``, when at least ``4 * min_loop_size`` points pass the
@@ -641,6 +647,11 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     params : FrontEndParams
     lattice : bool
         The points are a lattice (:func:`~parambench.methods.pointset.lattice.is_lattice`).
+    given : list of (L_i,) numpy.ndarray of int64, optional
+        Loops known to the caller, in kd-tree order.
+    fit_error_deg : float, optional
+        Median predicted error of the normals stage's plane fits on ``k_nn`` neighbours
+        (degrees): where it says noise, the NoBoundaryError names it.
 
     Returns
     -------
@@ -652,7 +663,7 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
     Raises
     ------
     NoBoundaryError
-        No loop closed.
+        No loop closed (with the noise named where ``fit_error_deg`` says so).
     """
     p, spacing = nb.points, nb.spacing
     min_loop_size = int(params.min_loop_size)
@@ -694,8 +705,10 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
             "empty triangle): a closed surface (cut it open before flattening), or a noisy sampling; "
             "try boundary_method='angle'.")
     if not bnd.loops:
+        from .failure_causes import noisy_points_note  # only on this path: it imports the spectral solvers
+
         raise no_boundary_error(int(bnd.candidates.sum()), float(params.boundary_angle_deg), min_loop_size,
-                                p.shape[0])
+                                p.shape[0], note=noisy_points_note(fit_error_deg, nb.graph.indices.shape[1]))
     return bnd, retried
 
 
@@ -886,7 +899,8 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
         with timer("boundary"):
             lattice = is_lattice(nb.points, nb.graph, frame_normals)
             known = None if given_loops is None else [inv[np.asarray(lp, dtype=np.int64)] for lp in given_loops]
-            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen, lattice, known)
+            bnd, retried = boundary_stage(nb, frame_normals, balls, chosen, lattice, known,
+                                          fit_error_median(normal_fit))
         return balls, w, r_x, bnd, retried, chosen.dem, normals, lattice
 
     uncut = None

@@ -145,7 +145,7 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import signed_area_2d, triangle_signed_areas, turning_number
-from .failure_causes import describe_causes, failure_causes
+from .failure_causes import NOISY_FIT_DEG, describe_causes, failure_causes, noisy_cause
 from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation, unresolved_points
 from .row_chunks import for_each_chunk
 from .stray_points import ISOLATED_BOX_SHARE, isolated_mask
@@ -171,7 +171,6 @@ COVER_RADIUS = 3.0
 MIN_MISSED_RING = 8
 MIN_MISSED_CHAIN = 64
 MAX_UNCOVERED_FRACTION = 0.02
-NOISY_FIT_DEG = 12.0
 RING_LINK = 2.5
 MIN_EMPTY_RING = 5
 RING_EMPTY = 1.5
@@ -843,11 +842,9 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     if failing is not None and ("flipped" in failed or "degenerate" in failed):
         facts["causes"] = failure_causes(points, uv, normals, knn, spacing_pt, failing.faces, failing.flipped,
                                          failing.zero)
-    # The fits' error falls as 1/K with the K neighbours fitted (measured: 15.4 degrees at
-    # 8, 10.0 at 12 on the same noisy points): judged as on 8.
-    noise_deg = None if fit_error is None else fit_error * knn.shape[1] / 8
-    if failed and noise_deg is not None and noise_deg >= NOISY_FIT_DEG:
-        facts.setdefault("causes", {})["noisy"] = {"normal_fit_error_deg": round(noise_deg, 1)}
+    noisy = noisy_cause(fit_error, knn.shape[1])
+    if failed and noisy is not None:
+        facts.setdefault("causes", {})["noisy"] = noisy
     override = facts.pop("reason_override", None)
     reason = "; ".join(r for r in (override, _reason(facts), describe_causes(facts.get("causes", {})))
                        if r and r != "ok") or "ok"

@@ -268,6 +268,8 @@ def test_is_outer_rim_tells_a_rim_from_a_hole_and_from_a_ring_inside_the_surface
 
 def test_no_boundary_messages():
     assert "closed surface: cut it open" in str(no_boundary_error(5, 120.0, 8))
+    noted = str(no_boundary_error(5, 120.0, 8, note="The points are noisy."))
+    assert noted.startswith(str(no_boundary_error(5, 120.0, 8))) and noted.endswith(" The points are noisy.")
     assert "closed surface: cut it open" in str(no_boundary_error(5, 120.0, 8, n_points=2000))
     few = str(no_boundary_error(21, 120.0, 8, n_points=40))
     assert "21 of the 40 points" in few and "sample the surface more densely" in few

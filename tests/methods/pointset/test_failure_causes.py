@@ -10,7 +10,8 @@ from parambench.datasets_gen.registry import make_surface
 from parambench.datasets_gen.errors import ConvergenceError
 from parambench.methods.hints import Hint, hinted
 from parambench.methods.pointset import failure_causes as causes_module
-from parambench.methods.pointset.failure_causes import (cause_advice, describe_causes, failure_causes,
+from parambench.methods.pointset.failure_causes import (NOISY_FIT_DEG, cause_advice, describe_causes, failure_causes,
+                                                         noisy_cause, noisy_points_note,
                                                         harmonic_scale, protrusion_shrink)
 from parambench.methods.pointset.frontend import build_frontend
 from parambench.methods.pointset.params import frontend_params
@@ -315,3 +316,16 @@ def test_a_failed_map_of_noisy_points_says_to_thin_them(noise, named):
     assert ("thin the points to a spacing several times their noise" in line) is named
     clean = check_pointset_map(points, points[:, :2], normals, None)
     assert "noisy" not in clean.get("causes", {})  # a map that passes has no causes to name
+
+
+def test_noisy_cause_is_judged_as_on_eight_neighbours():
+    """Fit errors fall as 1/K with K neighbours: 10 degrees on 12 is 15 on 8 (noisy), 10
+    on 8 is not; an unknown error names nothing."""
+    assert noisy_cause(10.0, 12) == {"normal_fit_error_deg": 15.0}
+    assert noisy_cause(10.0, 8) is None
+    assert noisy_cause(NOISY_FIT_DEG, 8) == {"normal_fit_error_deg": NOISY_FIT_DEG}
+    assert noisy_cause(None, 8) is None
+    note = noisy_points_note(17.94, 8)
+    assert note.startswith("The points are noisy: plane fits on 8 neighbours err by 17.9 degrees")
+    assert note.endswith("or smooth them before flattening.")
+    assert noisy_points_note(1.5, 8) == "" and noisy_points_note(None, 8) == ""

@@ -127,8 +127,31 @@ def test_two_far_apart_patches(make_height_patch):
 
 
 def test_closed_surface(make_sphere):
-    with pytest.raises(NoBoundaryError, match="cut it open"):
+    with pytest.raises(NoBoundaryError, match="cut it open") as info:
         build_frontend(make_sphere(2000))
+    assert "The points are noisy" not in str(info.value)  # clean points: no noise to name
+
+
+def test_no_boundary_in_points_that_fill_a_volume_names_the_noise():
+    """A cube filled with random points fits planes as badly as a surface under noise of a
+    spacing: "a closed surface" alone would send the user the wrong way."""
+    points = np.random.default_rng(3).random((3000, 3))
+    with pytest.raises(NoBoundaryError, match="The points are noisy: plane fits on 8 neighbours err by") as info:
+        build_frontend(points)
+    assert "the points fill a volume" in str(info.value)
+    assert "thin the points to a spacing several times their noise" in str(info.value)
+
+
+def test_no_boundary_on_the_noisy_fold_names_the_noise():
+    """``fold`` at normal noise 0.5 spacings: its sheets 2-2.5 spacings apart fall into one
+    neighbourhood, and no loop closes (one of #11's misses); the error says why."""
+    from parambench.datasets_gen.registry import make_surface
+
+    points = make_surface("fold", 2000, noise=0.5).points
+    with pytest.raises(NoBoundaryError, match="two sheets of the surface lie within a few spacings") as info:
+        build_frontend(points)
+    err = float(str(info.value).split("err by ")[1].split(" degrees")[0])
+    assert 12.0 <= err < 30.0
 
 
 def test_flipped_user_normals(bump):
