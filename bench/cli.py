@@ -175,6 +175,20 @@ REPAIR_HELP = ("keep the largest connected piece (of the faces, or of the k_nn-n
                "off the surface (a scan's outliers); says on stderr what it dropped; the output then holds the repaired "
                "vertices, not the input's")
 
+LAS_CLASSES_HELP = ("for a .las/.laz LiDAR file: keep only points of these ASPRS classification codes, comma-separated "
+                    "(2: ground, 6: building; e.g. 2 or 2,9); rows are then the kept points in file order")
+
+
+def _las_classes(text: str) -> list[int]:
+    """``--las-classes``: comma-separated classification codes (0-255)."""
+    try:
+        codes = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give classification codes as integers, e.g. 2 or 2,9") from None
+    if not codes or any(not 0 <= c <= 255 for c in codes):
+        raise argparse.ArgumentTypeError(f"{text!r}: classification codes are integers from 0 to 255, e.g. 2 or 2,9")
+    return codes
+
 
 def _selfcheck_summary(check: dict | None) -> str:
     if not check:
@@ -454,8 +468,8 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         raise InputFileError(f"cannot write {out.name!r}: output must end in {', '.join(UV_FORMATS)}.")
     _check_output_path(out, Path(args.input))
     with _offer_repair(args.repair):
-        surface = _welded(load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair),
-                          args.weld)
+        surface = _welded(load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair,
+                                       las_classes=args.las_classes), args.weld)
     method = get_method(args.method or _default_method(surface))
     if args.points_only and method.needs_faces:
         from parambench.datasets_gen.errors import MissingFacesError
@@ -541,7 +555,8 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         raise InputFileError(f"cannot write {out.name!r}: inspect writes JSON, so its output must end in .json.")
     _check_output_path(out, Path(args.input))
     with _offer_repair(args.repair):
-        surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair)
+        surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair,
+                               las_classes=args.las_classes)
     defaults = {f.name: f.default for f in fields(FrontEndParams)}
     params = parse_param_values(args.param or [], defaults)
     unknown = sorted(set(params) - set(defaults))
@@ -698,6 +713,7 @@ def build_parser() -> argparse.ArgumentParser:
     flat.add_argument("--weld", action="store_true",
                       help="merge a mesh's coincident vertices first (patches stored unwelded; not for a seam cut on "
                            "purpose); says on stderr how many; the output then holds the welded vertices")
+    flat.add_argument("--las-classes", type=_las_classes, metavar="CODES", help=LAS_CLASSES_HELP)
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")
@@ -706,6 +722,7 @@ def build_parser() -> argparse.ArgumentParser:
     insp.add_argument("--param", nargs="+", action="extend", metavar="KEY=VALUE", help="front-end parameters")
     insp.add_argument("-o", "--output", required=True, help="output .json")
     insp.add_argument("--repair", action="store_true", help=REPAIR_HELP)
+    insp.add_argument("--las-classes", type=_las_classes, metavar="CODES", help=LAS_CLASSES_HELP)
     insp.set_defaults(func=_cmd_inspect)
 
     rep = sub.add_parser("report", help="build the HTML and PDF report of a results directory, or compare two")

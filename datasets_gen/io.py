@@ -2,12 +2,15 @@
 
 Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, also named ``.txt``, ``.csv`` or
 ``.asc``; PTS; PLY without faces; ESRI ASCII grids, ``.asc`` with an ``ncols`` header, whose
-point i is the centre of the i-th cell with data, row by row from the north) are read by our own numpy readers
-(:mod:`parambench.datasets_gen.formats`, one module per format): no native reader sees the
-file, so a hostile file cannot crash, hang or silently alter the data. Guarantees that
+point i is the centre of the i-th cell with data, row by row from the north) are read by our
+own numpy readers (:mod:`parambench.datasets_gen.formats`, one module per format): no
+native reader sees the file, so a hostile file cannot crash, hang or silently alter the
+data. LAS/LAZ LiDAR files are parsed by laspy (numpy; LAZ through lazrs, in Rust, whose
+failures come back as exceptions) with the same checks made after it. Guarantees that
 users rely on:
 
-- Row i of ``points`` is vertex i of the file, unreferenced vertices included; a vertex
+- Row i of ``points`` is vertex i of the file (of its points of the requested classes, for
+  a LAS/LAZ file read with ``las_classes``), unreferenced vertices included; a vertex
   with a NaN, infinite or unparsable coordinate is an error, never dropped (STL has no
   vertex list: its vertices are the distinct corners in order of first appearance, corners
   closer than a millionth of the median triangle edge counting as one).
@@ -42,14 +45,14 @@ SUPPORTED_EXTENSIONS = tuple(READERS)
 
 
 def load_surface(path, *, points_only: bool = False, name: str | None = None,
-                 drop_degenerate_faces: bool = False) -> Surface:
+                 drop_degenerate_faces: bool = False, las_classes=None) -> Surface:
     """Read a mesh or point cloud.
 
     Parameters
     ----------
     path : str or os.PathLike
         An ``.off``, ``.obj``, ``.ply``, ``.stl`` mesh or ``.xyz`` (also ``.txt``, ``.csv``,
-        ``.asc``), ``.pts``, ``.ply`` point cloud.
+        ``.asc``), ``.pts``, ``.ply``, ``.las``, ``.laz`` point cloud.
     points_only : bool
         Drop the faces (keep the vertices as a point set); their count goes to
         ``params["faces_dropped"]``.
@@ -59,6 +62,10 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
         Drop faces that repeat a vertex or have zero area (``--repair``; CAD exports' STL
         null facets) instead of refusing the mesh; their count goes to
         ``params["degenerate_faces_dropped"]``.
+    las_classes : iterable of int, optional
+        For a LAS/LAZ file, the ASPRS classification codes whose points are kept (2: the
+        ground), recorded in ``params["las_classes"]``; rows are then the kept points in
+        file order. Refused for other formats.
 
     Returns
     -------
@@ -77,10 +84,12 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     """
     path = Path(path)
     ext = path.suffix.lower()
-    raw = read_file(path)  # an extension without a reader is refused there, with the list of those it has
+    raw = read_file(path, las_classes=las_classes)  # an unknown extension is refused there, with the list
     normals = _file_normals(path, raw.normals)
     faces = None if points_only else raw.faces
     params = {"source": str(path), "format": ext[1:]}
+    if las_classes is not None:
+        params["las_classes"] = sorted({int(c) for c in las_classes})
     if points_only and raw.faces is not None and len(raw.faces):
         params["faces_dropped"] = int(len(raw.faces))  # so a failure can point back to them
     if faces is not None and drop_degenerate_faces:

@@ -4,7 +4,8 @@ They replace pymeshlab's loaders, which crashed (segfault, abort), hung or silen
 data on hostile files: every reader parses the whole file with numpy, checks counts against
 the file size, indices against the vertex count and every coordinate for finiteness, and
 raises :class:`~parambench.datasets_gen.errors.InputFileError` with one line naming the file, the line
-or byte offset, the problem and what to do.
+or byte offset, the problem and what to do. LAS/LAZ LiDAR files are the exception: laspy
+parses them (:mod:`.las`), and the same checks follow.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 from ..errors import InputFileError
 from ._common import RawMesh, read_bytes
 from .esri_grid import read_asc
+from .las import LAS_EXTENSIONS, read_las
 from .obj import read_obj
 from .off import read_off
 from .ply import read_ply
@@ -25,18 +27,22 @@ __all__ = ["RawMesh", "READERS", "read_file"]
 
 #: Reader per lower-case extension: ``reader(path, data) -> RawMesh``. ``.txt``, ``.csv`` and
 #: ``.asc`` are the names other tools give XYZ text (CloudCompare, spreadsheets, scanners);
-#: a ``.asc`` with an ``ncols`` / ``nrows`` header is an ESRI ASCII grid (GIS elevation models).
+#: a ``.asc`` with an ``ncols`` / ``nrows`` header is an ESRI ASCII grid (GIS elevation models);
+#: ``.las`` / ``.laz`` are LiDAR point clouds (:func:`read_las`, which also takes classes to keep).
 READERS = {".off": read_off, ".obj": read_obj, ".ply": read_ply, ".stl": read_stl, ".xyz": read_xyz,
-           ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_asc}
+           ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_asc, ".las": read_las,
+           ".laz": read_las}
 
 
-def read_file(path: Path) -> RawMesh:
+def read_file(path: Path, *, las_classes=None) -> RawMesh:
     """Read and check a file with the reader its extension names.
 
     Parameters
     ----------
     path : pathlib.Path
         A file whose lower-case suffix is a key of :data:`READERS`.
+    las_classes : iterable of int, optional
+        For a LAS/LAZ file, the classification codes to keep (:func:`read_las`).
 
     Returns
     -------
@@ -46,10 +52,16 @@ def read_file(path: Path) -> RawMesh:
     ------
     InputFileError
         An extension without a reader (the message lists the accepted ones), a missing,
-        unreadable or special file, or malformed contents.
+        unreadable or special file, malformed contents, or ``las_classes`` for a file
+        that is not LAS/LAZ.
     """
     ext = path.suffix.lower()
     if ext not in READERS:
         raise InputFileError(f"{path}: unsupported file type {ext or '(none)'!r}; supported: "
                              f"{', '.join(READERS)}.")
+    if ext in LAS_EXTENSIONS:
+        return read_las(path, read_bytes(path), las_classes)
+    if las_classes is not None:
+        raise InputFileError(f"{path}: LAS classes select points of a .las or .laz file by their classification; "
+                             f"this is a {ext} file: leave the classes out.")
     return READERS[ext](path, read_bytes(path))
