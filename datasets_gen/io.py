@@ -5,8 +5,9 @@ Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, also named ``.txt``, ``.csv``
 point i is the centre of the i-th cell with data, row by row from the north) are read by our
 own numpy readers (:mod:`parambench.datasets_gen.formats`, one module per format): no
 native reader sees the file, so a hostile file cannot crash, hang or silently alter the
-data. LAS/LAZ LiDAR files are parsed by laspy (numpy; LAZ through lazrs, in Rust, whose
-failures come back as exceptions) with the same checks made after it. Guarantees that
+data. LAS/LAZ LiDAR files are decoded by laspy (LAZ through lazrs, in Rust) in a child
+process capped in memory, after their header is checked here, and the same checks follow
+(:mod:`parambench.datasets_gen.formats.las`). Guarantees that
 users rely on:
 
 - Row i of ``points`` is vertex i of the file (of its points of the requested classes, for

@@ -4,8 +4,9 @@ They replace pymeshlab's loaders, which crashed (segfault, abort), hung or silen
 data on hostile files: every reader parses the whole file with numpy, checks counts against
 the file size, indices against the vertex count and every coordinate for finiteness, and
 raises :class:`~parambench.datasets_gen.errors.InputFileError` with one line naming the file, the line
-or byte offset, the problem and what to do. LAS/LAZ LiDAR files are the exception: laspy
-parses them (:mod:`.las`), and the same checks follow.
+or byte offset, the problem and what to do. LAS/LAZ LiDAR files are the exception: their
+header is checked here, laspy decodes them in a child process capped in memory
+(:mod:`.las`), and the same checks follow.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 laspy parses the LAS header and point records with numpy, LAZ through lazrs, a Rust
 decompressor. Neither sees a file in this process: the file's header is checked here
 first (signature, version, point count against the file's size), then laspy decodes it
-in a child process capped in memory (:data:`CHILD_MEMORY_BASE` plus a few times the
+in a child process capped in memory (:data:`CHILD_MEMORY_BASE` plus 6 times the
 announced records). A damaged LAZ file made lazrs ask for 3.2 GB and abort the process
 (``simple.copc.laz`` with a few bytes changed; another version of it grew one to 20 GB):
 here that is an InputFileError. laspy also returns fewer points than the header
@@ -17,6 +17,7 @@ says so in a warning, with the counts.
 
 from __future__ import annotations
 
+import os
 import struct
 import subprocess
 import sys
@@ -42,14 +43,17 @@ CLASS_NAMES = {0: "never classified", 1: "unclassified", 2: "ground", 3: "low ve
                17: "bridge deck", 18: "high noise"}
 
 #: Address space of the decoding child besides its records (bytes): Python, numpy and
-#: laspy take about 0.4 GB of it.
-CHILD_MEMORY_BASE = 1 << 30
+#: laspy take about 0.4 GB of it (their thread pools held to one thread there).
+CHILD_MEMORY_BASE = 2 << 30
 
 #: Largest ratio of a LAZ file's announced records to its size (LASzip packs LiDAR records
 #: 5-15 times): a header announcing more is damaged, not compressed.
 _MAX_COMPRESSION = 50
 
 _TODO = "pass a LAS 1.0-1.4 or LAZ file, or export the points as XYZ text"
+
+#: BLAS thread pools reserve address space per core; the child needs none of them.
+_ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 #: The child: decode with laspy, save coordinates and classes; one line on stderr on failure.
 _CHILD_CODE = """
@@ -166,7 +170,8 @@ def _decoded(path: Path, record_bytes: int) -> tuple[np.ndarray, np.ndarray]:
         out = Path(tmp) / "points.npz"
         try:
             done = subprocess.run([sys.executable, "-c", _CHILD_CODE, str(path), str(out), str(limit)],
-                                  capture_output=True, text=True, timeout=120 + record_bytes / 1e6)
+                                  capture_output=True, text=True, timeout=120 + record_bytes / 1e6,
+                                  env={**os.environ, **_ONE_THREAD})
         except subprocess.TimeoutExpired:
             raise file_error(path, None, "its decoder did not finish", "pass an undamaged copy of the file") from None
         if done.returncode != 0 or not out.exists():
