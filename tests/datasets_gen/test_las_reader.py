@@ -7,6 +7,7 @@ itself: scaled and offset integer coordinates, classification codes, the header'
 
 from __future__ import annotations
 
+import json
 import struct
 import warnings
 
@@ -176,3 +177,12 @@ def test_flatten_maps_the_ground_of_a_lidar_tile(tmp_path, capsys):
     with pytest.raises(SystemExit) as exited:  # argparse's usage error
         main(["flatten", str(src), "--las-classes", "2,x", "-o", str(out)])
     assert exited.value.code == 2 and "give classification codes as integers" in capsys.readouterr().err
+
+
+def test_inspect_reads_the_chosen_classes(tmp_path, grid):
+    ints, classes = grid
+    src = tmp_path / "tile.las"
+    src.write_bytes(_las_bytes(ints, classes))
+    out = tmp_path / "diagnostics.json"
+    assert main(["inspect", str(src), "--las-classes", "2", "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["n_points"] == int((classes == 2).sum())
