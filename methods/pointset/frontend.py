@@ -31,7 +31,8 @@ from .loop_side import surface_on_the_left
 from .neighbourhoods import _component_sizes, knn_graph, local_spacing, require_connected, symmetric_adjacency
 from .slot_cuts import cut_ends, slot_cut_graph, slots_on_loops
 from .surface_neighbours import gap_aware_knn_graph, gap_suspected, pruned_knn_graph, surface_knn_graph
-from .normals import NOISY_MAX_K, NOISY_TARGET_DEG, check_user_normals, noise_adaptive_normals, orient_normals
+from .normals import (NOISY_MAX_K, NOISY_TARGET_DEG, check_user_normals, fit_error_median, noise_adaptive_normals,
+                      orient_normals)
 # Aliased: FrontEndParams has a boolean field of the same name.
 from .normals import smooth_normals as neighbourhood_smoothed
 from .params import FrontEndParams
@@ -514,12 +515,6 @@ def resolved_dem(params: FrontEndParams, normal_fit: dict | None, close_pairs: f
     projected = (noisy_fits(normal_fit) and close_pairs is not None and close_pairs >= AUTO_CLOSE_PAIR_SHARE
                  and params.dem_variant != "paper")
     return "projected" if projected else "upwind"
-
-
-def fit_error_median(normal_fit: dict | None) -> float | None:
-    """The normals stage's median predicted plane-fit error (degrees), None where it has none."""
-    median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
-    return None if median is None else float(median)
 
 
 def noisy_fits(normal_fit: dict | None) -> bool:

@@ -46,6 +46,7 @@ from ..base import StageTimer
 from ..mesh.conformal_setup import build_mesh_problem, solve_with_k_rule
 from ..mesh.quad_splits import ambiguous_quads
 from ..spectral.problem import ConformalSolution
+from .normals import fit_error_median
 from .selfcheck import pointset_faces
 
 __all__ = ["SIMILARITY_NEIGHBOURS", "MIN_MESHED_SHARE", "MAX_MESH_PASSES", "CLEAN_NORMAL_ERROR_DEG", "first_map_faces",
@@ -184,10 +185,10 @@ def mesh_passes(normal_fit: dict | None, k_nn: int = GATE_K_NN) -> int:
         :data:`MAX_MESH_PASSES` where the scaled median predicted error is below
         :data:`CLEAN_NORMAL_ERROR_DEG` (clean points), else 1 (noisy, or not known).
     """
-    median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
+    median = fit_error_median(normal_fit)
     if median is None:
         return 1
-    return MAX_MESH_PASSES if float(median) * k_nn / GATE_K_NN < CLEAN_NORMAL_ERROR_DEG else 1
+    return MAX_MESH_PASSES if median * k_nn / GATE_K_NN < CLEAN_NORMAL_ERROR_DEG else 1
 
 
 def _solved_on(points: np.ndarray, first: np.ndarray, faces: np.ndarray, n_flat: int,

@@ -273,6 +273,12 @@ def noise_adaptive_normals(points: np.ndarray, knn_indices: np.ndarray, *, targe
     return (normals, info, error) if return_error else (normals, info)
 
 
+def fit_error_median(normal_fit: dict | None) -> float | None:
+    """The median predicted plane-fit error (degrees) in :func:`noise_adaptive_normals`' facts, None without it."""
+    median = ((normal_fit or {}).get("predicted_error_deg") or {}).get("median")
+    return None if median is None else float(median)
+
+
 def _masked_median(values: np.ndarray, valid: np.ndarray, chunk: int = 100_000) -> np.ndarray:
     """Median of each row's ``valid`` entries (at least one per row)."""
     out = np.empty(values.shape[0])

@@ -18,6 +18,7 @@ from .failure_causes import cause_advice, describe_causes, protrusion_shrink
 from .boundary import LOWER_ANGLES_DEG
 from .frontend import STAGES, FrontEnd, build_frontend
 from .loop_side import surface_on_the_left
+from .normals import fit_error_median
 from .params import frontend_params, method_defaults
 from .row_chunks import for_each_chunk
 
@@ -153,11 +154,9 @@ def _check_inputs(front: FrontEnd) -> _CheckInputs:
         candidates = frontend_candidates(front)
     except Exception:  # the check is optional; a changed front end must not fail a method
         candidates = None
-    fit = (front.diagnostics or {}).get("normal_fit") or {}
-    median = (fit.get("predicted_error_deg") or {}).get("median")
     return _CheckInputs(normals=front.normals, knn_indices=front.knn_indices, spacing=front.mean_spacing,
                         loops=list(front.boundary_loops), candidates=candidates,
-                        normal_error_deg=None if median is None else float(median))
+                        normal_error_deg=fit_error_median((front.diagnostics or {}).get("normal_fit")))
 
 
 def _estimated_inputs(surface: MethodInput, result) -> _CheckInputs:
