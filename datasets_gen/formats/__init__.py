@@ -14,9 +14,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputFileError
-from ._common import RawMesh, read_bytes
+from ._common import RawMesh, read_bytes, read_head
 from .esri_grid import read_asc
-from .las import LAS_EXTENSIONS, read_las
+from .las import HEADER_BYTES, LAS_EXTENSIONS, read_las
 from .obj import read_obj
 from .off import read_off
 from .ply import read_ply
@@ -60,8 +60,9 @@ def read_file(path: Path, *, las_classes=None) -> RawMesh:
     if ext not in READERS:
         raise InputFileError(f"{path}: unsupported file type {ext or '(none)'!r}; supported: "
                              f"{', '.join(READERS)}.")
-    if ext in LAS_EXTENSIONS:
-        return read_las(path, read_bytes(path), las_classes)
+    if ext in LAS_EXTENSIONS:  # its decoder reads the file itself: only the header here
+        head, size = read_head(path, HEADER_BYTES)
+        return read_las(path, head, las_classes, size=size)
     if las_classes is not None:
         raise InputFileError(f"{path}: LAS classes select points of a .las or .laz file by their classification; "
                              f"this is a {ext} file: leave the classes out.")

@@ -98,6 +98,22 @@ def read_bytes(path: Path) -> bytes:
         Missing path, directory, special file (FIFO, device, socket: opening one could
         block), unreadable or empty file.
     """
+    data, _ = read_head(path, None)
+    if not data.strip():
+        raise file_error(path, None, "the file is empty", "pass a file that holds the mesh or points")
+    return data
+
+
+def read_head(path: Path, n_bytes: int | None) -> tuple[bytes, int]:
+    """The first ``n_bytes`` of a readable regular file (all of it for None) and its size in bytes.
+
+    For formats whose decoder reads the file itself (LAS/LAZ): only their header is read here.
+
+    Raises
+    ------
+    InputFileError
+        As :func:`read_bytes`; an empty file only where ``n_bytes`` is given.
+    """
     try:
         info = path.stat()
     except FileNotFoundError:
@@ -112,13 +128,13 @@ def read_bytes(path: Path) -> bytes:
                          "save the data to a regular file and pass that")
     try:
         with path.open("rb") as fh:
-            data = fh.read()
+            data = fh.read() if n_bytes is None else fh.read(n_bytes)
     except OSError as exc:
         raise file_error(path, None, f"cannot read the file ({exc.strerror or exc})",
                          "check its permissions") from None
-    if not data.strip():
+    if n_bytes is not None and info.st_size == 0:
         raise file_error(path, None, "the file is empty", "pass a file that holds the mesh or points")
-    return data
+    return data, (len(data) if n_bytes is None else int(info.st_size))
 
 
 def text_of(data: bytes) -> bytes:

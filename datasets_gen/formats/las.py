@@ -30,10 +30,13 @@ import numpy as np
 
 from ._common import RawMesh, file_error
 
-__all__ = ["read_las", "LAS_EXTENSIONS", "CLASS_NAMES", "CHILD_MEMORY_BASE"]
+__all__ = ["read_las", "LAS_EXTENSIONS", "HEADER_BYTES", "CLASS_NAMES", "CHILD_MEMORY_BASE"]
 
 #: Extensions read by :func:`read_las`.
 LAS_EXTENSIONS = (".las", ".laz")
+
+#: Bytes of a file the header check reads: the public header block of LAS 1.4 (375).
+HEADER_BYTES = 375
 
 #: ASPRS standard classification codes (LAS 1.4, point formats 6-10; 0-12 in every version).
 CLASS_NAMES = {0: "never classified", 1: "unclassified", 2: "ground", 3: "low vegetation",
@@ -78,7 +81,7 @@ except Exception as exc:
 """
 
 
-def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None) -> RawMesh:
+def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None, *, size: int | None = None) -> RawMesh:
     """Parse a LAS or LAZ file into its points (no faces, no normals).
 
     Parameters
@@ -86,10 +89,13 @@ def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None) -> R
     path : pathlib.Path
         The file (the child process reads it), and for messages.
     data : bytes
-        The file's contents (its header is checked here).
+        The file's contents, or its first :data:`HEADER_BYTES` at least (its header is
+        checked here; the child process reads the file).
     classes : iterable of int, optional
         ASPRS classification codes to keep (e.g. ``[2]``: the ground); all points when
         omitted.
+    size : int, optional
+        The file's size in bytes (default: ``len(data)``, the whole file).
 
     Returns
     -------
@@ -109,7 +115,7 @@ def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None) -> R
     UserWarning
         Without ``classes``, when the points belong to several classes.
     """
-    announced, record_length = _checked_header(path, data)
+    announced, record_length = _checked_header(path, data, len(data) if size is None else int(size))
     if announced == 0:
         raise file_error(path, None, "the file holds no points", "pass a file with points")
     xyz, codes = _decoded(path, announced * record_length)
@@ -135,8 +141,8 @@ def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None) -> R
     return RawMesh(points=xyz[keep])
 
 
-def _checked_header(path: Path, data: bytes) -> tuple[int, int]:
-    """The header's point count and record length, after checking them against the file's size."""
+def _checked_header(path: Path, data: bytes, size: int) -> tuple[int, int]:
+    """The header's point count and record length, after checking them against the file's ``size``."""
     if len(data) < 227 or data[:4] != b"LASF":
         raise file_error(path, None, "not a readable LAS/LAZ file (no LAS header: it must start with 'LASF' and "
                          "hold at least 227 bytes)", _TODO)
@@ -150,16 +156,16 @@ def _checked_header(path: Path, data: bytes) -> tuple[int, int]:
     count, = struct.unpack_from("<I", data, 107)
     if minor == 4 and header_size >= 255 and len(data) >= 255:
         count = max(count, struct.unpack_from("<Q", data, 247)[0])  # the 64-bit count of LAS 1.4
-    if offset > len(data) or record_length == 0:
+    if offset > size or record_length == 0:
         raise file_error(path, None, f"not a readable LAS/LAZ file (point data at byte {offset}, records of "
-                         f"{record_length} bytes, in a file of {len(data)} bytes)", _TODO)
-    room = len(data) - offset
+                         f"{record_length} bytes, in a file of {size} bytes)", _TODO)
+    room = size - offset
     if not compressed and count * record_length > room:
         raise file_error(path, None, f"the header counts {count} points but the file holds "
                          f"{room // record_length}: it is truncated", "pass the whole file")
     if compressed and count * record_length > _MAX_COMPRESSION * max(room, 1):
         raise file_error(path, None, f"the header counts {count} points, more than a compressed file of "
-                         f"{len(data)} bytes can hold: it is damaged", "pass an undamaged copy of the file")
+                         f"{size} bytes can hold: it is damaged", "pass an undamaged copy of the file")
     return int(count), int(record_length)
 
 

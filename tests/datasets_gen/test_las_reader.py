@@ -78,6 +78,17 @@ def test_classes_keep_their_points_in_file_order(tmp_path, grid):
         load_surface(path, las_classes=[9])
 
 
+def test_only_the_header_is_read_in_this_process(tmp_path, grid, monkeypatch):
+    """The child decodes the file; here its first bytes and its size are enough."""
+    import parambench.datasets_gen.formats as formats
+
+    ints, classes = grid
+    path = tmp_path / "tile.las"
+    path.write_bytes(_las_bytes(ints, classes))
+    monkeypatch.setattr(formats, "read_bytes", lambda p: pytest.fail("the whole file was read"))
+    assert load_surface(path, las_classes=[6]).n_points == int((classes == 6).sum())
+
+
 def test_a_file_cut_at_a_record_boundary_is_refused(tmp_path, grid):
     """laspy itself returns the 100 points present and says nothing."""
     ints, classes = grid
