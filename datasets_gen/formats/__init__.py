@@ -19,6 +19,7 @@ from .esri_grid import read_asc
 from .las import HEADER_BYTES, LAS_EXTENSIONS, read_las
 from .obj import read_obj
 from .off import read_off
+from .pcd import read_pcd
 from .ply import read_ply
 from .pts import read_pts
 from .stl import read_stl
@@ -29,10 +30,11 @@ __all__ = ["RawMesh", "READERS", "read_file"]
 #: Reader per lower-case extension: ``reader(path, data) -> RawMesh``. ``.txt``, ``.csv`` and
 #: ``.asc`` are the names other tools give XYZ text (CloudCompare, spreadsheets, scanners);
 #: a ``.asc`` with an ``ncols`` / ``nrows`` header is an ESRI ASCII grid (GIS elevation models);
-#: ``.las`` / ``.laz`` are LiDAR point clouds (:func:`read_las`, which also takes classes to keep).
+#: ``.las`` / ``.laz`` are LiDAR point clouds (:func:`read_las`, which also takes classes to keep);
+#: ``.pcd`` is the Point Cloud Library's format, ascii, binary or LZF-compressed (:func:`read_pcd`).
 READERS = {".off": read_off, ".obj": read_obj, ".ply": read_ply, ".stl": read_stl, ".xyz": read_xyz,
            ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_asc, ".las": read_las,
-           ".laz": read_las}
+           ".laz": read_las, ".pcd": read_pcd}
 
 
 def read_file(path: Path, *, las_classes=None) -> RawMesh:
