@@ -53,7 +53,7 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     ----------
     path : str or os.PathLike
         An ``.off``, ``.obj``, ``.ply``, ``.stl`` mesh or ``.xyz`` (also ``.txt``, ``.csv``,
-        ``.asc``), ``.pts``, ``.ply``, ``.las``, ``.laz`` point cloud.
+        ``.asc``), ``.pts``, ``.ply``, ``.las``, ``.laz``, ``.pcd`` point cloud.
     points_only : bool
         Drop the faces (keep the vertices as a point set); their count goes to
         ``params["faces_dropped"]``.
