@@ -20,8 +20,8 @@ Organized clouds of depth cameras mark pixels without a return with x, y, z all 
 points are dropped, with a warning that counts them; a point with some but not all of its
 coordinates NaN, or an infinite one, is an error. Every disagreement between header and
 payload is an error, including bytes after the last point (or after the compressed
-stream): a binary file's size must be exactly the header's count of records, so that a
-file whose header is wrong is never read shifted. A compressed header whose decompressed
+stream) other than zeros (PCL's files may end in zero padding): a file whose header is
+wrong is never read shifted or cut. A compressed header whose decompressed
 size is more than :data:`MAX_LZF_RATIO` times the compressed one is refused before any
 memory is allocated for it.
 """
@@ -279,7 +279,7 @@ def _binary(path: Path, data: bytes, head: _Header, wanted: dict) -> tuple[dict,
     """The wanted columns (float64) of a binary payload, and where point i is (its byte offset)."""
     record = head.record
     body = len(data) - head.start
-    if body != head.n_points * record:
+    if body != head.n_points * record and not _zero_padding(data, head.start + head.n_points * record):
         more = "more" if body > head.n_points * record else "fewer"
         raise file_error(path, f"byte {head.start}", f"the header announces {head.n_points} points of {record} bytes "
                          f"({head.n_points * record} bytes) but {body} bytes follow ({more})", _REEXPORT)
@@ -302,7 +302,7 @@ def _compressed(path: Path, data: bytes, head: _Header, wanted: dict) -> tuple[d
     if unpacked != expected:
         raise file_error(path, where, f"the compressed block decompresses to {unpacked} bytes, but the header's "
                          f"{head.n_points} points of {head.record} bytes take {expected}", _REEXPORT)
-    if packed != body - 8:
+    if packed != body - 8 and not _zero_padding(data, head.start + 8 + packed):
         raise file_error(path, where, f"the compressed block announces {packed} bytes but {body - 8} follow", _REEXPORT)
     if unpacked > MAX_LZF_RATIO * packed + 1024:
         raise file_error(path, where, f"{packed} compressed bytes cannot hold {unpacked} (LZF packs at most about "
@@ -318,6 +318,16 @@ def _compressed(path: Path, data: bytes, head: _Header, wanted: dict) -> tuple[d
                                    offset=head.n_points * head.offset(k)).astype(np.float64)
                for name, k in wanted.items()}
     return columns, lambda i: None
+
+
+def _zero_padding(data: bytes, end: int) -> bool:
+    """Whether the bytes after the data's announced ``end`` are zeros and nothing else.
+
+    Files written by PCL can end in zeros past their data (the test files in pypcd4's
+    sources: 3,918 after a binary payload, 2,179 after a compressed one); PCL reads them by
+    their header. Any other byte there means the header does not describe the file.
+    """
+    return end < len(data) and not np.frombuffer(data, dtype=np.uint8, offset=end).any()
 
 
 def _returns(path: Path, points: np.ndarray, where) -> np.ndarray:

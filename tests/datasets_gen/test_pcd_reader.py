@@ -332,7 +332,7 @@ def test_damaged_headers_and_binary_payloads_are_refused(tmp_path, change, messa
 
 @pytest.mark.parametrize("change, message", [
     (lambda d: d[:-1], "announces .* bytes but .* follow"),
-    (lambda d: d + b"\0", "announces .* bytes but .* follow"),
+    (lambda d: d + b"\7", "announces .* bytes but .* follow"),
     (lambda d: d.replace(b"POINTS 40", b"POINTS 39").replace(b"WIDTH 40", b"WIDTH 39"),
      "decompresses to 1680 bytes, but the header's 39 points of 42 bytes take 1638"),
     (lambda d: d[:d.index(b"binary_compressed\n") + 22], "too few for the compressed block's two sizes"),
@@ -341,6 +341,17 @@ def test_inconsistent_compressed_sizes_are_refused(tmp_path, change, message):
     data = pcd_bytes(_cloud(40), "binary_compressed")
     with pytest.raises(InputFileError, match=message):
         read_pcd(tmp_path / "bad.pcd", change(data))
+
+
+@pytest.mark.parametrize("kind", ["binary", "binary_compressed"])
+def test_zero_padding_after_the_data_is_read_as_pcl_does(tmp_path, kind):
+    """PCL-written files (pypcd4's test data) can end in zeros past their data: read by
+    the header; anything else there is refused."""
+    cloud = _cloud(30)
+    data = pcd_bytes(cloud, kind)
+    np.testing.assert_array_equal(read_pcd(tmp_path / "z.pcd", data + bytes(3918)).points, _xyz(cloud))
+    with pytest.raises(InputFileError, match="follow"):
+        read_pcd(tmp_path / "z.pcd", data + bytes(100) + b"\1")
 
 
 def _split_compressed(data: bytes):
