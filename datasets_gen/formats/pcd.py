@@ -178,12 +178,12 @@ def _checked(path: Path, values: dict, start: int, lines: int) -> _Header:
     counts = _list(path, values, b"COUNT", len(names), [b"1"] * len(names))
     dtypes = []
     for k, (name, size, kind_of, count) in enumerate(zip(names, sizes, types, counts)):
-        dtype = _DTYPES.get((kind_of.upper(), int(size) if size.isdigit() else -1))
+        dtype = _DTYPES.get((kind_of.upper(), int(size) if _is_whole(size) else -1))
         if dtype is None:
             raise file_error(path, f"line {values[b'TYPE'][1] if b'TYPE' in values else lines}",
                              f"field {name!r} has TYPE {show(kind_of)} with SIZE {show(size)}",
                              "TYPE F takes SIZE 4 or 8, TYPE I and U take 1, 2, 4 or 8")
-        if not (count.isdigit() and int(count) > 0):
+        if not (_is_whole(count) and int(count) > 0):
             raise file_error(path, f"line {values[b'COUNT'][1]}", f"field {name!r} has COUNT {show(count)}",
                              "a COUNT is a whole number of at least 1")
         dtypes.append(dtype)
@@ -232,10 +232,15 @@ def _whole(path: Path, values: dict, key: bytes) -> int | None:
     if key not in values:
         return None
     words, line_no = values[key]
-    if len(words) != 1 or not words[0].isdigit():
+    if len(words) != 1 or not _is_whole(words[0]):
         raise file_error(path, f"line {line_no}", f"{key.decode()} {show(b' '.join(words))} is not a whole number "
                          "of 0 or more", _REEXPORT)
     return int(words[0])
+
+
+def _is_whole(word: bytes) -> bool:
+    """A whole number of at most 18 digits (``int()`` refuses more than 4,300, and no count needs 19)."""
+    return word.isdigit() and len(word) <= 18
 
 
 def _wanted(path: Path, head: _Header) -> dict:
