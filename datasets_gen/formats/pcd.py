@@ -181,10 +181,11 @@ def _checked(path: Path, values: dict, start: int, lines: int) -> _Header:
         dtype = _DTYPES.get((kind_of.upper(), int(size) if _is_whole(size) else -1))
         if dtype is None:
             raise file_error(path, f"line {values[b'TYPE'][1] if b'TYPE' in values else lines}",
-                             f"field {name!r} has TYPE {show(kind_of)} with SIZE {show(size)}",
+                             f"field {show(name.encode())} has TYPE {show(kind_of)} with SIZE {show(size)}",
                              "TYPE F takes SIZE 4 or 8, TYPE I and U take 1, 2, 4 or 8")
         if not (_is_whole(count) and int(count) > 0):
-            raise file_error(path, f"line {values[b'COUNT'][1]}", f"field {name!r} has COUNT {show(count)}",
+            raise file_error(path, f"line {values[b'COUNT'][1]}",
+                             f"field {show(name.encode())} has COUNT {show(count)}",
                              "a COUNT is a whole number of at least 1")
         dtypes.append(dtype)
     width = _whole(path, values, b"WIDTH")

@@ -114,7 +114,8 @@ def pcd_bytes(cloud: np.ndarray, kind: str, **header) -> bytes:
     columns = []
     for name in cloud.dtype.names:
         values = cloud[name].reshape(n, -1)
-        text = [repr(float(v)) for v in values.ravel()] if values.dtype.kind == "f" else [str(int(v)) for v in values.ravel()]
+        as_text = (lambda v: repr(float(v))) if values.dtype.kind == "f" else (lambda v: str(int(v)))
+        text = [as_text(v) for v in values.ravel()]
         columns.append(np.array(text, dtype=object).reshape(values.shape))
     rows = [" ".join(row) for row in np.concatenate(columns, axis=1).tolist()]
     return _header(kind, n, **header) + ("\n".join(rows) + "\n").encode()
@@ -323,7 +324,8 @@ def _binary_file(n=10):
     (lambda d: d.replace(b"POINTS 10", b"POINTS 11"), r"POINTS 11 is not WIDTH \* HEIGHT \(10 \* 1 = 10\)"),
     (lambda d: d.replace(b"POINTS 10", b"POINTS 10\nPOINTS 10"), "a second POINTS line"),
     (lambda d: d.replace(b"WIDTH 10", b"WIDTH 0").replace(b"POINTS 10", b"POINTS 0"), "holds no points"),
-    (lambda d: d[:-1], r"byte 261: the header announces 10 points of 42 bytes \(420 bytes\) but 419 bytes follow \(fewer\)"),
+    (lambda d: d[:-1], r"byte 261: the header announces 10 points of 42 bytes \(420 bytes\) but 419 bytes "
+                       r"follow \(fewer\)"),
     (lambda d: d[:-42], "but 378 bytes follow"),
     (lambda d: d + b"\n", r"but 421 bytes follow \(more\)"),
 ])
