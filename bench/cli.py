@@ -358,7 +358,7 @@ def _repaired(surface, repair: bool, k_nn: Any, output_note: str = _VERTICES_NOT
         note += f"; dropped {n_stray} stray point(s) off the surface" if n_stray else ""
         surface, normals_note = with_usable_normals(surface, k)
         note += normals_note
-    n_dropped = facts["points_in"] - surface.n_points
+    n_dropped = surface.params.get("file_rows", facts["points_in"]) - surface.n_points  # the reader's drops too
     is_points = surface.faces is None and "input_rows" in surface.params
     output_note = output_note.format(n_dropped=n_dropped) if is_points and n_dropped else _VERTICES_NOTE
     print(f"parambench: note: {note}; {output_note}", file=sys.stderr)
@@ -479,7 +479,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     params = parse_param_values(args.param or [], method.defaults, method.nullable)
     if not method.needs_faces:
         _note_first_compilation()
-    n_input_rows = surface.n_points
+    n_input_rows = surface.params.get("file_rows", surface.n_points)
     csv = out.suffix.lower() == ".csv"
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
                         params.get("k_nn", method.defaults.get("k_nn")), _CSV_ROWS_NOTE if csv else _VERTICES_NOTE)
@@ -503,6 +503,9 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         faces = pointset_faces(surface.points, result.uv, result.diagnostics.get("boundary_loops"))
     if csv and faces is None and "input_rows" in surface.params:
         points, uv = _in_every_input_row(surface.points, uv, surface.params["input_rows"], n_input_rows)
+        if "file_rows" in surface.params and not args.repair:  # --repair's note says so already
+            print(f"parambench: note: {_CSV_ROWS_NOTE.format(n_dropped=n_input_rows - surface.n_points)} "
+                  "(points without a return)", file=sys.stderr)
     write_uv(out, points, uv, faces)
     print(f"{summary}{_selfcheck_summary(check)} -> {out}")
     if not failed and check and check.get("stretched") and not check.get("conformal_judged"):

@@ -72,8 +72,11 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     -------
     Surface
         ``params`` holds ``source`` (the path) and ``format`` (and ``normals_guessed``: True
-        where the normals are columns the file does not name); for a mesh with manifold
-        edges, ``boundary_loops`` (longest first, following the faces) and ``boundary_mask``.
+        where the normals are columns the file does not name; where the reader dropped
+        points the format marks as empty, a PCD's points without a return, ``input_rows``,
+        (N,) int64, the file row of each point, and ``file_rows``, the file's point count);
+        for a mesh with manifold edges, ``boundary_loops`` (longest first, following the
+        faces) and ``boundary_mask``.
 
     Raises
     ------
@@ -91,6 +94,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     params = {"source": str(path), "format": ext[1:]}
     if las_classes is not None:
         params["las_classes"] = sorted({int(c) for c in las_classes})
+    if raw.rows is not None:  # points the format marks as empty were dropped: where the others sit in the file
+        params["input_rows"], params["file_rows"] = np.asarray(raw.rows, dtype=np.int64), int(raw.n_rows)
     if points_only and raw.faces is not None and len(raw.faces):
         params["faces_dropped"] = int(len(raw.faces))  # so a failure can point back to them
     if faces is not None and drop_degenerate_faces:

@@ -245,8 +245,10 @@ def repair_surface(surface: Surface, k_nn: int = 8) -> tuple[Surface, dict]:
     facts = {"kind": "points", "pieces": n_comp, "k_nn": int(k_nn), "points_in": int(len(points)),
              "points_out": int(keep.size)}
     normals = None if surface.normals is None else surface.normals[keep]
+    rows = surface.params.get("input_rows")  # the reader may have dropped rows already
+    rows = keep if rows is None else np.asarray(rows, dtype=np.int64)[keep]
     return Surface(points=points[keep], normals=normals, name=surface.name,
-                   params={**surface.params, "repaired": facts, "input_rows": keep}), facts
+                   params={**surface.params, "repaired": facts, "input_rows": rows}), facts
 
 
 def repair_summary(facts: dict) -> str:

@@ -54,12 +54,19 @@ class RawMesh:
     normals_guessed : bool
         The file does not say these columns are normals (an XYZ file without a header):
         the reader took them for normals by their values.
+    rows : (N,) numpy.ndarray of int64 or None
+        Where the reader dropped points the format marks as empty (a PCD point without a
+        return): the file row of each point kept, increasing; None when every row is a point.
+    n_rows : int or None
+        With ``rows``: the number of point rows in the file.
     """
 
     points: np.ndarray
     faces: np.ndarray | None = None
     normals: np.ndarray | None = None
     normals_guessed: bool = False
+    rows: np.ndarray | None = None
+    n_rows: int | None = None
 
 
 def file_error(path: Path, where: str | None, problem: str, todo: str) -> InputFileError:

@@ -96,7 +96,8 @@ def read_pcd(path: Path, data: bytes) -> RawMesh:
     RawMesh
         ``points`` (N, 3) float64: the x y z of every point that is not all NaN, in file
         order (row-major for an organized cloud); ``normals`` (N, 3) float64 as stored, when
-        the file has ``normal_x normal_y normal_z``.
+        the file has ``normal_x normal_y normal_z``; where points were dropped, ``rows``
+        (their file rows) and ``n_rows``.
 
     Raises
     ------
@@ -125,10 +126,12 @@ def read_pcd(path: Path, data: bytes) -> RawMesh:
     points = np.column_stack([columns["x"], columns["y"], columns["z"]])
     normals = np.column_stack([columns[k] for k in _NORMALS]) if _NORMALS[0] in columns else None
     keep = _returns(path, points, where)
-    if not keep.all():
-        points = points[keep]
-        normals = None if normals is None else normals[keep]
-    return RawMesh(points=np.ascontiguousarray(points), normals=normals)
+    if keep.all():
+        return RawMesh(points=np.ascontiguousarray(points), normals=normals)
+    # The file rows of the points kept, so that output per row (a .csv) lines up with the
+    # file's points (an organized cloud's pixels) instead of shifting past each dropped one.
+    return RawMesh(points=np.ascontiguousarray(points[keep]), normals=None if normals is None else normals[keep],
+                   rows=np.flatnonzero(keep), n_rows=int(keep.size))
 
 
 def _header(path: Path, data: bytes) -> _Header:

@@ -449,7 +449,8 @@ def test_fuzzed_files_read_or_raise_input_file_error(tmp_path):
 def test_flatten_maps_a_compressed_pcd_of_lidar_ground(tmp_path, capsys):
     """The shipped ground returns (``real/lidar-ground``) as an organized-looking
     binary_compressed PCD with rows of no return between them: ``flatten`` drops those
-    with a warning and maps every other point, one uv row each, in file order."""
+    with a warning and maps every other point; the .csv keeps one row per file row (the
+    organized cloud's pixels), nan,nan where there was no return."""
     ground = np.loadtxt(REAL_DATASETS["real/lidar-ground"].path(), skiprows=1)
     origin = np.floor(ground.min(axis=0))
     local = ground - origin  # float32 keeps centimetres near the origin, as PCL clouds are stored
@@ -469,6 +470,45 @@ def test_flatten_maps_a_compressed_pcd_of_lidar_ground(tmp_path, capsys):
     said = capsys.readouterr()
     assert "self-check ok" in said.out
     assert f"warning: UserWarning: {src}: {n_holes} of {n} points have x, y, z all NaN" in said.err
+    assert f"the .csv has one row per input row, the {n_holes} dropped ones nan,nan" in said.err
     uv = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert uv.shape == (len(ground), 2) and np.isfinite(uv).all()
-    assert len(np.unique(np.round(uv, 9), axis=0)) == len(ground)  # one distinct uv per kept point
+    assert uv.shape == (n, 2)
+    assert np.isnan(uv[holes]).all() and np.isfinite(uv[kept]).all()
+    assert len(np.unique(np.round(uv[kept], 9), axis=0)) == len(ground)  # one distinct uv per kept point
+    # The rows line up with the file's points: the same map as the cloud without the empty rows.
+    bare = _write(tmp_path, "bare.pcd", pcd_bytes(cloud[kept], "binary", fields=fields, width=len(kept)))
+    assert main(["flatten", str(bare), "-o", str(tmp_path / "bare.csv")]) == 0
+    np.testing.assert_allclose(uv[kept], np.loadtxt(tmp_path / "bare.csv", delimiter=",", skiprows=1), atol=1e-9)
+
+
+def test_rows_without_a_return_and_repaired_rows_both_keep_their_file_rows(tmp_path, capsys):
+    """Rows of no return (dropped by the reader) and a junk return (dropped by ``--repair``)
+    in one file: the .csv still has one row per file row, nan,nan at both kinds, and
+    ``inspect`` names loop points by their file rows."""
+    import json
+
+    from parambench.datasets_gen.registry import make_surface
+
+    surface = make_surface("holes", 2000, sampling="jittered", seed=0)
+    n = len(surface.points) + 4
+    empty, junk = np.array([0, 501, 1502]), n - 1
+    live = np.setdiff1d(np.arange(n), np.r_[empty, junk])
+    cloud = np.full(n, np.nan, [("x", "<f8"), ("y", "<f8"), ("z", "<f8")])
+    for k, name in enumerate("xyz"):
+        cloud[name][live] = surface.points[:, k]
+        cloud[name][junk] = 40.0  # far from all others
+    fields = [("x", "F", 8, 1), ("y", "F", 8, 1), ("z", "F", 8, 1)]
+    src = _write(tmp_path, "scan.pcd", pcd_bytes(cloud, "binary", fields=fields, width=n))
+    out = tmp_path / "uv.csv"
+    assert main(["flatten", str(src), "--repair", "-o", str(out)]) == 0
+    assert "the .csv has one row per input row, the 4 dropped ones nan,nan" in capsys.readouterr().err
+    uv = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert uv.shape == (n, 2) and np.isnan(uv[np.r_[empty, junk]]).all() and np.isfinite(uv[live]).all()
+    report_path = tmp_path / "front.json"
+    assert main(["inspect", str(src), "--repair", "-o", str(report_path)]) in (0, 3)
+    report = json.loads(report_path.read_text())
+    assert report["input_rows"] == live.tolist()
+    found = np.concatenate([np.asarray(loop) for loop in report["boundary_loops"]])
+    on_boundary = np.zeros(n, dtype=bool)
+    on_boundary[live] = surface.boundary_mask
+    assert on_boundary[found].mean() > 0.9  # loop points are the file's boundary rows
