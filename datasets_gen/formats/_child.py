@@ -1,7 +1,7 @@
 """Running a native decoder in a child process capped in memory (LAS/LAZ, E57).
 
 Native decoders (lazrs, libE57Format) abort the process or allocate without bound on some
-damaged files. They run here in a child process (``sys.executable -c CODE PATH OUT LIMIT``)
+damaged files. They run here in a child process (``sys.executable -c CODE PATH OUT LIMIT [ARGS]``)
 whose address space is capped (``RLIMIT_AS``) and whose BLAS pools are held to one thread;
 the child saves its arrays to an ``.npz`` and writes one line on stderr when it fails. Any
 failure, a crash, the cap reached or the time limit, is an InputFileError naming the file.
@@ -39,7 +39,8 @@ except (ImportError, ValueError, OSError):
 import numpy as np
 """
 
-#: Last lines of every child's code: a failure of its ``decode()`` as one line on stderr.
+#: Last lines of every child's code: a failure of its ``decode()`` as one line on stderr,
+#: the first of the exception's message (libE57Format's go on with debug lines).
 CHILD_EPILOGUE = """
 try:
     decode()
@@ -47,12 +48,14 @@ except MemoryError:
     sys.stderr.write("the decoder ran out of memory\\n")
     sys.exit(3)
 except Exception as exc:
-    sys.stderr.write(f"{type(exc).__name__}: {exc}\\n")
+    first = next((line for line in str(exc).splitlines() if line.strip()), "")
+    sys.stderr.write(f"{type(exc).__name__}: {first}\\n")
     sys.exit(3)
 """
 
 
-def decode_in_child(path: Path, code: str, limit: int, timeout: float, kind: str, todo: str) -> dict[str, np.ndarray]:
+def decode_in_child(path: Path, code: str, limit: int, timeout: float, kind: str, todo: str,
+                    args: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
     """Run ``code`` in a child process capped in memory and return the arrays it saved.
 
     Parameters
@@ -71,6 +74,8 @@ def decode_in_child(path: Path, code: str, limit: int, timeout: float, kind: str
         The format's name for messages (``"LAS/LAZ"``).
     todo : str
         What the user should do when the file cannot be read.
+    args : tuple of str
+        More arguments for the child, from ``sys.argv[4]`` on.
 
     Returns
     -------
@@ -86,7 +91,7 @@ def decode_in_child(path: Path, code: str, limit: int, timeout: float, kind: str
     with tempfile.TemporaryDirectory(prefix="parambench-decode-") as tmp:
         out = Path(tmp) / "points.npz"
         try:
-            done = subprocess.run([sys.executable, "-c", code, str(path), str(out), str(int(limit))],
+            done = subprocess.run([sys.executable, "-c", code, str(path), str(out), str(int(limit)), *args],
                                   capture_output=True, text=True, timeout=timeout,
                                   env={**os.environ, **_ONE_THREAD})
         except subprocess.TimeoutExpired:
