@@ -238,7 +238,10 @@ def _placed(path: Path, xyz: np.ndarray, scan: np.ndarray, read: np.ndarray, qua
             raise file_error(path, None, f"the pose of scan {int(read[s])} has a non-finite translation "
                              f"{translation[s].tolist()}", "repair the scan's pose in the tool that wrote the file")
         lo, hi = bounds[s], bounds[s + 1]
-        out[lo:hi] = xyz[lo:hi] @ rotation.T + translation[s]
+        part = xyz[lo:hi]
+        # column by column: numpy's matmul of (N, 3) by (3, 3) took 0.5 s for 1M points, this 0.04 s
+        out[lo:hi] = (part[:, :1] * rotation[:, 0] + part[:, 1:2] * rotation[:, 1] + part[:, 2:3] * rotation[:, 2]
+                      + translation[s])
     if not np.all(np.isfinite(out)):
         raise file_error(path, None, "its poses place points at non-finite coordinates",
                          "repair the scans' poses in the tool that wrote the file")
