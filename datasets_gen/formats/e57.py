@@ -12,7 +12,10 @@ An E57 file holds one or more scans, each in its scanner's own frame with a pose
 quaternion and a translation) that places it in the file's frame. Every scan is read in
 the scanner's frame (spherical range/azimuth/elevation scans converted to cartesian by
 pye57) and placed by its pose here, so the scans of a registered project come out in one
-frame, in file order. Points flagged invalid (``cartesianInvalidState`` or
+frame, in file order. The scans are read with pye57's buffers and reader rather than its
+``read_scan``, which ignores how many records its reader found: a header counting more
+points than the data holds gave uninitialised memory as points; here that is an
+InputFileError. Points flagged invalid (``cartesianInvalidState`` or
 ``sphericalInvalidState`` not 0: no return, or a direction only) and points without
 coordinates (all NaN, as some scanners write their no-returns) are left out, with one
 warning counting them; a point with some but not all coordinates NaN, or an infinite one,
@@ -69,13 +72,31 @@ def pose(node):
     return q, t
 
 
-def local_points(e57, i):
-    data = e57.read_scan(i, ignore_missing_fields=True, intensity=False, colors=False, row_column=False,
-                         transform=False)
-    if "cartesianX" in data:
-        return np.column_stack([data["cartesianX"], data["cartesianY"], data["cartesianZ"]]).astype(np.float64)
-    rae = np.column_stack([data["sphericalRange"], data["sphericalAzimuth"], data["sphericalElevation"]])
-    return convert_spherical_to_cartesian(rae.astype(np.float64))
+CARTESIAN = ["cartesianX", "cartesianY", "cartesianZ"]
+SPHERICAL = ["sphericalRange", "sphericalAzimuth", "sphericalElevation"]
+
+
+def local_points(e57, i, header):
+    # pye57's read_scan ignores the count its reader returns: a scan whose header counts
+    # more records than its data holds came back padded with uninitialised memory
+    fields = header.point_fields
+    if all(f in fields for f in CARTESIAN):
+        names, state = CARTESIAN, "cartesianInvalidState"
+    elif all(f in fields for f in SPHERICAL):
+        names, state = SPHERICAL, "sphericalInvalidState"
+    else:
+        raise ValueError(f"scan {i} holds neither cartesian nor spherical coordinates (its fields: {fields})")
+    n = header.point_count
+    data, buffers = e57.make_buffers(names + ([state] if state in fields else []), n)
+    reader = header.points.reader(buffers)
+    got = reader.read() if n else 0
+    reader.close()
+    if got != n:
+        raise ValueError(f"scan {i} holds {got} points where its header counts {n}: it is truncated")
+    xyz = np.column_stack([data[name] for name in names]).astype(np.float64)
+    if state in data:
+        xyz = xyz[data[state] == 0]  # 1: a direction only, 2: no return
+    return xyz if names is CARTESIAN else convert_spherical_to_cartesian(xyz)
 
 
 def decode():
@@ -92,7 +113,7 @@ def decode():
         q, t = pose(header.node)
         quaternions.append(q)
         translations.append(t)
-        parts.append(local_points(e57, i))
+        parts.append(local_points(e57, i, header))
     counts = np.array([len(p) for p in parts], dtype=np.int64)
     xyz = np.concatenate(parts) if parts else np.empty((0, 3))
     del parts

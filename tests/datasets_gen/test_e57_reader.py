@@ -17,16 +17,15 @@ import uuid
 import warnings
 
 import numpy as np
+import pye57  # a dependency, not skipped: a green run without it would hide a missing install
 import pytest
 
-pye57 = pytest.importorskip("pye57")
-
-from parambench.bench.cli import main  # noqa: E402
-from parambench.datasets_gen.errors import InputFileError  # noqa: E402
-from parambench.datasets_gen.formats import RawMesh, read_file  # noqa: E402
-from parambench.datasets_gen.formats import e57 as e57_module  # noqa: E402
-from parambench.datasets_gen.io import load_surface  # noqa: E402
-from parambench.datasets_gen.real import REAL_DATASETS  # noqa: E402
+from parambench.bench.cli import main
+from parambench.datasets_gen.errors import InputFileError
+from parambench.datasets_gen.formats import RawMesh, read_file
+from parambench.datasets_gen.formats import e57 as e57_module
+from parambench.datasets_gen.io import load_surface
+from parambench.datasets_gen.real import REAL_DATASETS
 
 IDENTITY = (np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3))
 
@@ -208,6 +207,18 @@ def test_no_valid_point_is_refused(tmp_path):
         data[k:k + 4] = struct.pack("<f", float("nan"))
     path.write_bytes(_with_checksums(data))
     with pytest.warns(UserWarning, match="5 of 5 points"), pytest.raises(InputFileError, match="no valid point"):
+        read_file(path)
+
+
+@pytest.mark.parametrize("count", [201, 900])
+def test_a_scan_counting_more_points_than_it_holds_is_refused(one_scan, count):
+    """pye57's read_scan returned uninitialised memory for the records its reader did not find."""
+    path, _ = one_scan
+    data = bytearray(path.read_bytes())
+    k = bytes(data).index(b'recordCount="200"')
+    data[k:k + 17] = f'recordCount="{count}"'.encode()
+    path.write_bytes(_with_checksums(data))
+    with pytest.raises(InputFileError, match=f"scan 0 holds 200 points where its header counts {count}: it is truncated"):
         read_file(path)
 
 
