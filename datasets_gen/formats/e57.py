@@ -87,9 +87,11 @@ def local_points(e57, i, header):
     else:
         raise ValueError(f"scan {i} holds neither cartesian nor spherical coordinates (its fields: {fields})")
     n = header.point_count
+    if n == 0:  # libE57Format refuses a reader on no records, and would fail the whole file
+        return np.empty((0, 3))
     data, buffers = e57.make_buffers(names + ([state] if state in fields else []), n)
     reader = header.points.reader(buffers)
-    got = reader.read() if n else 0
+    got = reader.read()
     reader.close()
     if got != n:
         raise ValueError(f"scan {i} holds {got} points where its header counts {n}: it is truncated")

@@ -1,8 +1,8 @@
 """E57 laser-scan files: scans placed by their poses, scan choice, invalid points, damaged files, flatten.
 
 The files are written at test time with pye57's writer (``write_scan_raw``, float32
-coordinates, so the test points are float32 values and come back exactly), a spherical
-scan with libE57Format's nodes through pye57's binding. The expected points are computed
+coordinates, so the test points are float32 values and come back exactly); spherical and
+empty scans with libE57Format's nodes through pye57's binding. The expected points are computed
 here with numpy from an axis and angle, not from the quaternion the file stores. Bytes
 are changed by hand for the header checks and, with each 1024-byte page's CRC-32C
 recomputed, for points without coordinates and for the fuzz loop (libE57Format refuses a
@@ -54,28 +54,31 @@ def _write(path, scans) -> None:
             e57.write_scan_raw(data, rotation=quaternion, translation=translation)
 
 
-def _write_spherical(path, rae: np.ndarray) -> None:
-    """An E57 file of one scan stored as range, azimuth, elevation (float64), without a pose."""
+def _write_float64(path, names: list[str], scans: list[np.ndarray]) -> None:
+    """An E57 file of scans (N, 3) stored as float64 fields ``names``, without poses, built
+    from libE57Format's nodes (pye57's writer stores float32 cartesian coordinates only and
+    no scan without points)."""
     from pye57 import libe57
 
-    names = ["sphericalRange", "sphericalAzimuth", "sphericalElevation"]
     with pye57.E57(str(path), mode="w") as e57:
         imf = e57.image_file
-        scan = libe57.StructureNode(imf)
-        scan.set("guid", libe57.StringNode(imf, "{%s}" % uuid.uuid4()))
-        prototype = libe57.StructureNode(imf)
-        for k, name in enumerate(names):
-            low, high = float(rae[:, k].min()), float(rae[:, k].max())
-            prototype.set(name, libe57.FloatNode(imf, low, libe57.E57_DOUBLE, low, high))
-        points = libe57.CompressedVectorNode(imf, prototype, libe57.VectorNode(imf, True))
-        scan.set("points", points)
-        e57.data3d.append(scan)
-        arrays, buffers = e57.make_buffers(names, len(rae))
-        for k, name in enumerate(names):
-            arrays[name][:] = rae[:, k]
-        writer = points.writer(buffers)
-        writer.write(len(rae))
-        writer.close()
+        for values in scans:
+            scan = libe57.StructureNode(imf)
+            scan.set("guid", libe57.StringNode(imf, "{%s}" % uuid.uuid4()))
+            prototype = libe57.StructureNode(imf)
+            for k, name in enumerate(names):
+                low, high = (float(values[:, k].min()), float(values[:, k].max())) if len(values) else (0.0, 0.0)
+                prototype.set(name, libe57.FloatNode(imf, low, libe57.E57_DOUBLE, low, high))
+            points = libe57.CompressedVectorNode(imf, prototype, libe57.VectorNode(imf, True))
+            scan.set("points", points)
+            e57.data3d.append(scan)
+            if len(values):
+                arrays, buffers = e57.make_buffers(names, len(values))
+                for k, name in enumerate(names):
+                    arrays[name][:] = values[:, k]
+                writer = points.writer(buffers)
+                writer.write(len(values))
+                writer.close()
 
 
 _CRC_TABLE = []
@@ -222,11 +225,23 @@ def test_a_scan_counting_more_points_than_it_holds_is_refused(one_scan, count):
         read_file(path)
 
 
+def test_a_scan_without_points_is_read_as_none(tmp_path):
+    """libE57Format refuses to read a scan of no records; the other scans are still read."""
+    points = np.random.default_rng(7).normal(size=(30, 3))
+    path = tmp_path / "some_empty.e57"
+    _write_float64(path, ["cartesianX", "cartesianY", "cartesianZ"], [np.empty((0, 3)), points])
+    with pytest.warns(UserWarning, match=r"all 30 points of 2 scans .*\(points per scan: 0: 0, 1: 30\)"):
+        raw = read_file(path)
+    np.testing.assert_array_equal(raw.points, points)  # float64 in the file: exact
+    with pytest.raises(InputFileError, match=r"no valid point in scan\(s\) 0"):
+        read_file(path, e57_scans=[0])
+
+
 def test_a_spherical_scan_is_converted(tmp_path):
     rng = np.random.default_rng(6)
     rae = np.column_stack([rng.uniform(1, 30, 50), rng.uniform(-np.pi, np.pi, 50), rng.uniform(-1.2, 1.2, 50)])
     path = tmp_path / "spherical.e57"
-    _write_spherical(path, rae)
+    _write_float64(path, ["sphericalRange", "sphericalAzimuth", "sphericalElevation"], [rae])
     r, azimuth, elevation = rae.T
     expected = np.column_stack([r * np.cos(elevation) * np.cos(azimuth), r * np.cos(elevation) * np.sin(azimuth),
                                 r * np.sin(elevation)])
