@@ -191,7 +191,8 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
         per_scan = np.bincount(arrays["scan"][kept], minlength=len(read))
         held = ", ".join(f"{s}: {c}" for s, c in zip(read.tolist(), per_scan.tolist()))
         warnings.warn(f"{path}: all {len(xyz)} points of {n_scans} scans are read, each placed by its pose (points per "
-                      f"scan: {held}); keep some with e57_scans (--e57-scans), e.g. 0", stacklevel=4)
+                      f"scan: {held}); keep some with e57_scans (--e57-scans), e.g. {read[np.argmax(per_scan)]}",
+                      stacklevel=4)
     return RawMesh(points=xyz)
 
 

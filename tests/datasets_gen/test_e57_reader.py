@@ -134,7 +134,8 @@ def test_one_scan_comes_back_in_order(one_scan):
 def test_scans_are_placed_by_their_poses_in_file_order(two_scans):
     path, a, b_placed = two_scans
     with pytest.warns(UserWarning, match=r"all 240 points of 2 scans are read, each placed by its pose "
-                                         r"\(points per scan: 0: 150, 1: 90\); keep some with e57_scans"):
+                                         r"\(points per scan: 0: 150, 1: 90\); keep some with e57_scans "
+                                         r"\(--e57-scans\), e.g. 0"):
         surface = load_surface(path)
     np.testing.assert_allclose(surface.points, np.vstack([a, b_placed]), rtol=0, atol=1e-12)
     assert surface.params["format"] == "e57" and "e57_scans" not in surface.params
@@ -150,6 +151,25 @@ def test_chosen_scans_keep_their_points_and_poses(two_scans):
     both = load_surface(path, e57_scans=(1, 0, 1))  # file order, whatever the order given
     np.testing.assert_allclose(both.points, np.vstack([a, b_placed]), rtol=0, atol=1e-12)
     assert both.params["e57_scans"] == [0, 1]
+
+
+@pytest.mark.parametrize("w, said", [
+    ("9", None),
+    ("0", r"the pose of scan 0 has rotation quaternion \[0.0, 0.0, 0.0, 0.0\], not a rotation"),
+])
+def test_a_quaternion_is_normalised_and_a_zero_one_refused(one_scan, w, said):
+    """pye57 writes the identity as w = 1 (x, y, z left at their default 0): w = 9 is the
+    identity once normalised, w = 0 no rotation at all."""
+    path, points = one_scan
+    data = bytearray(path.read_bytes())
+    k = bytes(data).index(b'<w type="Float">1</w>')
+    data[k + 16:k + 17] = w.encode()
+    path.write_bytes(_with_checksums(data))
+    if said is None:
+        np.testing.assert_array_equal(read_file(path).points, points)
+    else:
+        with pytest.raises(InputFileError, match=said):
+            read_file(path)
 
 
 @pytest.mark.parametrize("scans, said", [
@@ -221,7 +241,8 @@ def test_a_scan_counting_more_points_than_it_holds_is_refused(one_scan, count):
     k = bytes(data).index(b'recordCount="200"')
     data[k:k + 17] = f'recordCount="{count}"'.encode()
     path.write_bytes(_with_checksums(data))
-    with pytest.raises(InputFileError, match=f"scan 0 holds 200 points where its header counts {count}: it is truncated"):
+    said = f"scan 0 holds 200 points where its header counts {count}: it is truncated"
+    with pytest.raises(InputFileError, match=said):
         read_file(path)
 
 
@@ -230,7 +251,7 @@ def test_a_scan_without_points_is_read_as_none(tmp_path):
     points = np.random.default_rng(7).normal(size=(30, 3))
     path = tmp_path / "some_empty.e57"
     _write_float64(path, ["cartesianX", "cartesianY", "cartesianZ"], [np.empty((0, 3)), points])
-    with pytest.warns(UserWarning, match=r"all 30 points of 2 scans .*\(points per scan: 0: 0, 1: 30\)"):
+    with pytest.warns(UserWarning, match=r"all 30 points of 2 scans .*\(points per scan: 0: 0, 1: 30\).*e.g. 1"):
         raw = read_file(path)
     np.testing.assert_array_equal(raw.points, points)  # float64 in the file: exact
     with pytest.raises(InputFileError, match=r"no valid point in scan\(s\) 0"):
@@ -352,7 +373,7 @@ def test_scans_are_refused_for_other_formats_and_classes_for_e57(tmp_path, one_s
     xyz.write_text("0 0 0\n1 0 0\n0 1 0\n1 1 0.1\n")
     with pytest.raises(InputFileError, match=r"E57 scans select the scans of an .e57 file; this is a .xyz file"):
         load_surface(xyz, e57_scans=[0])
-    with pytest.raises(InputFileError, match=r"LAS classes select points of a .las or .laz file .* this is a .e57 file"):
+    with pytest.raises(InputFileError, match=r"LAS classes select points of a .las or .laz file .* this is a .e57"):
         load_surface(one_scan[0], las_classes=[2])
 
 
