@@ -190,6 +190,22 @@ def _las_classes(text: str) -> list[int]:
     return codes
 
 
+E57_SCANS_HELP = ("for an .e57 laser-scan file: keep only these scans, 0-based indices in file order, comma-separated "
+                  "(e.g. 0 or 0,2); each scan is placed by its pose; rows are then the kept scans' valid points, scan "
+                  "after scan")
+
+
+def _e57_scans(text: str) -> list[int]:
+    """``--e57-scans``: comma-separated 0-based scan indices."""
+    try:
+        indices = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give scan indices as integers, e.g. 0 or 0,2") from None
+    if not indices or any(i < 0 for i in indices):
+        raise argparse.ArgumentTypeError(f"{text!r}: scan indices are integers from 0 (the first scan), e.g. 0 or 0,2")
+    return indices
+
+
 def _selfcheck_summary(check: dict | None) -> str:
     if not check:
         return ""
@@ -469,7 +485,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     _check_output_path(out, Path(args.input))
     with _offer_repair(args.repair):
         surface = _welded(load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair,
-                                       las_classes=args.las_classes), args.weld)
+                                       las_classes=args.las_classes, e57_scans=args.e57_scans), args.weld)
     method = get_method(args.method or _default_method(surface))
     if args.points_only and method.needs_faces:
         from parambench.datasets_gen.errors import MissingFacesError
@@ -559,7 +575,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     _check_output_path(out, Path(args.input))
     with _offer_repair(args.repair):
         surface = load_surface(args.input, points_only=args.points_only, drop_degenerate_faces=args.repair,
-                               las_classes=args.las_classes)
+                               las_classes=args.las_classes, e57_scans=args.e57_scans)
     defaults = {f.name: f.default for f in fields(FrontEndParams)}
     params = parse_param_values(args.param or [], defaults)
     unknown = sorted(set(params) - set(defaults))
@@ -717,6 +733,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="merge a mesh's coincident vertices first (patches stored unwelded; not for a seam cut on "
                            "purpose); says on stderr how many; the output then holds the welded vertices")
     flat.add_argument("--las-classes", type=_las_classes, metavar="CODES", help=LAS_CLASSES_HELP)
+    flat.add_argument("--e57-scans", type=_e57_scans, metavar="INDICES", help=E57_SCANS_HELP)
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")
@@ -726,6 +743,7 @@ def build_parser() -> argparse.ArgumentParser:
     insp.add_argument("-o", "--output", required=True, help="output .json")
     insp.add_argument("--repair", action="store_true", help=REPAIR_HELP)
     insp.add_argument("--las-classes", type=_las_classes, metavar="CODES", help=LAS_CLASSES_HELP)
+    insp.add_argument("--e57-scans", type=_e57_scans, metavar="INDICES", help=E57_SCANS_HELP)
     insp.set_defaults(func=_cmd_inspect)
 
     rep = sub.add_parser("report", help="build the HTML and PDF report of a results directory, or compare two")

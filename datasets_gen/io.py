@@ -5,13 +5,16 @@ Meshes (OFF, OBJ, PLY, STL) and point clouds (XYZ, also named ``.txt``, ``.csv``
 point i is the centre of the i-th cell with data, row by row from the north) are read by our
 own numpy readers (:mod:`parambench.datasets_gen.formats`, one module per format): no
 native reader sees the file, so a hostile file cannot crash, hang or silently alter the
-data. LAS/LAZ LiDAR files are decoded by laspy (LAZ through lazrs, in Rust) in a child
-process capped in memory, after their header is checked here, and the same checks follow
-(:mod:`parambench.datasets_gen.formats.las`). Guarantees that
+data. LAS/LAZ LiDAR files are decoded by laspy (LAZ through lazrs, in Rust) and E57 laser
+scans by pye57 (libE57Format, in C++) in a child process capped in memory, after their
+header is checked here, and the same checks follow
+(:mod:`parambench.datasets_gen.formats.las`, :mod:`parambench.datasets_gen.formats.e57`).
+Guarantees that
 users rely on:
 
 - Row i of ``points`` is vertex i of the file (of its points of the requested classes, for
-  a LAS/LAZ file read with ``las_classes``), unreferenced vertices included; a vertex
+  a LAS/LAZ file read with ``las_classes``; of the valid points of its scans, scan after
+  scan, for an E57 file), unreferenced vertices included; a vertex
   with a NaN, infinite or unparsable coordinate is an error, never dropped (STL has no
   vertex list: its vertices are the distinct corners in order of first appearance, corners
   closer than a millionth of the median triangle edge counting as one).
@@ -46,14 +49,14 @@ SUPPORTED_EXTENSIONS = tuple(READERS)
 
 
 def load_surface(path, *, points_only: bool = False, name: str | None = None,
-                 drop_degenerate_faces: bool = False, las_classes=None) -> Surface:
+                 drop_degenerate_faces: bool = False, las_classes=None, e57_scans=None) -> Surface:
     """Read a mesh or point cloud.
 
     Parameters
     ----------
     path : str or os.PathLike
         An ``.off``, ``.obj``, ``.ply``, ``.stl`` mesh or ``.xyz`` (also ``.txt``, ``.csv``,
-        ``.asc``), ``.pts``, ``.ply``, ``.las``, ``.laz``, ``.pcd`` point cloud.
+        ``.asc``), ``.pts``, ``.ply``, ``.las``, ``.laz``, ``.pcd``, ``.e57`` point cloud.
     points_only : bool
         Drop the faces (keep the vertices as a point set); their count goes to
         ``params["faces_dropped"]``.
@@ -67,6 +70,10 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
         For a LAS/LAZ file, the ASPRS classification codes whose points are kept (2: the
         ground), recorded in ``params["las_classes"]``; rows are then the kept points in
         file order. Refused for other formats.
+    e57_scans : iterable of int, optional
+        For an E57 file, the 0-based indices of the scans whose points are kept (each
+        placed by its pose), recorded in ``params["e57_scans"]``; rows are then their valid
+        points, scan after scan in file order. Refused for other formats.
 
     Returns
     -------
@@ -88,12 +95,14 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     """
     path = Path(path)
     ext = path.suffix.lower()
-    raw = read_file(path, las_classes=las_classes)  # an unknown extension is refused there, with the list
+    raw = read_file(path, las_classes=las_classes, e57_scans=e57_scans)  # an unknown extension is refused there
     normals = _file_normals(path, raw.normals)
     faces = None if points_only else raw.faces
     params = {"source": str(path), "format": ext[1:]}
     if las_classes is not None:
         params["las_classes"] = sorted({int(c) for c in las_classes})
+    if e57_scans is not None:
+        params["e57_scans"] = sorted({int(s) for s in e57_scans})
     if raw.rows is not None:  # points the format marks as empty were dropped: where the others sit in the file
         params["input_rows"], params["file_rows"] = np.asarray(raw.rows, dtype=np.int64), int(raw.n_rows)
     if points_only and raw.faces is not None and len(raw.faces):

@@ -4,9 +4,9 @@ They replace pymeshlab's loaders, which crashed (segfault, abort), hung or silen
 data on hostile files: every reader parses the whole file with numpy, checks counts against
 the file size, indices against the vertex count and every coordinate for finiteness, and
 raises :class:`~parambench.datasets_gen.errors.InputFileError` with one line naming the file, the line
-or byte offset, the problem and what to do. LAS/LAZ LiDAR files are the exception: their
-header is checked here, laspy decodes them in a child process capped in memory
-(:mod:`.las`), and the same checks follow.
+or byte offset, the problem and what to do. LAS/LAZ LiDAR files and E57 laser scans are the exception: their
+header is checked here, laspy or pye57 decodes them in a child process capped in memory
+(:mod:`.las`, :mod:`.e57`), and the same checks follow.
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ from pathlib import Path
 
 from ..errors import InputFileError
 from ._common import RawMesh, read_bytes, read_head
+from .e57 import E57_EXTENSIONS, read_e57
+from .e57 import HEADER_BYTES as E57_HEADER_BYTES
 from .esri_grid import read_asc
 from .las import HEADER_BYTES, LAS_EXTENSIONS, read_las
 from .obj import read_obj
@@ -31,13 +33,14 @@ __all__ = ["RawMesh", "READERS", "read_file"]
 #: ``.asc`` are the names other tools give XYZ text (CloudCompare, spreadsheets, scanners);
 #: a ``.asc`` with an ``ncols`` / ``nrows`` header is an ESRI ASCII grid (GIS elevation models);
 #: ``.las`` / ``.laz`` are LiDAR point clouds (:func:`read_las`, which also takes classes to keep);
-#: ``.pcd`` is the Point Cloud Library's format, ascii, binary or LZF-compressed (:func:`read_pcd`).
+#: ``.pcd`` is the Point Cloud Library's format, ascii, binary or LZF-compressed (:func:`read_pcd`);
+#: ``.e57`` laser scans (:func:`read_e57`, which also takes scans to keep).
 READERS = {".off": read_off, ".obj": read_obj, ".ply": read_ply, ".stl": read_stl, ".xyz": read_xyz,
            ".pts": read_pts, ".txt": read_xyz, ".csv": read_xyz, ".asc": read_asc, ".las": read_las,
-           ".laz": read_las, ".pcd": read_pcd}
+           ".laz": read_las, ".pcd": read_pcd, ".e57": read_e57}
 
 
-def read_file(path: Path, *, las_classes=None) -> RawMesh:
+def read_file(path: Path, *, las_classes=None, e57_scans=None) -> RawMesh:
     """Read and check a file with the reader its extension names.
 
     Parameters
@@ -46,6 +49,8 @@ def read_file(path: Path, *, las_classes=None) -> RawMesh:
         A file whose lower-case suffix is a key of :data:`READERS`.
     las_classes : iterable of int, optional
         For a LAS/LAZ file, the classification codes to keep (:func:`read_las`).
+    e57_scans : iterable of int, optional
+        For an E57 file, the 0-based indices of the scans to keep (:func:`read_e57`).
 
     Returns
     -------
@@ -55,13 +60,23 @@ def read_file(path: Path, *, las_classes=None) -> RawMesh:
     ------
     InputFileError
         An extension without a reader (the message lists the accepted ones), a missing,
-        unreadable or special file, malformed contents, or ``las_classes`` for a file
-        that is not LAS/LAZ.
+        unreadable or special file, malformed contents, ``las_classes`` for a file
+        that is not LAS/LAZ, or ``e57_scans`` for a file that is not E57.
     """
     ext = path.suffix.lower()
     if ext not in READERS:
         raise InputFileError(f"{path}: unsupported file type {ext or '(none)'!r}; supported: "
                              f"{', '.join(READERS)}.")
+    if e57_scans is not None and ext not in E57_EXTENSIONS:
+        raise InputFileError(f"{path}: E57 scans select the scans of an .e57 file; this is a {ext} file: "
+                             "leave the scans out.")
+    if ext in E57_EXTENSIONS:  # as LAS: its decoder reads the file itself
+        if las_classes is not None:
+            raise InputFileError(f"{path}: LAS classes select points of a .las or .laz file by their "
+                                 "classification; this is a .e57 file: leave the classes out (choose scans "
+                                 "with e57_scans).")
+        head, size = read_head(path, E57_HEADER_BYTES)
+        return read_e57(path, head, e57_scans, size=size)
     if ext in LAS_EXTENSIONS:  # its decoder reads the file itself: only the header here
         head, size = read_head(path, HEADER_BYTES)
         return read_las(path, head, las_classes, size=size)

@@ -114,7 +114,7 @@ def read_bytes(path: Path) -> bytes:
 def read_head(path: Path, n_bytes: int | None) -> tuple[bytes, int]:
     """The first ``n_bytes`` of a readable regular file (all of it for None) and its size in bytes.
 
-    For formats whose decoder reads the file itself (LAS/LAZ): only their header is read here.
+    For formats whose decoder reads the file itself (LAS/LAZ, E57): only their header is read here.
 
     Raises
     ------

@@ -17,17 +17,14 @@ says so in a warning, with the counts.
 
 from __future__ import annotations
 
-import os
 import struct
-import subprocess
-import sys
-import tempfile
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 
+from ._child import CHILD_EPILOGUE, CHILD_MEMORY_BASE, CHILD_PRELUDE, decode_in_child
 from ._common import RawMesh, file_error
 
 __all__ = ["read_las", "LAS_EXTENSIONS", "HEADER_BYTES", "CLASS_NAMES", "CHILD_MEMORY_BASE"]
@@ -45,40 +42,22 @@ CLASS_NAMES = {0: "never classified", 1: "unclassified", 2: "ground", 3: "low ve
                13: "wire guard", 14: "wire conductor", 15: "transmission tower", 16: "wire connector",
                17: "bridge deck", 18: "high noise"}
 
-#: Address space of the decoding child besides its records (bytes): Python, numpy and
-#: laspy take about 0.4 GB of it (their thread pools held to one thread there).
-CHILD_MEMORY_BASE = 2 << 30
-
 #: Largest ratio of a LAZ file's announced records to its size (LASzip packs LiDAR records
 #: 5-15 times): a header announcing more is damaged, not compressed.
 _MAX_COMPRESSION = 50
 
 _TODO = "pass a LAS 1.0-1.4 or LAZ file, or export the points as XYZ text"
 
-#: BLAS thread pools reserve address space per core; the child needs none of them.
-_ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
 #: The child: decode with laspy, save coordinates and classes; one line on stderr on failure.
-_CHILD_CODE = """
-import sys
-try:
-    import resource
-    resource.setrlimit(resource.RLIMIT_AS, (int(sys.argv[3]), int(sys.argv[3])))
-except (ImportError, ValueError, OSError):
-    pass
-import numpy as np
+_CHILD_CODE = CHILD_PRELUDE + """
 import laspy
-try:
+
+
+def decode():
     las = laspy.read(sys.argv[1])
     np.savez(sys.argv[2], x=np.asarray(las.x, dtype=np.float64), y=np.asarray(las.y, dtype=np.float64),
              z=np.asarray(las.z, dtype=np.float64), c=np.asarray(las.classification, dtype=np.int64))
-except MemoryError:
-    sys.stderr.write("the decoder ran out of memory\\n")
-    sys.exit(3)
-except Exception as exc:
-    sys.stderr.write(f"{type(exc).__name__}: {exc}\\n")
-    sys.exit(3)
-"""
+""" + CHILD_EPILOGUE
 
 
 def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None, *, size: int | None = None) -> RawMesh:
@@ -171,23 +150,9 @@ def _checked_header(path: Path, data: bytes, size: int) -> tuple[int, int]:
 
 def _decoded(path: Path, record_bytes: int) -> tuple[np.ndarray, np.ndarray]:
     """laspy's coordinates (N, 3) and classification codes (N,) of the file, decoded in a capped child."""
-    limit = CHILD_MEMORY_BASE + 6 * record_bytes
-    with tempfile.TemporaryDirectory(prefix="parambench-las-") as tmp:
-        out = Path(tmp) / "points.npz"
-        try:
-            done = subprocess.run([sys.executable, "-c", _CHILD_CODE, str(path), str(out), str(limit)],
-                                  capture_output=True, text=True, timeout=120 + record_bytes / 1e6,
-                                  env={**os.environ, **_ONE_THREAD})
-        except subprocess.TimeoutExpired:
-            raise file_error(path, None, "its decoder did not finish", "pass an undamaged copy of the file") from None
-        if done.returncode != 0 or not out.exists():
-            said = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])
-            reason = next((line for line in said if "memory allocation" in line), said[-1])
-            raise file_error(path, None, f"not a readable LAS/LAZ file (its decoder failed: {reason[:200]})", _TODO)
-        with np.load(out) as arrays:
-            xyz = np.column_stack([arrays["x"], arrays["y"], arrays["z"]])
-            codes = arrays["c"]
-    return xyz, codes
+    arrays = decode_in_child(path, _CHILD_CODE, CHILD_MEMORY_BASE + 6 * record_bytes, 120 + record_bytes / 1e6,
+                             "LAS/LAZ", _TODO)
+    return np.column_stack([arrays["x"], arrays["y"], arrays["z"]]), arrays["c"]
 
 
 def _class_counts(codes: np.ndarray) -> str:
