@@ -25,6 +25,7 @@ without it a file holding several scans says so in a warning, with the points pe
 
 from __future__ import annotations
 
+import importlib.util
 import struct
 import warnings
 from collections.abc import Iterable
@@ -154,7 +155,8 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
     InputFileError
         Not an E57 file; a version other than 1; a truncated or padded one (its size
         differs from its header's length); a header placing the XML section outside the
-        file, or pages other than 1024 bytes; a damaged one (its decoder fails, crashes,
+        file, or pages other than 1024 bytes; pye57 not installed (a platform without
+        its wheels); a damaged one (its decoder fails, crashes,
         runs out of its memory or time); a scan index out of range (the message says how
         many scans the file holds); a pose that is not a rotation; a point with some
         coordinates NaN or any infinite; no valid point.
@@ -168,6 +170,11 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
     size = len(data) if size is None else int(size)
     _check_header(path, data, size)
     wanted = _wanted_scans(path, scans)
+    if not _pye57_installed():
+        raise file_error(path, None, "reading E57 files needs pye57, which is not installed (it comes with parambench "
+                         "where pye57 publishes wheels: Linux x86-64, macOS arm64, Windows x86-64)",
+                         "pip install pye57 where it builds (it needs libxerces-c), or export the points as LAS, PLY "
+                         "or XYZ text (CloudCompare, PDAL)")
     arrays = decode_in_child(path, _CHILD_CODE, CHILD_MEMORY_BASE + MEMORY_PER_FILE_BYTE * size,
                              120 + size / 1e6, "E57", _TODO,
                              args=("all" if wanted is None else ",".join(map(str, wanted)),))
@@ -194,6 +201,11 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
                       f"scan: {held}); keep some with e57_scans (--e57-scans), e.g. {read[np.argmax(per_scan)]}",
                       stacklevel=4)
     return RawMesh(points=xyz)
+
+
+def _pye57_installed() -> bool:
+    """Whether the child can import pye57 (it is a dependency only where it has wheels)."""
+    return importlib.util.find_spec("pye57") is not None
 
 
 def _check_header(path: Path, data: bytes, size: int) -> None:
