@@ -181,13 +181,7 @@ LAS_CLASSES_HELP = ("for a .las/.laz LiDAR file: keep only points of these ASPRS
 
 def _las_classes(text: str) -> list[int]:
     """``--las-classes``: comma-separated classification codes (0-255)."""
-    try:
-        codes = [int(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give classification codes as integers, e.g. 2 or 2,9") from None
-    if not codes or any(not 0 <= c <= 255 for c in codes):
-        raise argparse.ArgumentTypeError(f"{text!r}: classification codes are integers from 0 to 255, e.g. 2 or 2,9")
-    return codes
+    return _integers(text, "classification codes", "from 0 to 255", "2 or 2,9", 0, 255)
 
 
 E57_SCANS_HELP = ("for an .e57 laser-scan file: keep only these scans, 0-based indices in file order, comma-separated "
@@ -197,13 +191,25 @@ E57_SCANS_HELP = ("for an .e57 laser-scan file: keep only these scans, 0-based i
 
 def _e57_scans(text: str) -> list[int]:
     """``--e57-scans``: comma-separated 0-based scan indices."""
+    return _integers(text, "scan indices", "from 0 (the first scan)", "0 or 0,2", 0, None)
+
+
+def _integers(text: str, what: str, span: str, example: str, lowest: int, highest: int | None) -> list[int]:
+    """An option's comma-separated integers, each in ``[lowest, highest]`` (no upper bound for None).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        A part that is not an integer, none given, or one out of range: the message names
+        ``what`` they are, their ``span`` and an ``example``.
+    """
     try:
-        indices = [int(part) for part in text.split(",") if part.strip()]
+        values = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give scan indices as integers, e.g. 0 or 0,2") from None
-    if not indices or any(i < 0 for i in indices):
-        raise argparse.ArgumentTypeError(f"{text!r}: scan indices are integers from 0 (the first scan), e.g. 0 or 0,2")
-    return indices
+        raise argparse.ArgumentTypeError(f"{text!r}: give {what} as integers, e.g. {example}") from None
+    if not values or any(v < lowest or (highest is not None and v > highest) for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: {what} are integers {span}, e.g. {example}")
+    return values
 
 
 def _selfcheck_summary(check: dict | None) -> str:

@@ -40,6 +40,16 @@ READERS = {".off": read_off, ".obj": read_obj, ".ply": read_ply, ".stl": read_st
            ".laz": read_las, ".pcd": read_pcd, ".e57": read_e57}
 
 
+#: Formats a native decoder reads in a child process (:mod:`._child`): the bytes of their
+#: header checked here, and the option that selects their points.
+_CHILD_DECODED = {**{ext: (HEADER_BYTES, "las_classes") for ext in LAS_EXTENSIONS},
+                  **{ext: (E57_HEADER_BYTES, "e57_scans") for ext in E57_EXTENSIONS}}
+
+#: What each selecting option does, and what to leave out, for a file it does not apply to.
+_SELECTIONS = {"las_classes": ("LAS classes select points of a .las or .laz file by their classification", "classes"),
+               "e57_scans": ("E57 scans select the scans of an .e57 file", "scans")}
+
+
 def read_file(path: Path, *, las_classes=None, e57_scans=None) -> RawMesh:
     """Read and check a file with the reader its extension names.
 
@@ -67,20 +77,13 @@ def read_file(path: Path, *, las_classes=None, e57_scans=None) -> RawMesh:
     if ext not in READERS:
         raise InputFileError(f"{path}: unsupported file type {ext or '(none)'!r}; supported: "
                              f"{', '.join(READERS)}.")
-    if e57_scans is not None and ext not in E57_EXTENSIONS:
-        raise InputFileError(f"{path}: E57 scans select the scans of an .e57 file; this is a {ext} file: "
-                             "leave the scans out.")
-    if ext in E57_EXTENSIONS:  # as LAS: its decoder reads the file itself
-        if las_classes is not None:
-            raise InputFileError(f"{path}: LAS classes select points of a .las or .laz file by their "
-                                 "classification; this is a .e57 file: leave the classes out (choose scans "
-                                 "with e57_scans).")
-        head, size = read_head(path, E57_HEADER_BYTES)
-        return read_e57(path, head, e57_scans, size=size)
-    if ext in LAS_EXTENSIONS:  # its decoder reads the file itself: only the header here
-        head, size = read_head(path, HEADER_BYTES)
-        return read_las(path, head, las_classes, size=size)
-    if las_classes is not None:
-        raise InputFileError(f"{path}: LAS classes select points of a .las or .laz file by their classification; "
-                             f"this is a {ext} file: leave the classes out.")
+    chosen = {"las_classes": las_classes, "e57_scans": e57_scans}
+    header_bytes, option = _CHILD_DECODED.get(ext, (None, None))
+    for name, value in chosen.items():
+        if value is not None and name != option:
+            what, leave = _SELECTIONS[name]
+            raise InputFileError(f"{path}: {what}; this is a {ext} file: leave the {leave} out.")
+    if option is not None:  # its decoder reads the file itself: only the header here
+        head, size = read_head(path, header_bytes)
+        return READERS[ext](path, head, chosen[option], size=size)
     return READERS[ext](path, read_bytes(path))
