@@ -435,8 +435,9 @@ class Method:
         check = selfcheck_result(surface, result, conformal=self.conformal_map)
         if after_error is not None:
             check["after_error"] = after_error
-        # Points far from all others fail every run alike: no parameter moves them onto the surface.
-        hopeless = "isolated" in (check.get("failed") or ())
+        # Points far from all others fail every run alike: no parameter moves them onto the
+        # surface; nor does one take a handle off it (a torus cut open: 4 retries, 16 s).
+        hopeless = "isolated" in (check.get("failed") or ()) or "handle" in (check.get("causes") or {})
         retries = [] if check["passed"] or hopeless else _as_list(self.retry_params(params, check))
         notes: list[dict] = []
         runs = [(params, result.diagnostics)]  # the runs made: parameters, diagnostics

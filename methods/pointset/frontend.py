@@ -701,9 +701,11 @@ def boundary_stage(nb: Neighbourhoods, frame_normals: np.ndarray, balls, params:
             "try boundary_method='angle'.")
     if not bnd.loops:
         from .failure_causes import noisy_points_note  # only on this path: it imports the spectral solvers
+        from .handles import handle_note
 
         raise no_boundary_error(int(bnd.candidates.sum()), float(params.boundary_angle_deg), min_loop_size,
-                                p.shape[0], note=noisy_points_note(fit_error_deg, nb.graph.indices.shape[1]))
+                                p.shape[0], note=noisy_points_note(fit_error_deg, nb.graph.indices.shape[1])
+                                or handle_note(p, frame_normals))
     return bnd, retried
 
 

@@ -146,6 +146,7 @@ from parambench.datasets_gen.errors import ParambenchError
 
 from ..geometry2d import signed_area_2d, triangle_signed_areas, turning_number
 from .failure_causes import NOISY_FIT_DEG, describe_causes, failure_causes, noisy_cause
+from .handles import handle_cause
 from .ring_orientation import RING_NORMAL_DEG, RING_QUALITY, ring_orientation, unresolved_points
 from .row_chunks import for_each_chunk
 from .stray_points import ISOLATED_BOX_SHARE, isolated_mask
@@ -845,6 +846,10 @@ def check_pointset_map(points: np.ndarray, uv: np.ndarray, normals: np.ndarray, 
     noisy = noisy_cause(fit_error, knn.shape[1])
     if failed and noisy is not None:
         facts.setdefault("causes", {})["noisy"] = noisy
+    if failed and "isolated" not in failed:
+        handle = handle_cause(points, normals)  # no map to the plane exists: the other causes are beside the point
+        if handle is not None:
+            facts.setdefault("causes", {})["handle"] = handle
     override = facts.pop("reason_override", None)
     reason = "; ".join(r for r in (override, _reason(facts), describe_causes(facts.get("causes", {})))
                        if r and r != "ok") or "ok"
