@@ -618,6 +618,13 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
               f"the spacing and loops reported are skewed by them; {'remove them' if args.repair else '--repair drops them'}",
               file=sys.stderr)
         return EXIT_SELFCHECK
+    handle = (report.get("selfcheck") or {}).get("handle")
+    if handle:
+        from parambench.methods.pointset.failure_causes import cause_advice, describe_causes
+
+        print(f"parambench: error: inspect: {describe_causes({'handle': handle})}; "
+              f"{cause_advice({'handle': handle}, [])[0]}", file=sys.stderr)
+        return EXIT_SELFCHECK
     if cov and not cov["passed"]:
         # The diagnostics are written either way; the exit code says the loops are doubtful.
         from parambench.methods.pointset.selfcheck import uncovered_phrase

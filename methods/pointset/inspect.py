@@ -8,6 +8,7 @@ from parambench.datasets_gen.surface import Surface
 
 from .coincident import coincident_groups, warn_merged
 from .frontend import build_frontend
+from .handles import handle_cause
 from .plugin_support import frontend_candidates
 from .ring_orientation import unresolved_points
 from .selfcheck import loop_coverage
@@ -40,7 +41,9 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         ``selfcheck``: the parts of a map's self-check that need no map, ``{"coverage":
         loop_coverage(...) or None, "n_unresolved": int, "n_isolated": int}`` (points far
         from all others, :func:`~parambench.methods.pointset.stray_points.isolated_mask`:
-        a scan's ``0 0 0`` rows, which also inflate ``mean_spacing``)
+        a scan's ``0 0 0`` rows, which also inflate ``mean_spacing``; ``"handle"``:
+        :func:`~parambench.methods.pointset.handles.handle_cause`, ``{"genus", "share"}``
+        where the points sample a surface with handles, which no map lays flat, else None)
         (:func:`parambench.methods.pointset.selfcheck.loop_coverage`: do the loops cover the
         angle-criterion candidates?; :func:`parambench.methods.pointset.ring_orientation.unresolved_points`:
         points where the sampling does not resolve the surface, and a map's fold would go unseen).
@@ -76,5 +79,6 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
         "diagnostics": diag,
         "selfcheck": {"coverage": coverage,
                       "n_unresolved": int(unresolved_points(fe.normals, fe.knn_indices).sum()),
-                      "n_isolated": int(isolated_mask(fe.points, fe.knn_indices).sum())},
+                      "n_isolated": int(isolated_mask(fe.points, fe.knn_indices).sum()),
+                      "handle": handle_cause(fe.points, fe.normals)},
     }

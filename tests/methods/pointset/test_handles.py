@@ -133,3 +133,17 @@ def test_no_boundary_on_a_closed_torus_names_its_handle_and_not_on_a_sphere():
     with pytest.raises(NoBoundaryError) as caught:
         get_method("ocp")(MethodInput(sphere))
     assert "handle" not in str(caught.value)
+
+
+def test_inspect_reports_the_handle_and_exits_3(tmp_path, capsys):
+    import json
+
+    src, out = tmp_path / "mug.xyz", tmp_path / "front.json"
+    np.savetxt(src, _torus_points(3000, 2, 1))
+    assert main(["inspect", str(src), "-o", str(out)]) == 3
+    assert "1 handle(s)" in capsys.readouterr().err
+    assert json.loads(out.read_text())["selfcheck"]["handle"]["genus"] == 1
+    flat = tmp_path / "bump.xyz"
+    np.savetxt(flat, make_surface("bump", 2000, sampling="random", seed=0).points)
+    assert main(["inspect", str(flat), "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["selfcheck"]["handle"] is None
