@@ -185,8 +185,8 @@ def _las_classes(text: str) -> list[int]:
 
 
 E57_SCANS_HELP = ("for an .e57 laser-scan file: keep only these scans, 0-based indices in file order, comma-separated "
-                  "(e.g. 0 or 0,2); each scan is placed by its pose; rows are then the kept scans' valid points, scan "
-                  "after scan")
+                  "(e.g. 0 or 0,2); each scan is placed by its pose; rows are then the kept scans' records, scan after "
+                  "scan (a .csv keeps a nan,nan row for each record flagged invalid)")
 
 
 def _e57_scans(text: str) -> list[int]:

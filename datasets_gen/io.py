@@ -80,7 +80,8 @@ def load_surface(path, *, points_only: bool = False, name: str | None = None,
     Surface
         ``params`` holds ``source`` (the path) and ``format`` (and ``normals_guessed``: True
         where the normals are columns the file does not name; where the reader dropped
-        points the format marks as empty, a PCD's points without a return, ``input_rows``,
+        points the format marks as empty (a PCD's points without a return, an E57 file's
+        records flagged invalid), ``input_rows``,
         (N,) int64, the file row of each point, and ``file_rows``, the file's point count);
         for a mesh with manifold edges, ``boundary_loops`` (longest first, following the
         faces) and ``boundary_mask``.

@@ -56,7 +56,8 @@ class RawMesh:
         the reader took them for normals by their values.
     rows : (N,) numpy.ndarray of int64 or None
         Where the reader dropped points the format marks as empty (a PCD point without a
-        return): the file row of each point kept, increasing; None when every row is a point.
+        return, an E57 record flagged invalid): the file row of each point kept, increasing;
+        None when every row is a point.
     n_rows : int or None
         With ``rows``: the number of point rows in the file.
     """

@@ -89,7 +89,7 @@ def local_points(e57, i, header):
         raise ValueError(f"scan {i} holds neither cartesian nor spherical coordinates (its fields: {fields})")
     n = header.point_count
     if n == 0:  # libE57Format refuses a reader on no records, and would fail the whole file
-        return np.empty((0, 3))
+        return np.empty((0, 3)), np.empty(0, dtype=bool)
     data, buffers = e57.make_buffers(names + ([state] if state in fields else []), n)
     reader = header.points.reader(buffers)
     got = reader.read()
@@ -97,9 +97,8 @@ def local_points(e57, i, header):
     if got != n:
         raise ValueError(f"scan {i} holds {got} points where its header counts {n}: it is truncated")
     xyz = np.column_stack([data[name] for name in names]).astype(np.float64)
-    if state in data:
-        xyz = xyz[data[state] == 0]  # 1: a direction only, 2: no return
-    return xyz if names is CARTESIAN else convert_spherical_to_cartesian(xyz)
+    valid = data[state] == 0 if state in data else np.ones(n, dtype=bool)  # 1: a direction only, 2: no return
+    return (xyz if names is CARTESIAN else convert_spherical_to_cartesian(xyz)), valid
 
 
 def decode():
@@ -109,18 +108,21 @@ def decode():
     if any(i >= n_scans for i in wanted):
         np.savez(sys.argv[2], n_scans=n_scans)
         return
-    parts, announced, quaternions, translations = [], [], [], []
+    parts, flags, announced, quaternions, translations = [], [], [], [], []
     for i in wanted:
         header = e57.get_header(i)
         announced.append(header.point_count)
         q, t = pose(header.node)
         quaternions.append(q)
         translations.append(t)
-        parts.append(local_points(e57, i, header))
+        xyz, valid = local_points(e57, i, header)
+        parts.append(xyz)
+        flags.append(valid)
     counts = np.array([len(p) for p in parts], dtype=np.int64)
     xyz = np.concatenate(parts) if parts else np.empty((0, 3))
+    valid = np.concatenate(flags) if flags else np.empty(0, dtype=bool)
     del parts
-    np.savez(sys.argv[2], n_scans=n_scans, read=np.array(wanted, dtype=np.int64),
+    np.savez(sys.argv[2], n_scans=n_scans, read=np.array(wanted, dtype=np.int64), valid=valid,
              announced=np.array(announced, dtype=np.int64), counts=counts,
              scan=np.repeat(np.arange(len(wanted)), counts), xyz=xyz,
              quaternion=np.array(quaternions, dtype=np.float64).reshape(-1, 4),
@@ -148,7 +150,9 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
     -------
     RawMesh
         ``points`` (N, 3) float64: the valid points of the kept scans in the file's frame,
-        scan after scan in file order, each scan's points in its order.
+        scan after scan in file order, each scan's points in its order; where records were
+        left out, ``rows`` (the kept points' positions among the scans' records) and
+        ``n_rows`` (the records of the scans read).
 
     Raises
     ------
@@ -185,7 +189,7 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
         raise file_error(path, None, f"no scan {wanted[-1]}: the file holds {n_scans} scan(s), numbered 0 to "
                          f"{n_scans - 1}", "choose scans the file holds")
     read = arrays["read"]
-    xyz, kept = _valid_points(path, arrays["xyz"], arrays["scan"], read)
+    xyz, kept = _valid_points(path, arrays["xyz"], arrays["valid"], arrays["scan"], read)
     xyz = _placed(path, xyz, arrays["scan"][kept], read, arrays["quaternion"], arrays["translation"])
     dropped = int(arrays["announced"].sum()) - len(xyz)
     if dropped:
@@ -200,7 +204,11 @@ def read_e57(path: Path, data: bytes, scans: Iterable[int] | None = None, *, siz
         warnings.warn(f"{path}: all {len(xyz)} points of {n_scans} scans are read, each placed by its pose (points per "
                       f"scan: {held}); keep some with e57_scans (--e57-scans), e.g. {read[np.argmax(per_scan)]}",
                       stacklevel=4)
-    return RawMesh(points=xyz)
+    if kept.all():
+        return RawMesh(points=xyz)
+    # Where the points left out sit among the scans' records: output per row (a .csv) keeps
+    # a row for each record of the scans read, instead of shifting past each one left out.
+    return RawMesh(points=xyz, rows=np.flatnonzero(kept), n_rows=int(kept.size))
 
 
 def _pye57_installed() -> bool:
@@ -243,15 +251,17 @@ def _wanted_scans(path: Path, scans: Iterable[int] | None) -> list[int] | None:
     return wanted
 
 
-def _valid_points(path: Path, xyz: np.ndarray, scan: np.ndarray, read: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The points with coordinates (N', 3) and the mask of them in ``xyz``; all-NaN rows are no-returns.
+def _valid_points(path: Path, xyz: np.ndarray, valid: np.ndarray, scan: np.ndarray,
+                  read: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points kept (N', 3) and the mask of them among the records ``xyz`` (R, 3).
 
-    Raises InputFileError at the first point with some but not all coordinates NaN, or an
-    infinite one: the scan is damaged there, and dropping the point would hide it.
+    A record is left out where its scan flags it invalid (``valid`` False: its coordinates
+    mean nothing) or its coordinates are all NaN (a no-return, as some scanners write it).
+    Raises InputFileError at the first other record with some but not all coordinates NaN,
+    or an infinite one: the scan is damaged there, and dropping the point would hide it.
     """
-    finite = np.isfinite(xyz)
-    kept = finite.all(axis=1)
-    damaged = np.flatnonzero(~kept & ~np.isnan(xyz).all(axis=1))
+    kept = valid & np.isfinite(xyz).all(axis=1)
+    damaged = np.flatnonzero(valid & ~kept & ~np.isnan(xyz).all(axis=1))
     if damaged.size:
         k = int(damaged[0])
         first_of_scan = int(np.searchsorted(scan, scan[k]))

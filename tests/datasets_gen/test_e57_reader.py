@@ -212,6 +212,29 @@ def test_invalid_points_and_points_without_coordinates_are_left_out_with_a_count
         raw = read_file(path)
     keep = (state == 0) & (np.arange(12) != 4)
     np.testing.assert_array_equal(raw.points, points[keep])
+    np.testing.assert_array_equal(raw.rows, np.flatnonzero(keep))  # so a .csv can keep every record's row
+    assert raw.n_rows == 12
+
+
+def test_records_left_out_keep_their_rows_in_a_csv(tmp_path, capsys):
+    """A scan whose invalid records are left out: flatten's .csv keeps one row per record of
+    the scan, nan,nan at the invalid ones, the others the map of the valid points alone."""
+    ground = np.loadtxt(REAL_DATASETS["real/lidar-ground"].path(), skiprows=1)
+    local = ground - ground.mean(axis=0)
+    n = len(local) + 3
+    invalid = np.array([0, 4000, n - 1])
+    records = np.zeros((n, 3))
+    live = np.setdiff1d(np.arange(n), invalid)
+    records[live] = local
+    state = np.zeros(n, dtype=np.int8)
+    state[invalid] = 2
+    path = tmp_path / "ground.e57"
+    _write(path, [(records, *IDENTITY, state)])
+    out = tmp_path / "uv.csv"
+    assert main(["flatten", str(path), "-o", str(out)]) == 0
+    assert "the .csv has one row per input row, the 3 dropped ones nan,nan" in capsys.readouterr().err
+    uv = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert uv.shape == (n, 2) and np.isnan(uv[invalid]).all() and np.isfinite(uv[live]).all()
 
 
 def test_a_point_with_one_nan_coordinate_is_a_damaged_file(tmp_path):
