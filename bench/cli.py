@@ -527,7 +527,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         points, uv = _in_every_input_row(surface.points, uv, surface.params["input_rows"], n_input_rows)
         if "file_rows" in surface.params and not args.repair:  # --repair's note says so already
             print(f"parambench: note: {_CSV_ROWS_NOTE.format(n_dropped=n_input_rows - surface.n_points)} "
-                  "(points without a return)", file=sys.stderr)
+                  "(points the file marks as empty: no return, or flagged invalid)", file=sys.stderr)
     write_uv(out, points, uv, faces)
     print(f"{summary}{_selfcheck_summary(check)} -> {out}")
     if not failed and check and check.get("stretched") and not check.get("conformal_judged"):
