@@ -191,8 +191,8 @@ def test_a_scan_the_file_does_not_hold_is_refused(two_scans, scans, said):
 
 
 def test_invalid_points_and_points_without_coordinates_are_left_out_with_a_count(tmp_path):
-    """States 1 (direction only) and 2 (no return) are dropped by pye57; a point written
-    valid whose coordinates are NaN (patched into the file) is dropped here."""
+    """States 1 (direction only) and 2 (no return) are left out as flagged invalid; a point
+    written valid whose coordinates are NaN (patched into the file) as a no-return."""
     points = _cloud(12, 3)
     sentinel = 1234.5625  # a float32 value found once per coordinate stream, then made NaN
     points[4] = sentinel
