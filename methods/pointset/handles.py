@@ -43,7 +43,8 @@ HANDLE_K = 16
 #: Share of the points the largest piece of agreed triangles must hold to be judged.
 MIN_SHARE = 0.5
 
-#: Most points the count is made for (about 25 microseconds a point, 2 cores).
+#: Most points the count is made for (it runs only where a map failed, or no loop closed;
+#: random bump points, 2 cores: 1.2 s at 100k, 3.7 s at 300k).
 MAX_POINTS = 300_000
 
 
@@ -69,8 +70,10 @@ def agreed_triangles(points: np.ndarray, normals: np.ndarray, k: int = HANDLE_K)
     pairs = rings.reshape(-1, 2)
     real = pairs[:, 0] >= 0
     proposed = np.sort(np.column_stack([centre[real], pairs[real]]), axis=1)
-    triangles, held_by = np.unique(proposed, axis=0, return_counts=True)
-    return triangles[held_by == 3]
+    n = np.int64(points.shape[0])  # one int64 key per triangle (n**3 fits below 2M points): 1-D unique is fast
+    keys, held_by = np.unique((proposed[:, 0] * n + proposed[:, 1]) * n + proposed[:, 2], return_counts=True)
+    keys = keys[held_by == 3]
+    return np.column_stack([keys // (n * n), (keys // n) % n, keys % n])
 
 
 def handle_count(faces: np.ndarray, n_points: int) -> dict:
@@ -94,7 +97,9 @@ def handle_count(faces: np.ndarray, n_points: int) -> dict:
     if n_faces == 0:
         return {"genus": 0, "boundary_loops": 0, "share": 0.0}
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)  # row 3f + j: edge j of face f
-    unique_edges, edge_of, uses = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    size = np.int64(n_points)
+    keys, edge_of, uses = np.unique(edges[:, 0] * size + edges[:, 1], return_inverse=True, return_counts=True)
+    unique_edges = np.column_stack([keys // size, keys % size])
     edge_of = edge_of.ravel()
     by_edge = np.argsort(edge_of, kind="stable")
     first = np.searchsorted(edge_of[by_edge], np.arange(len(unique_edges)))
