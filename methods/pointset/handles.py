@@ -30,6 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from parambench.datasets_gen.errors import InvalidInputError
+
 from .local_delaunay import local_delaunay_rings
 from .neighbourhoods import knn_graph
 
@@ -64,7 +66,14 @@ def agreed_triangles(points: np.ndarray, normals: np.ndarray, k: int = HANDLE_K)
     -------
     (F, 3) numpy.ndarray of int64
         Point indices, each row sorted ascending.
+
+    Raises
+    ------
+    InvalidInputError
+        More than ``2_000_000`` points (a triangle's int64 key would overflow).
     """
+    if points.shape[0] > 2_000_000:
+        raise InvalidInputError(f"agreed_triangles takes at most 2,000,000 points, got {points.shape[0]}.")
     rings = local_delaunay_rings(points, normals, knn_graph(points, k).indices)
     centre = np.repeat(np.arange(points.shape[0], dtype=np.int64), rings.shape[1])
     pairs = rings.reshape(-1, 2)
