@@ -12,7 +12,10 @@ cut 3,400 bytes short: 965 of 1,065 points): such a file is refused too. Points 
 scaled and offset coordinates, in file order. A LiDAR tile mixes surfaces (ground,
 buildings, vegetation, wires); the ``classes`` filter keeps the points of the given ASPRS
 classification codes (2 is the ground), and without it a file holding several classes
-says so in a warning, with the counts.
+says so in a warning, with the counts. Points flagged withheld are left out, as the ASPRS
+specification asks ("synonymous with deleted"), with a warning that counts them; without
+a class filter the points kept say which file rows they are (a ``.csv`` keeps a nan,nan
+row for each withheld one).
 """
 
 from __future__ import annotations
@@ -56,7 +59,8 @@ import laspy
 def decode():
     las = laspy.read(sys.argv[1])
     np.savez(sys.argv[2], x=np.asarray(las.x, dtype=np.float64), y=np.asarray(las.y, dtype=np.float64),
-             z=np.asarray(las.z, dtype=np.float64), c=np.asarray(las.classification, dtype=np.int64))
+             z=np.asarray(las.z, dtype=np.float64), c=np.asarray(las.classification, dtype=np.int64),
+             w=np.asarray(las.withheld, dtype=bool))
 """ + CHILD_EPILOGUE
 
 
@@ -79,7 +83,9 @@ def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None, *, s
     Returns
     -------
     RawMesh
-        ``points`` (N, 3) float64: the scaled coordinates of the kept points, in file order.
+        ``points`` (N, 3) float64: the scaled coordinates of the kept points, in file order;
+        without ``classes``, where points flagged withheld were left out, ``rows`` (the
+        file rows of the points kept) and ``n_rows``.
 
     Raises
     ------
@@ -92,12 +98,13 @@ def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None, *, s
     Warns
     -----
     UserWarning
-        Without ``classes``, when the points belong to several classes.
+        Without ``classes``, when the points belong to several classes; when points
+        flagged withheld are left out (with their count).
     """
     announced, record_length = _checked_header(path, data, len(data) if size is None else int(size))
     if announced == 0:
         raise file_error(path, None, "the file holds no points", "pass a file with points")
-    xyz, codes = _decoded(path, announced * record_length)
+    xyz, codes, withheld = _decoded(path, announced * record_length)
     n = len(codes)
     if n != announced:
         raise file_error(path, None, f"the header counts {announced} points but the file holds {n}: it is truncated",
@@ -105,15 +112,25 @@ def read_las(path: Path, data: bytes, classes: Iterable[int] | None = None, *, s
     if not np.all(np.isfinite(xyz)):
         raise file_error(path, None, "its header's scale or offset makes coordinates non-finite",
                          "repair the header (scale and offset) with the tool that wrote the file")
-    held = _class_counts(codes)
+    if withheld.any():
+        # ASPRS: a withheld point "should not be included in processing (synonymous with deleted)".
+        warnings.warn(f"{path}: {int(withheld.sum())} of {n} points are flagged withheld (deleted) and are left out",
+                      stacklevel=4)
+        if withheld.all():
+            raise file_error(path, None, f"all {n} points are flagged withheld (deleted)", "pass a file with points")
+    held = _class_counts(codes[~withheld])
     if classes is None:
-        n_classes = np.unique(codes).size
+        n_classes = np.unique(codes[~withheld]).size
         if n_classes > 1:
-            warnings.warn(f"{path}: all {n} points are read, of {n_classes} classification classes ({held}); "
-                          "keep some with las_classes (--las-classes), e.g. 2 for the ground", stacklevel=4)
-        return RawMesh(points=xyz)
+            warnings.warn(f"{path}: all {int((~withheld).sum())} points are read, of {n_classes} classification "
+                          f"classes ({held}); keep some with las_classes (--las-classes), e.g. 2 for the ground",
+                          stacklevel=4)
+        if not withheld.any():
+            return RawMesh(points=xyz)
+        # The file's rows of the points kept, so that a .csv keeps a row per record.
+        return RawMesh(points=xyz[~withheld], rows=np.flatnonzero(~withheld), n_rows=n)
     wanted = sorted({int(c) for c in classes})
-    keep = np.isin(codes, wanted)
+    keep = np.isin(codes, wanted) & ~withheld
     if not keep.any():
         raise file_error(path, None, f"no point of class {', '.join(map(str, wanted))}; the file holds {held}",
                          "choose classes the file holds")
@@ -148,11 +165,11 @@ def _checked_header(path: Path, data: bytes, size: int) -> tuple[int, int]:
     return int(count), int(record_length)
 
 
-def _decoded(path: Path, record_bytes: int) -> tuple[np.ndarray, np.ndarray]:
-    """laspy's coordinates (N, 3) and classification codes (N,) of the file, decoded in a capped child."""
+def _decoded(path: Path, record_bytes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """laspy's coordinates (N, 3), classification codes (N,) and withheld flags (N,) of the file, decoded in a capped child."""
     arrays = decode_in_child(path, _CHILD_CODE, CHILD_MEMORY_BASE + 6 * record_bytes, 120 + record_bytes / 1e6,
                              "LAS/LAZ", _TODO)
-    return np.column_stack([arrays["x"], arrays["y"], arrays["z"]]), arrays["c"]
+    return np.column_stack([arrays["x"], arrays["y"], arrays["z"]]), arrays["c"], arrays["w"]
 
 
 def _class_counts(codes: np.ndarray) -> str:

@@ -25,8 +25,9 @@ SCALE = (0.01, 0.01, 0.001)
 OFFSET = (2_400_000.0, 500_000.0, 1000.0)  # survey coordinates, as LiDAR tiles have
 
 
-def _las_bytes(ints: np.ndarray, classes: np.ndarray, n_header: int | None = None) -> bytes:
-    """A LAS 1.2 file, point format 0, of integer coordinates ``ints`` (N, 3) and ``classes``."""
+def _las_bytes(ints: np.ndarray, classes: np.ndarray, n_header: int | None = None, withheld=None) -> bytes:
+    """A LAS 1.2 file, point format 0, of integer coordinates ``ints`` (N, 3) and ``classes``
+    (``withheld``: (N,) bool, the classification byte's bit 7)."""
     n = len(ints)
     real = ints * np.array(SCALE) + np.array(OFFSET)
     header = struct.pack(
@@ -36,8 +37,9 @@ def _las_bytes(ints: np.ndarray, classes: np.ndarray, n_header: int | None = Non
         n, 0, 0, 0, 0, *SCALE, *OFFSET,
         real[:, 0].max(), real[:, 0].min(), real[:, 1].max(), real[:, 1].min(), real[:, 2].max(), real[:, 2].min())
     assert len(header) == 227
-    records = b"".join(struct.pack("<3iHBBbBH", *map(int, p), 100, 0b00001001, int(c), 0, 0, 1)
-                       for p, c in zip(ints, classes))
+    flags = np.zeros(n, dtype=bool) if withheld is None else np.asarray(withheld, dtype=bool)
+    records = b"".join(struct.pack("<3iHBBbBH", *map(int, p), 100, 0b00001001, int(c) | (0x80 if w else 0), 0, 0, 1)
+                       for p, c, w in zip(ints, classes, flags))
     return header + records
 
 
@@ -197,3 +199,32 @@ def test_inspect_reads_the_chosen_classes(tmp_path, grid):
     out = tmp_path / "diagnostics.json"
     assert main(["inspect", str(src), "--las-classes", "2", "-o", str(out)]) == 0
     assert json.loads(out.read_text())["n_points"] == int((classes == 2).sum())
+
+
+def test_withheld_points_are_left_out_and_keep_their_rows(tmp_path, grid, capsys):
+    """ASPRS: withheld means deleted. They are left out with a count; without a class filter
+    the points kept carry their file rows, so flatten's .csv keeps a nan,nan row for each."""
+    ints, classes = grid
+    ground = classes == 2
+    withheld = np.zeros(len(ints), dtype=bool)
+    withheld[[3, 50, 51]] = True
+    path = tmp_path / "tile.las"
+    path.write_bytes(_las_bytes(ints, classes, withheld=withheld))
+    expected = ints * np.array(SCALE) + np.array(OFFSET)
+    with pytest.warns(UserWarning) as said:
+        raw = read_las(path, path.read_bytes())
+    messages = [str(w.message) for w in said]
+    assert any("3 of 120 points are flagged withheld (deleted) and are left out" in m for m in messages)
+    assert any("all 117 points are read, of 2 classification classes (2 ground: 105, 6 building: 12)" in m
+               for m in messages)
+    np.testing.assert_allclose(raw.points, expected[~withheld], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(raw.rows, np.flatnonzero(~withheld))
+    assert raw.n_rows == 120
+    with pytest.warns(UserWarning, match="withheld"):
+        chosen = read_las(path, path.read_bytes(), [2])
+    np.testing.assert_allclose(chosen.points, expected[ground & ~withheld], rtol=0, atol=1e-9)
+    assert chosen.rows is None  # a class filter: rows are the kept points
+    all_withheld = tmp_path / "deleted.las"
+    all_withheld.write_bytes(_las_bytes(ints, classes, withheld=np.ones(len(ints), dtype=bool)))
+    with pytest.warns(UserWarning), pytest.raises(InputFileError, match="all 120 points are flagged withheld"):
+        read_las(all_withheld, all_withheld.read_bytes())
