@@ -147,3 +147,25 @@ def test_inspect_reports_the_handle_and_exits_3(tmp_path, capsys):
     np.savetxt(flat, make_surface("bump", 2000, sampling="random", seed=0).points)
     assert main(["inspect", str(flat), "-o", str(out)]) == 0
     assert json.loads(out.read_text())["selfcheck"]["handle"] is None
+
+
+def test_the_count_is_made_once_per_checked_run(monkeypatch):
+    """The retries' checks judge the same points: inside one checked run the agreed
+    triangles are built once; outside a run (no memo) every call counts afresh."""
+    import parambench.methods.base as base
+    import parambench.methods.pointset.handles as handles
+
+    points = _torus_points(2000, 0, 1)
+    normals = _normals(points)
+    calls = []
+    real = handles.agreed_triangles
+    monkeypatch.setattr(handles, "agreed_triangles", lambda *a: calls.append(1) or real(*a))
+    token = base._RETRY_MEMO.set({})
+    try:
+        first, second = handle_cause(points, normals), handle_cause(points, normals)
+    finally:
+        base._RETRY_MEMO.reset(token)
+    assert first == second and first["genus"] == 1 and len(calls) == 1
+    handle_cause(points, normals)
+    handle_cause(points, normals)
+    assert len(calls) == 3
