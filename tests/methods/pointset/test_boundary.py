@@ -9,7 +9,8 @@ from scipy.spatial import cKDTree
 from parambench.datasets_gen.errors import InvalidInputError, NoBoundaryError
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.geometry2d import signed_area_2d
-from parambench.methods.pointset.boundary import (angular_gaps, bridge_successors, cycles, empty_radius_inside,
+from parambench.methods.pointset.boundary import (_LOOPS_PER_TREE, angular_gaps, bridge_successors, cycles,
+                                                  empty_radii_inside, empty_radius_inside,
                                                   find_boundary, is_outer_rim, no_boundary_error, successors)
 from parambench.methods.pointset.boundary_putback import loop_zigzag, put_back_passed_over
 from parambench.methods.pointset.frontend import build_frontend
@@ -515,6 +516,29 @@ def test_empty_radius_inside_by_hand():
     far = np.vstack([with_centre, np.random.default_rng(0).uniform(5.0, 9.0, (50, 3))])
     assert empty_radius_inside(far, loop) == r  # its own tree of the points near the loop
     assert empty_radius_inside(ring, loop, cKDTree(ring), grid=1) == 0.0  # one sample, on the box corner
+
+
+def test_empty_radii_of_many_loops_share_one_tree_and_agree_with_each_loops_own():
+    """Rings of 12 points round voids of a jittered grid, more of them than one tree is built
+    for: the shared tree of all points gives each loop's own radius (the nearest point of a
+    sample inside a loop is near the loop), and a ring with a point at its centre its half."""
+    rng = np.random.default_rng(3)
+    g = np.stack(np.meshgrid(np.arange(60.0), np.arange(60.0)), -1).reshape(-1, 2)
+    pts = np.c_[g + rng.uniform(-0.2, 0.2, g.shape), np.zeros(len(g))]
+    t = np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    centres = [(10.0 * i + 5.0, 10.0 * j + 5.0) for i in range(6) for j in range(6)]
+    loops = []
+    for c in centres:
+        pts = pts[np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) > 2.5]  # a void of radius 2.5
+    for m, c in enumerate(centres):
+        start = len(pts)
+        ring = np.c_[c[0] + 2.0 * np.cos(t), c[1] + 2.0 * np.sin(t), np.zeros(12)]
+        pts = np.vstack([pts, ring] + ([[c[0], c[1], 0.0]] if m % 2 else []))
+        loops.append(np.arange(start, start + 12))
+    assert len(loops) > _LOOPS_PER_TREE
+    shared = empty_radii_inside(pts, loops)
+    assert shared == [empty_radius_inside(pts, c) for c in loops]
+    assert all(1.8 <= r <= 2.0 for r in shared[::2]) and all(0.9 <= r <= 1.05 for r in shared[1::2])
 
 
 def test_void_rings_that_the_spacing_rule_kept_are_dropped():
