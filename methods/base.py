@@ -41,6 +41,7 @@ from parambench.datasets_gen.errors import (InvalidInputError, MissingFacesError
 from parambench.datasets_gen.surface import MethodInput, Surface
 
 from .hints import fit_hints, hinted, method_hints
+from .memory_budget import PeakMemory, check_memory
 from .pose import run_in_unit_pose
 
 __all__ = ["Parameterization", "MethodOutput", "Method", "InertParameterWarning", "as_method_input", "StageTimer",
@@ -223,6 +224,12 @@ class Method:
     nullable : frozenset of str
         Parameters with a number as default that also take None (e.g. ``ocp``'s
         ``polish_spread``: null = never); any other number parameter refuses None.
+    peak_memory : PeakMemory or None
+        The method's peak resident memory, measured on its worst sampling, and its
+        growth with size (:class:`~parambench.methods.memory_budget.PeakMemory`);
+        :meth:`__call__` refuses an input whose estimate exceeds the memory available
+        (:func:`~parambench.methods.memory_budget.check_memory`) instead of being killed
+        by the system part way. None: not checked.
     """
 
     name: ClassVar[str] = ""
@@ -233,6 +240,7 @@ class Method:
     choices: ClassVar[dict[str, tuple]] = {}
     nullable: ClassVar[frozenset[str]] = frozenset()
     conformal_map: ClassVar[bool] = False
+    peak_memory: ClassVar[PeakMemory | None] = None
 
     def resolve_params(self, params: dict[str, Any]) -> dict[str, Any]:
         """Fill in defaults and reject unknown parameter names.
@@ -346,6 +354,9 @@ class Method:
             Mesh method given a point set.
         UnknownNameError
             Unknown parameter name, or a value outside ``choices``.
+        ResourceLimitError
+            The input is larger than the memory available holds for this method
+            (``peak_memory``).
         """
         surface = as_method_input(surface)
         resolved = self.resolve_params(params)
@@ -360,6 +371,8 @@ class Method:
         with method_hints(self.defaults, resolved):
             self.check_values(resolved)
             self._warn_inert(params, resolved, surface.n_points)
+            if self.peak_memory is not None:
+                check_memory(self.name, surface.n_points, self.peak_memory)
             result = self._run_point_or_mesh(surface, **resolved)
         # The self-check's time is its own (diagnostics["selfcheck"]["seconds"]), not the method's.
         check_seconds = result.diagnostics.get("selfcheck", {}).get("seconds", 0.0)

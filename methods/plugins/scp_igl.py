@@ -9,6 +9,7 @@ from parambench.datasets_gen.errors import SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
+from ..memory_budget import PeakMemory
 from ..mesh.topology import require_connected_disk_like
 from ..registry import register
 
@@ -20,6 +21,8 @@ class ScpIgl(Method):
     name = "scp-igl"
     description = "libigl spectral conformal parameterization, igl.spectra.lscm (baseline)"
     needs_faces = True
+    # bump: 300k vertices 1.87 GiB at the peak (random), 1M 10.4 GB (jittered, issue #14's figure).
+    peak_memory = PeakMemory(1_000_000, 10.4e9, 1.37)
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:
         with timer("topology"):
