@@ -920,6 +920,10 @@ def build_frontend(points: Any, normals: Any = None, params: FrontEndParams | No
     if not confirmed:
         # The cut lips are on no loop: the walk did not close around the slot, and a
         # graph cut open without a boundary there gives a worse map than the uncut one.
+        # The cut graph's balls and weights go first: held through the second pass they
+        # doubled the front end's peak (uniform random points at 1M, whose chance strips
+        # are cut and then reverted).
+        balls = w = r_x = bnd = normals = cut_nb = None
         slots = dict(nb.neighbour_diagnostics["slots"], reverted=True)
         nb, oriented, frame_normals, normal_fit = uncut
         nb = nb._replace(neighbour_diagnostics=dict(nb.neighbour_diagnostics, slots=slots))

