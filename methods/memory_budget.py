@@ -84,11 +84,15 @@ class PeakMemory(NamedTuple):
         The peak resident memory of the process there, in bytes.
     exponent : float
         Growth with the number of points (measured between two sizes; 1 is linear).
+    part : str
+        What was measured when it is only part of the method's work (e.g. "the point-set
+        front end"): the estimate is then a lower bound. Empty: the whole method.
     """
 
     points: int
     bytes: float
     exponent: float
+    part: str = ""
 
     def at(self, n_points: int) -> float:
         """Estimated peak in bytes for ``n_points`` points."""
@@ -125,8 +129,10 @@ def check_memory(method: str, n_points: int, peak: PeakMemory, *, available: int
     need = peak.at(n_points)
     if room is None or need <= room:
         return
+    what = (f"at least {need / _GIB:.1f} GiB of memory ({peak.part} alone, measured: " if peak.part
+            else f"about {need / _GIB:.1f} GiB of memory at its peak (measured: ")
     raise ResourceLimitError(
-        f"{method} on {n_points:,} points needs about {need / _GIB:.1f} GiB of memory at its peak (measured: "
+        f"{method} on {n_points:,} points needs {what}"
         f"{peak.bytes / _GIB:.1f} GiB at {peak.points:,} points), and {room / _GIB:.1f} GiB is available: thin the "
         f"points to at most about {peak.points_within(room):,} (e.g. a Poisson-disk or voxel subsample), or run it "
         f"on a machine with more memory ({MEMORY_CHECK_ENV}=0 skips this check).")

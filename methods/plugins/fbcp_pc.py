@@ -105,7 +105,7 @@ from ..mesh.pins import farthest_pair
 from ..mesh.weights import laplacian
 from ..pointset.local_delaunay import drop_outside_boundary, local_delaunay_rings, one_ring_cotangent_weights
 from ..pointset.neighbourhoods import knn_graph
-from ..pointset.plugin_support import (FRONTEND_DEFAULTS, coverage_retries, frontend_diagnostics, require_neighbours,
+from ..pointset.plugin_support import (FRONTEND_PEAK, FRONTEND_DEFAULTS, coverage_retries, frontend_diagnostics, require_neighbours,
                                       run_frontend, scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
@@ -209,6 +209,7 @@ class FbcpPc(Method):
     name = "fbcp-pc"
     description = ("free-boundary conformal parameterization of point clouds, local Delaunay cotangent "
                    "weights + LSCM (Choi, Liu & Lui 2022; points only)")
+    peak_memory = FRONTEND_PEAK  # at least the front end's; the solve's own not measured
     defaults = {**FRONTEND_DEFAULTS, "k_local": 16, "boundary": "detected", "free_boundary": "spectral",
                 "retry_k_local": RETRY_K_LOCAL}
     param_grid = {"boundary": list(BOUNDARY_SOURCES)}

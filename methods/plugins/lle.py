@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import smallest_nontrivial_pair
 
@@ -22,6 +22,7 @@ class Lle(Method):
 
     name = "lle"
     description = "locally linear embedding on W^tan or 3D LLE weights (points only; Sec. 2, Fig. 4)"
+    peak_memory = FRONTEND_PEAK  # at least the front end's; the solve's own not measured
     defaults = {**FRONTEND_DEFAULTS, "weights": "tangent"}
     param_grid = {"weights": ["tangent", "lle3d"]}
 

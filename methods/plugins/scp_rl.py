@@ -12,7 +12,7 @@ from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint
-from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
+from ..pointset.plugin_support import (FRONTEND_PEAK, BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
                                       scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
@@ -30,6 +30,7 @@ class ScpRobustLaplacian(Method):
 
     name = "scp-rl"
     description = "SCP on robust-laplacian's point-cloud Laplacian, boundary by angle criterion (peer; points only)"
+    peak_memory = FRONTEND_PEAK  # at least the front end's; the solve's own not measured
     defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30, "k_search": "line"}
     param_grid = {"k_search": ["none", "line"]}
 

@@ -7,7 +7,7 @@ import numpy as np
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from .ocp import conformal_problem
 
@@ -23,6 +23,7 @@ class ScpTan(Method):
 
     name = "scp-tan"
     description = "raw SCP on W^tan at fixed k (shows the spinning failure of Sec. 4.2; points only)"
+    peak_memory = FRONTEND_PEAK  # at least the front end's; the solve's own not measured
     defaults = {**FRONTEND_DEFAULTS, "k": 1.0}
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:

@@ -9,7 +9,7 @@ from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, error_note, hinted
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..pointset.two_level import two_level_sdp_pair
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair
@@ -39,6 +39,7 @@ class Sdp(Method):
 
     name = "sdp"
     description = "spectral Dirichlet parameterization, L f = lambda B f on W^tan (points only; Sec. 4.1)"
+    peak_memory = FRONTEND_PEAK  # at least the front end's; the solve's own not measured
     defaults = {**FRONTEND_DEFAULTS, "b_orthonormal": True, "solver": "auto", "fine_solver": "twogrid"}
     param_grid = {"b_orthonormal": [False, True]}
     choices = {"solver": OCP_SOLVERS, "fine_solver": FINE_SOLVERS}

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
 from ..registry import register
 from ..spectral.dirichlet import smallest_nontrivial_pair
 from ._robust_laplacian import robust_point_cloud_laplacian
@@ -24,6 +24,7 @@ class SdpRobustLaplacian(Method):
 
     name = "sdp-rl"
     description = "SDP on robust-laplacian's point-cloud Laplacian (peer; points only)"
+    peak_memory = FRONTEND_PEAK  # at least the front end's; the solve's own not measured
     defaults = {**FRONTEND_DEFAULTS, "rl_neighbors": 30}
 
     def solve(self, surface: MethodInput, params: dict, timer: StageTimer) -> MethodOutput:

@@ -6,8 +6,10 @@ from typing import Any
 
 from parambench.datasets_gen.surface import Surface
 
+from ..memory_budget import check_memory
 from .coincident import coincident_groups, warn_merged
 from .frontend import build_frontend
+from .params import FRONTEND_PEAK
 from .handles import handle_cause
 from .plugin_support import frontend_candidates
 from .ring_orientation import unresolved_points
@@ -51,12 +53,14 @@ def inspect_surface(surface: Surface, **frontend_params: Any) -> dict:
     Raises
     ------
     ParambenchError
-        Whatever ``build_frontend`` raises (e.g. NoBoundaryError on a closed surface).
+        Whatever ``build_frontend`` raises (e.g. NoBoundaryError on a closed surface);
+        ResourceLimitError where the front end would need more memory than is available.
     """
     # As flatten does: coincident copies are one sample, the front end runs on one
     # representative per group and indices are reported in the input's numbering.
     groups = coincident_groups(surface.points)
     reps = groups.representatives
+    check_memory("inspect", reps.size, FRONTEND_PEAK)
     warn_merged(surface.name, groups, "the front end ran on the {} distinct points")
     normals = None if surface.normals is None else surface.normals[reps]
     fe = build_frontend(surface.points[reps], normals, **frontend_params)

@@ -11,11 +11,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
+from ..memory_budget import PeakMemory
 from .boundary import DEFAULT_MIN_LOOP_SIZE
 from .dem import DEFAULT_MAX_BALL
 from .tangent_weights import DEFAULT_REG_EPS
 
-__all__ = ["FrontEndParams", "METHOD_FIELDS", "method_defaults", "frontend_params"]
+__all__ = ["FrontEndParams", "METHOD_FIELDS", "method_defaults", "frontend_params", "FRONTEND_PEAK"]
+
+#: The front end's peak resident memory (``build_frontend`` alone, uniform random points on
+#: ``bump``: 3.30 GiB at 1M points, 9.52 GiB at 3M, so taken as linear): every point-set
+#: method with a front end needs at least this (:func:`parambench.methods.memory_budget.check_memory`).
+FRONTEND_PEAK = PeakMemory(3_000_000, 9.52 * 2**30, 1.0, "the point-set front end")
 
 #: ``metadata`` of a field that every point-set method accepts as its own parameter.
 _METHOD = {"method_param": True}

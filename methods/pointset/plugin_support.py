@@ -19,10 +19,10 @@ from .boundary import LOWER_ANGLES_DEG
 from .frontend import STAGES, FrontEnd, build_frontend
 from .loop_side import surface_on_the_left
 from .normals import fit_error_median
-from .params import frontend_params, method_defaults
+from .params import FRONTEND_PEAK, frontend_params, method_defaults
 from .row_chunks import for_each_chunk
 
-__all__ = ["FRONTEND_DEFAULTS", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
+__all__ = ["FRONTEND_DEFAULTS", "FRONTEND_PEAK", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
            "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause",
            "check_inputs_of", "restore_check_inputs", "coverage_retries"]
 

@@ -10,6 +10,8 @@ from parambench.bench.cli import main
 from parambench.datasets_gen.errors import ResourceLimitError
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.memory_budget import MEMORY_CHECK_ENV, PeakMemory, available_bytes, check_memory
+from parambench.methods.pointset.params import FRONTEND_PEAK
+from parambench.methods.pointset.plugin_support import FRONTEND_DEFAULTS
 from parambench.methods.registry import get_method, method_names
 
 
@@ -70,21 +72,45 @@ def test_the_methods_that_state_their_memory_state_a_measurement():
     assert stated["ocp"] is not None and stated["scp-igl"] is not None
     for peak in filter(None, stated.values()):
         assert 1e3 < peak.at(1_000_000) / 1e6 < 1e5 and 1.0 <= peak.exponent <= 1.5
+    # Every method with the point-set front end needs at least the front end's memory.
+    for name in method_names():
+        method = get_method(name)
+        if set(FRONTEND_DEFAULTS) <= set(method.defaults):
+            assert method.peak_memory is not None and method.peak_memory.at(10**6) >= FRONTEND_PEAK.at(10**6), name
 
 
-def test_ocp_is_refused_before_it_starts_and_flatten_says_so_in_one_line(monkeypatch, tmp_path, capsys):
-    """With 1 MiB 'available', 2,000 points are too many for ocp: refused at once (no front end
-    ran: no stage timings were started), and `flatten` exits 2 with the message on one line."""
+@pytest.fixture
+def one_mib_left(monkeypatch, tmp_path):
+    """2,000 random points on bump (and the same as an .xyz file), with 1 MiB 'available'."""
     monkeypatch.delenv(MEMORY_CHECK_ENV, raising=False)
     monkeypatch.setattr(memory_budget, "available_bytes", lambda: 2**20)
     surface = make_surface("bump", 2000, sampling="random", seed=0).points_only()
-    with pytest.raises(ResourceLimitError, match="thin the points to at most about"):
-        get_method("ocp")(surface)
     src = tmp_path / "cloud.xyz"
     np.savetxt(src, surface.points)
+    return surface, src
+
+
+def test_ocp_is_refused_before_it_starts_and_flatten_says_so_in_one_line(one_mib_left, monkeypatch, tmp_path, capsys):
+    """With 1 MiB 'available', 2,000 points are too many for ocp: refused at once (no front end
+    ran: no stage timings were started), and `flatten` exits 2 with the message on one line."""
+    surface, src = one_mib_left
+    with pytest.raises(ResourceLimitError, match="thin the points to at most about"):
+        get_method("ocp")(surface)
     assert main(["flatten", str(src), "-o", str(tmp_path / "uv.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "needs about" in err[0] and "GiB is available" in err[0]
     assert not (tmp_path / "uv.csv").exists()
     monkeypatch.setenv(MEMORY_CHECK_ENV, "0")
     assert get_method("ocp")(surface).uv.shape == (surface.n_points, 2)
+
+
+def test_inspect_and_the_other_point_set_methods_are_refused_on_the_front_end_s_share(one_mib_left, tmp_path, capsys):
+    """The front end alone needs more than 1 MiB for 2,000 points: `inspect` exits 2 (no JSON
+    written), and sdp says it needs at least the front end's share."""
+    surface, src = one_mib_left
+    assert main(["inspect", str(src), "-o", str(tmp_path / "fe.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs at least" in err[0] and "front end alone" in err[0]
+    assert not (tmp_path / "fe.json").exists()
+    with pytest.raises(ResourceLimitError, match="sdp on 2,000 points needs at least"):
+        get_method("sdp")(surface)
