@@ -105,8 +105,8 @@ from ..mesh.pins import farthest_pair
 from ..mesh.weights import laplacian
 from ..pointset.local_delaunay import drop_outside_boundary, local_delaunay_rings, one_ring_cotangent_weights
 from ..pointset.neighbourhoods import knn_graph
-from ..pointset.plugin_support import (FRONTEND_PEAK, FRONTEND_DEFAULTS, coverage_retries, frontend_diagnostics, require_neighbours,
-                                      run_frontend, scale_to_spacing)
+from ..pointset.plugin_support import (FRONTEND_DEFAULTS, FRONTEND_PEAK, coverage_retries, frontend_diagnostics,
+                                       require_neighbours, run_frontend, scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
 

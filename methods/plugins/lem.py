@@ -9,7 +9,8 @@ from parambench.datasets_gen.errors import SolverError
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import (FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend,
+                                       scale_to_spacing)
 from ..registry import register
 from ..spectral.dirichlet import smallest_nontrivial_pair
 

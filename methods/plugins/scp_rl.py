@@ -12,8 +12,8 @@ from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint
-from ..pointset.plugin_support import (FRONTEND_PEAK, BOUNDARY_HINTS, FRONTEND_DEFAULTS, frontend_diagnostics, run_frontend,
-                                      scale_to_spacing)
+from ..pointset.plugin_support import (BOUNDARY_HINTS, FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics,
+                                       run_frontend, scale_to_spacing)
 from ..registry import register
 from ..spectral import ConformalProblem
 from ..spectral.problem import solve_line_then_direct

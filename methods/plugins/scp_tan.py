@@ -7,7 +7,8 @@ import numpy as np
 from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import (FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend,
+                                       scale_to_spacing)
 from ..registry import register
 from .ocp import conformal_problem
 

@@ -9,7 +9,8 @@ from parambench.datasets_gen.surface import MethodInput
 
 from ..base import Method, MethodOutput, StageTimer
 from ..hints import Hint, error_note, hinted
-from ..pointset.plugin_support import FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend, scale_to_spacing
+from ..pointset.plugin_support import (FRONTEND_DEFAULTS, FRONTEND_PEAK, frontend_diagnostics, run_frontend,
+                                       scale_to_spacing)
 from ..pointset.two_level import two_level_sdp_pair
 from ..registry import register
 from ..spectral.dirichlet import b_orthonormalize, direct_sdp_pair

@@ -22,9 +22,9 @@ from .normals import fit_error_median
 from .params import FRONTEND_PEAK, frontend_params, method_defaults
 from .row_chunks import for_each_chunk
 
-__all__ = ["FRONTEND_DEFAULTS", "FRONTEND_PEAK", "run_frontend", "require_neighbours", "scale_to_spacing", "frontend_diagnostics",
-           "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS", "with_shape_cause",
-           "check_inputs_of", "restore_check_inputs", "coverage_retries"]
+__all__ = ["FRONTEND_DEFAULTS", "FRONTEND_PEAK", "run_frontend", "require_neighbours", "scale_to_spacing",
+           "frontend_diagnostics", "frontend_candidates", "selfcheck_result", "boundary_doubt", "BOUNDARY_HINTS",
+           "with_shape_cause", "check_inputs_of", "restore_check_inputs", "coverage_retries"]
 
 #: Front-end parameters every point-set method accepts, with the front end's defaults
 #: (the method-parameter fields of :class:`~parambench.methods.pointset.params.FrontEndParams`).
