@@ -149,6 +149,13 @@ def _whole_number(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
 
 
+def _at_least_three(text: str) -> int:
+    value = _whole_number(text)
+    if value < 3:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 3, got {text!r}")
+    return value
+
+
 def _number(text: str) -> float:
     try:
         return float(text)
@@ -505,11 +512,15 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     csv = out.suffix.lower() == ".csv"
     surface = _repaired(_screened(surface, params.get("k_nn", method.defaults.get("k_nn"))), args.repair,
                         params.get("k_nn", method.defaults.get("k_nn")), _CSV_ROWS_NOTE if csv else _VERTICES_NOTE)
+    full, keep = surface, None
+    if args.max_points is not None:
+        surface, keep = _thinned(surface, args.max_points, method)
     with _offer_repair(args.repair), _offer_mesh(surface):
         result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
-    summary = (f"{method.name}: {surface.n_points} points flattened in {result.timings['total']:.2f} s"
+    thinned = "" if keep is None else f" (a subsample of {keep.size} mapped: --max-points)"
+    summary = (f"{method.name}: {full.n_points} points flattened{thinned} in {result.timings['total']:.2f} s"
                + _holes_summary(result.diagnostics, result.params) + _angle_summary(result.diagnostics)
                + _energy_summary(result.diagnostics))
     if failed and not args.force:
@@ -521,7 +532,10 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
               f"{'; ' + mesh if mesh else ''} ({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
     faces, points, uv = surface.faces, surface.points, result.uv
-    if faces is None and not csv:
+    if keep is not None:
+        surface, points, uv, faces = full, full.points, *_extended(full.points, keep, surface.points, result)
+        faces = None if csv else faces
+    elif faces is None and not csv:
         faces = pointset_faces(surface.points, result.uv, result.diagnostics.get("boundary_loops"))
     if csv and faces is None and "input_rows" in surface.params:
         points, uv = _in_every_input_row(surface.points, uv, surface.params["input_rows"], n_input_rows)
@@ -539,6 +553,36 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         print(f"parambench: warning: {failure_line(check, result.params, method.name)} (written anyway: --force)",
               file=sys.stderr)
     return 0
+
+
+def _thinned(surface, max_points: int, method):
+    """``surface`` thinned to at most ``max_points`` well-spread points, and their indices (None: not thinned)."""
+    if surface.faces is not None or method.needs_faces:
+        raise InvalidInputError("--max-points thins a point set; for a mesh file add --points-only and a point-set "
+                                "method (e.g. ocp), or leave --max-points out.")
+    if surface.n_points <= max_points:
+        return surface, None
+    from parambench.datasets_gen.surface import Surface
+    from parambench.methods.pointset.extension import thin_indices
+
+    keep = thin_indices(surface.points, max_points)
+    normals = None if surface.normals is None else surface.normals[keep]
+    return Surface(points=surface.points[keep], normals=normals, name=surface.name), keep
+
+
+def _extended(points, keep, sub_points, result):
+    """Every point's uv from the subsample's map, and the subsample's triangles in ``points``' rows."""
+    from parambench.methods.pointset.extension import extend_uv
+    from parambench.methods.pointset.selfcheck import pointset_faces
+
+    sub_faces = pointset_faces(sub_points, result.uv, result.diagnostics.get("boundary_loops"))
+    uv, facts = extend_uv(points, keep, result.uv, sub_faces)
+    off = facts["offset_spacings"]
+    print(f"parambench: note: the other {points.shape[0] - keep.size:,} points take the uv of their place on the "
+          f"subsample's mapped triangles ({off['median']:.2g} of its edge lengths off them at the median, "
+          f"{off['max']:.2g} at most; {facts['n_outside']:,} beyond its rim, carried on linearly); the output's faces "
+          "are the subsample's", file=sys.stderr)
+    return uv, keep[sub_faces]
 
 
 def _in_every_input_row(points, uv, input_rows, n_rows: int):
@@ -747,6 +791,10 @@ def build_parser() -> argparse.ArgumentParser:
                            "purpose); says on stderr how many; the output then holds the welded vertices")
     flat.add_argument("--las-classes", type=_las_classes, metavar="CODES", help=LAS_CLASSES_HELP)
     flat.add_argument("--e57-scans", type=_e57_scans, metavar="INDICES", help=E57_SCANS_HELP)
+    flat.add_argument("--max-points", type=_at_least_three, metavar="N",
+                      help="map a well-spread subsample of at most N points (one per cell of a voxel grid), then give "
+                           "every other point the uv of its place on the subsample's mapped triangles: for point sets "
+                           "larger than the memory holds (the output keeps every point; its faces are the subsample's)")
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")

@@ -129,10 +129,12 @@ def check_memory(method: str, n_points: int, peak: PeakMemory, *, available: int
     need = peak.at(n_points)
     if room is None or need <= room:
         return
+    fits = peak.points_within(room)
     what = (f"at least {need / _GIB:.1f} GiB of memory ({peak.part} alone, measured: " if peak.part
             else f"about {need / _GIB:.1f} GiB of memory at its peak (measured: ")
     raise ResourceLimitError(
         f"{method} on {n_points:,} points needs {what}"
         f"{peak.bytes / _GIB:.1f} GiB at {peak.points:,} points), and {room / _GIB:.1f} GiB is available: thin the "
-        f"points to at most about {peak.points_within(room):,} (e.g. a Poisson-disk or voxel subsample), or run it "
-        f"on a machine with more memory ({MEMORY_CHECK_ENV}=0 skips this check).")
+        f"points to at most about {fits:,} (`parambench flatten --max-points {fits}` maps such a subsample and "
+        f"extends its map to every point), or run it on a machine with more memory ({MEMORY_CHECK_ENV}=0 skips "
+        "this check).")
