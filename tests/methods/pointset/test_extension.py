@@ -67,6 +67,17 @@ def test_a_map_linear_on_the_subsample_is_carried_exactly():
     assert 0 < facts["n_outside"] < 0.1 * len(pts)  # the strip between the subsample's hull and the square's edge
 
 
+def test_points_nearest_a_subsample_point_in_no_triangle_take_its_uv():
+    """A unit square as two triangles, and a fifth subsample point far off in no triangle: the
+    points near it take its uv and are counted (with it); the others are carried linearly."""
+    sub_pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [5, 5, 0]], dtype=float)
+    sub_uv = np.array([[0, 0], [2, 0], [2, 2], [0, 2], [9, -9]], dtype=float)
+    pts = np.vstack([sub_pts, [[0.25, 0.5, 0.0], [5.1, 5.0, 0.0], [4.9, 5.1, 0.0]]])
+    uv, facts = extend_uv(pts, np.arange(5), sub_uv, np.array([[0, 1, 2], [0, 2, 3]]))
+    assert np.allclose(uv[5], [0.5, 1.0]) and np.allclose(uv[6:], [[9, -9], [9, -9]])
+    assert facts["n_untriangulated"] == 3 and facts["n_outside"] == 0  # the lone point itself, and the two near it
+
+
 def test_extend_uv_checks_its_inputs():
     with pytest.raises(InvalidInputError):
         extend_uv(np.zeros((5, 3)), np.arange(3), np.zeros((2, 2)), np.array([[0, 1, 2]]))
