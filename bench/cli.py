@@ -533,8 +533,15 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         return EXIT_SELFCHECK
     faces, points, uv = surface.faces, surface.points, result.uv
     if keep is not None:
-        surface, points, uv, faces = full, full.points, *_extended(full.points, keep, surface.points, result)
+        surface, points, uv, faces, spans = full, full.points, *_extended(full.points, keep, surface.points, result)
         faces = None if csv else faces
+        if spans["lost_hole"]:
+            line = _lost_hole_line(spans, keep.size)
+            if not args.force:
+                print(f"{summary}{_selfcheck_summary(check)}; the full points' check FAILED: a hole lost; nothing written")
+                print(f"parambench: error: {line} (--force writes the map anyway)", file=sys.stderr)
+                return EXIT_SELFCHECK
+            print(f"parambench: warning: {line} (written anyway: --force)", file=sys.stderr)
     elif faces is None and not csv:
         faces = pointset_faces(surface.points, result.uv, result.diagnostics.get("boundary_loops"))
     if csv and faces is None and "input_rows" in surface.params:
@@ -571,8 +578,9 @@ def _thinned(surface, max_points: int, method):
 
 
 def _extended(points, keep, sub_points, result):
-    """Every point's uv from the subsample's map, and the subsample's triangles in ``points``' rows."""
-    from parambench.methods.pointset.extension import extend_uv
+    """Every point's uv from the subsample's map, the subsample's triangles in ``points``' rows, and
+    where they span a place the points leave empty (:func:`~parambench.methods.pointset.extension.uncovered_spans`)."""
+    from parambench.methods.pointset.extension import extend_uv, uncovered_spans
     from parambench.methods.pointset.selfcheck import pointset_faces
 
     sub_faces = pointset_faces(sub_points, result.uv, result.diagnostics.get("boundary_loops"))
@@ -582,7 +590,16 @@ def _extended(points, keep, sub_points, result):
           f"subsample's mapped triangles ({off['median']:.2g} of its edge lengths off them at the median, "
           f"{off['max']:.2g} at most; {facts['n_outside']:,} beyond its rim, carried on linearly); the output's faces "
           "are the subsample's", file=sys.stderr)
-    return uv, keep[sub_faces]
+    return uv, keep[sub_faces], uncovered_spans(points, keep, sub_faces)
+
+
+def _lost_hole_line(spans: dict, n_sub: int) -> str:
+    """One line for a subsample whose triangles span a hole of the input (``uncovered_spans``)."""
+    gap, where = spans["gap_spacings"], ", ".join(f"{x:.6g}" for x in spans["where"])
+    return (f"the subsample's map covers a place the input points leave empty ({spans['n_spanning_faces']} of its "
+            f"triangles; {gap['max']:.2g} local spacings from every input point at ({where}), where this map's "
+            f"triangles are typically within {gap['typical']:.2g}): a hole that thinning to {n_sub:,} points closed, "
+            "mapped as surface; raise --max-points, or leave it out where the memory allows")
 
 
 def _in_every_input_row(points, uv, input_rows, n_rows: int):
@@ -794,7 +811,9 @@ def build_parser() -> argparse.ArgumentParser:
     flat.add_argument("--max-points", type=_at_least_three, metavar="N",
                       help="map a well-spread subsample of at most N points (one per cell of a voxel grid), then give "
                            "every other point the uv of its place on the subsample's mapped triangles: for point sets "
-                           "larger than the memory holds (the output keeps every point; its faces are the subsample's)")
+                           "larger than the memory holds (the output keeps every point; its faces are the subsample's); a hole "
+                           "the thinning closed, where the subsample's triangles span a place with no input points, "
+                           "fails the check (exit 3)")
     flat.set_defaults(func=_cmd_flatten)
 
     insp = sub.add_parser("inspect", help="run the point-set front end and write JSON diagnostics")

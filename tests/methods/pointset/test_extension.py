@@ -10,7 +10,7 @@ from parambench.bench.cli import main
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.datasets_gen.registry import make_surface
-from parambench.methods.pointset.extension import extend_uv, thin_indices
+from parambench.methods.pointset.extension import LOST_HOLE_OUTLIER, extend_uv, thin_indices, uncovered_spans
 from parambench.methods.registry import get_method
 
 
@@ -118,3 +118,74 @@ def test_max_points_is_for_point_sets_and_at_least_three(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["flatten", str(src), "--points-only", "--max-points", "2", "-o", str(tmp_path / "uv.obj")])
     assert exc.value.code == 2 and "at least 3" in capsys.readouterr().err
+
+
+def _plane_with_hole(radius_steps: float, n: int = 20000, seed: int = 0):
+    """A jittered grid of about ``n`` points on a gently curved sheet, less a disk of ``radius_steps`` grid steps."""
+    rng = np.random.default_rng(seed)
+    h = 1.0 / np.sqrt(n)
+    xy = np.stack(np.meshgrid(np.arange(0.0, 1.0, h), np.arange(0.0, 1.0, h)), -1).reshape(-1, 2)
+    xy = xy + rng.uniform(-0.3, 0.3, xy.shape) * h
+    xy = xy[np.linalg.norm(xy - 0.5, axis=1) > radius_steps * h]
+    return np.c_[xy, 0.1 * np.sin(3.0 * xy[:, 0]) * np.cos(2.0 * xy[:, 1])], radius_steps * h
+
+
+def _delaunay_inside(xy: np.ndarray) -> np.ndarray:
+    """Delaunay triangles of ``xy`` in the unit square less the convex hull's slivers along its
+    rim (an edge over 2.5 times the median, near the square's sides): the triangles a map's
+    self-check keeps inside the outer loop."""
+    faces = Delaunay(xy).simplices
+    longest = np.linalg.norm(xy[faces] - xy[np.roll(faces, 1, axis=1)], axis=2).max(axis=1)
+    centre = xy[faces].mean(axis=1)
+    near_rim = np.minimum(centre, 1.0 - centre).min(axis=1) < 0.05
+    return faces[~(near_rim & (longest > 2.5 * np.median(longest)))]
+
+
+def test_triangles_across_a_hole_the_thinning_closed_are_found():
+    """A hole 4 grid steps in radius, thinned to a quarter: triangles of the subsample spanning it
+    are found, at the hole; triangles that leave the hole open, and a sheet with no hole, are not."""
+    pts, radius = _plane_with_hole(4.0)
+    keep = thin_indices(pts, pts.shape[0] // 4)
+    faces = _delaunay_inside(pts[keep, :2])
+    spans = uncovered_spans(pts, keep, faces)
+    assert spans["lost_hole"] and spans["n_spanning_faces"] >= 1
+    assert spans["gap_spacings"]["max"] >= LOST_HOLE_OUTLIER * spans["gap_spacings"]["typical"]
+    assert np.linalg.norm(np.array(spans["where"][:2]) - 0.5) < radius
+    # the same subsample triangulated with the hole kept open
+    centroids = pts[keep][faces].mean(axis=1)[:, :2]
+    open_faces = faces[np.linalg.norm(centroids - 0.5, axis=1) > radius]
+    assert not uncovered_spans(pts, keep, open_faces)["lost_hole"]
+    # no hole at all
+    sheet, _ = _plane_with_hole(0.0)
+    keep = thin_indices(sheet, sheet.shape[0] // 4)
+    intact = uncovered_spans(sheet, keep, _delaunay_inside(sheet[keep, :2]))
+    assert not intact["lost_hole"] and intact["n_spanning_faces"] == 0 and intact["gap_spacings"]["max"] < 1.0
+
+
+def test_a_random_samplings_own_voids_are_no_lost_hole():
+    """Uniform random points have voids up to about two local spacings wide; a subsample's
+    triangles over them are not a lost hole."""
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 1.0, (40000, 2))
+    pts = np.c_[xy, 0.05 * np.sin(4.0 * xy[:, 0])]
+    keep = thin_indices(pts, 10000)
+    spans = uncovered_spans(pts, keep, _delaunay_inside(pts[keep, :2]))
+    assert not spans["lost_hole"] and spans["gap_spacings"]["typical"] > 1.0
+
+
+def test_flatten_max_points_refuses_a_map_that_lost_a_hole(tmp_path, capsys):
+    """The LiDAR ground returns (rim and one small hole) thinned to about a third: the subsample's
+    map closes the hole and passes its own check; the full points show it (exit 3, nothing
+    written, the place named); --force writes it with a warning; at half the hole is kept."""
+    s = make_surface("real/lidar-ground")
+    src = tmp_path / "ground.xyz"
+    np.savetxt(src, s.points)
+    out = tmp_path / "uv.obj"
+    assert main(["flatten", str(src), "--max-points", "3400", "-o", str(out)]) == 3
+    captured = capsys.readouterr()
+    assert "leave empty" in captured.err and "raise --max-points" in captured.err and "nothing written" in captured.out
+    assert not out.exists()
+    assert main(["flatten", str(src), "--max-points", "3400", "--force", "-o", str(out)]) == 0
+    assert "written anyway: --force" in capsys.readouterr().err and out.exists()
+    assert main(["flatten", str(src), "--max-points", "4800", "-o", str(tmp_path / "half.obj")]) == 0
+    assert "leave empty" not in capsys.readouterr().err
