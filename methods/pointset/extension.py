@@ -47,7 +47,7 @@ _MAX_FAN = 16
 #: steps in radius at 25-50 %, jittered or random) 1.64-3.54.
 LOST_HOLE_OUTLIER = 1.6
 #: ... and at least this many local spacings from every input point (an absolute floor: a
-#: very regular sampling's typical probe is a third of a spacing).
+#: regular sampling's typical probe is 0.6-0.9 of a spacing, a jittered grid's 0.7).
 _LOST_HOLE_FLOOR = 1.0
 #: The typical probe is the quantile that leaves out this many probes (at most 1 in 1,000),
 #: so a lost hole's own few probes do not raise it.
