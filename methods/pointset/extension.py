@@ -18,7 +18,7 @@ whose map then treats it as surface and passes its own check. :func:`uncovered_s
 looks for that after the fact, in the full points: probes on the subsample's triangles
 (each centroid and edge midpoint) far from every input point, in units of the input's
 local spacing, set against the typical probe of the same map (a random sampling's own
-voids reach 2 spacings, a regular one's stay under 1).
+voids reach 2 spacings, a regular one's about 1).
 """
 
 from __future__ import annotations
