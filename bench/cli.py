@@ -453,6 +453,24 @@ def _offer_mesh(surface):
         raise
 
 
+@contextmanager
+def _offer_more_points(keep, n_points: int):
+    """Say, in a method's error on a ``--max-points`` subsample, that the subsample is what failed."""
+    try:
+        yield
+    except ParambenchError as exc:
+        from parambench.datasets_gen.errors import ResourceLimitError
+
+        if keep is not None and not isinstance(exc, ResourceLimitError):  # that one names --max-points already
+            exc.args = (f"{str(exc).rstrip('.')}; {_subsample_hint(keep.size, n_points)}.",)
+        raise
+
+
+def _subsample_hint(n_sub: int, n_points: int) -> str:
+    return (f"this is the map of the --max-points subsample ({n_sub:,} of the {n_points:,} points), sampled more "
+            "coarsely than the input: raise --max-points")
+
+
 def _check_output_path(out: Path, source: Path) -> None:
     """Refuse, before any work, an output that cannot be written or would overwrite the input.
 
@@ -515,7 +533,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
     full, keep = surface, None
     if args.max_points is not None:
         surface, keep = _thinned(surface, args.max_points, method)
-    with _offer_repair(args.repair), _offer_mesh(surface):
+    with _offer_repair(args.repair), _offer_mesh(surface), _offer_more_points(keep, full.n_points):
         result = method(surface, **params)
     check = result.diagnostics.get("selfcheck")
     failed = check is not None and not check.get("passed", False)
@@ -528,8 +546,9 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         strays = "stray" in check.get("causes", {}) or "isolated" in (check.get("failed") or ())
         repair = "--repair drops the stray points; " if strays and not args.repair else ""
         mesh = _mesh_instead(surface)
+        thinned_hint = "" if keep is None else f"; {_subsample_hint(keep.size, full.n_points)}"
         print(f"parambench: error: {failure_line(check, result.params, method.name)}"
-              f"{'; ' + mesh if mesh else ''} ({repair}--force writes the map anyway)", file=sys.stderr)
+              f"{'; ' + mesh if mesh else ''}{thinned_hint} ({repair}--force writes the map anyway)", file=sys.stderr)
         return EXIT_SELFCHECK
     faces, points, uv = surface.faces, surface.points, result.uv
     if keep is not None:
