@@ -604,12 +604,15 @@ def _extended(points, keep, sub_points, result):
 
     sub_faces = pointset_faces(sub_points, result.uv, result.diagnostics.get("boundary_loops"))
     uv, facts = extend_uv(points, keep, result.uv, sub_faces)
-    off = facts["offset_spacings"]
+    spans = uncovered_spans(points, keep, sub_faces)
+    off, gap = facts["offset_spacings"], spans["gap_spacings"]
+    covered = "" if spans["lost_hole"] else (f"; the input covers them (every probe of them within {gap['max']:.2g} "
+                                             f"local spacings of an input point, typically {gap['typical']:.2g})")
     print(f"parambench: note: the other {points.shape[0] - keep.size:,} points take the uv of their place on the "
           f"subsample's mapped triangles ({off['median']:.2g} of its edge lengths off them at the median, "
-          f"{off['max']:.2g} at most; {facts['n_outside']:,} beyond its rim, carried on linearly); the output's faces "
-          "are the subsample's", file=sys.stderr)
-    return uv, keep[sub_faces], uncovered_spans(points, keep, sub_faces)
+          f"{off['max']:.2g} at most; {facts['n_outside']:,} beyond its rim, carried on linearly){covered}; the "
+          "output's faces are the subsample's", file=sys.stderr)
+    return uv, keep[sub_faces], spans
 
 
 def _lost_hole_line(spans: dict, n_sub: int) -> str:
