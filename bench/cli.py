@@ -11,7 +11,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Sequence
 
-from parambench.datasets_gen.errors import REPAIR_ACTION, InputFileError, InvalidInputError, ParambenchError
+from parambench.datasets_gen.errors import (REPAIR_ACTION, InputFileError, InvalidInputError, ParambenchError,
+                                           ResourceLimitError)
 
 __all__ = ["main", "parse_param_values"]
 
@@ -459,8 +460,6 @@ def _offer_more_points(keep, n_points: int):
     try:
         yield
     except ParambenchError as exc:
-        from parambench.datasets_gen.errors import ResourceLimitError
-
         if keep is not None and not isinstance(exc, ResourceLimitError):  # that one names --max-points already
             exc.args = (f"{str(exc).rstrip('.')}; {_subsample_hint(keep.size, n_points)}.",)
         raise
