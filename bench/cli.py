@@ -551,7 +551,7 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
         return EXIT_SELFCHECK
     faces, points, uv = surface.faces, surface.points, result.uv
     if keep is not None:
-        surface, points, uv, faces, spans = full, full.points, *_extended(full.points, keep, surface.points, result)
+        surface, points, uv, faces, spans = full, full.points, *_extended(full.points, keep, result)
         faces = None if csv else faces
         if spans["lost_hole"]:
             line = _lost_hole_line(spans, keep.size)
@@ -595,15 +595,12 @@ def _thinned(surface, max_points: int, method):
     return Surface(points=surface.points[keep], normals=normals, name=surface.name), keep
 
 
-def _extended(points, keep, sub_points, result):
+def _extended(points, keep, result):
     """Every point's uv from the subsample's map, the subsample's triangles in ``points``' rows, and
-    where they span a place the points leave empty (:func:`~parambench.methods.pointset.extension.uncovered_spans`)."""
-    from parambench.methods.pointset.extension import extend_uv, uncovered_spans
-    from parambench.methods.pointset.selfcheck import pointset_faces
+    where they span a place the points leave empty (:func:`~parambench.methods.pointset.extension.carry_map`)."""
+    from parambench.methods.pointset.extension import carry_map
 
-    sub_faces = pointset_faces(sub_points, result.uv, result.diagnostics.get("boundary_loops"))
-    uv, facts = extend_uv(points, keep, result.uv, sub_faces)
-    spans = uncovered_spans(points, keep, sub_faces)
+    uv, faces, facts, spans = carry_map(points, keep, result.uv, result.diagnostics.get("boundary_loops"))
     off, gap = facts["offset_spacings"], spans["gap_spacings"]
     covered = "" if spans["lost_hole"] else (f"; the input covers them (every probe of them within {gap['max']:.2g} "
                                              f"local spacings of an input point, typically {gap['typical']:.2g})")
@@ -611,7 +608,7 @@ def _extended(points, keep, sub_points, result):
           f"subsample's mapped triangles ({off['median']:.2g} of its edge lengths off them at the median, "
           f"{off['max']:.2g} at most; {facts['n_outside']:,} beyond its rim, carried on linearly){covered}; the "
           "output's faces are the subsample's", file=sys.stderr)
-    return uv, keep[sub_faces], spans
+    return uv, faces, spans
 
 
 def _lost_hole_line(spans: dict, n_sub: int) -> str:

@@ -23,13 +23,16 @@ voids reach 2 spacings, a regular one's about 1).
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from parambench.datasets_gen.errors import InvalidInputError
 
-__all__ = ["thin_indices", "extend_uv", "uncovered_spans", "EXTENSION_CHUNK", "LOST_HOLE_OUTLIER"]
+__all__ = ["thin_indices", "extend_uv", "uncovered_spans", "carry_map", "map_through_subsample", "CarriedMap",
+           "SubsampleMap", "EXTENSION_CHUNK", "LOST_HOLE_OUTLIER"]
 
 #: Points extended per block (bounds the work arrays: 100k points with 16 candidate
 #: triangles each hold about 0.5 GB of float64 temporaries).
@@ -263,3 +266,139 @@ def uncovered_spans(points: np.ndarray, sub: np.ndarray, faces: np.ndarray) -> d
     return {"gap_spacings": {"typical": typical, "max": largest}, "lost_hole": bool(largest >= limit),
             "n_spanning_faces": int(np.count_nonzero((gaps >= limit).any(axis=1))),
             "where": [float(x) for x in probes[worst[1]][worst[0]]]}
+
+
+class CarriedMap(NamedTuple):
+    """A subsample's map carried to every point (:func:`carry_map`).
+
+    Attributes
+    ----------
+    uv : (N, 2) numpy.ndarray of float64
+        Every point's uv (:func:`extend_uv`).
+    faces : (F, 3) numpy.ndarray of int64
+        The subsample's uv triangles, as rows of all the points.
+    facts : dict
+        :func:`extend_uv`'s facts.
+    spans : dict
+        :func:`uncovered_spans` of those triangles (``spans["lost_hole"]``).
+    """
+
+    uv: np.ndarray
+    faces: np.ndarray
+    facts: dict
+    spans: dict
+
+
+def carry_map(points: np.ndarray, sub: np.ndarray, sub_uv: np.ndarray, loops: list | None) -> CarriedMap:
+    """Carry a subsample's map to every point, and check the points cover its triangles.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy.ndarray of float64
+        All the points.
+    sub : (M,) numpy.ndarray of int64
+        Indices of the subsample into ``points``.
+    sub_uv : (M, 2) numpy.ndarray of float64
+        The subsample's map.
+    loops : list of (L_i,) array_like of int, or None
+        The subsample's boundary loops (indices into ``sub``; a point-set result's
+        ``diagnostics["boundary_loops"]``): its uv triangles leave their holes empty
+        (:func:`parambench.methods.pointset.selfcheck.pointset_faces`).
+
+    Returns
+    -------
+    CarriedMap
+
+    Raises
+    ------
+    InvalidInputError
+        The subsample's uv points cannot be triangulated (a collapsed map).
+    """
+    from .selfcheck import pointset_faces
+
+    pts = np.asarray(points, dtype=np.float64)
+    sub = np.asarray(sub, dtype=np.int64)
+    sub_faces = pointset_faces(pts[sub], sub_uv, loops)
+    uv, facts = extend_uv(pts, sub, sub_uv, sub_faces)
+    return CarriedMap(uv, sub[sub_faces], facts, uncovered_spans(pts, sub, sub_faces))
+
+
+class SubsampleMap(NamedTuple):
+    """A point set mapped through a subsample (:func:`map_through_subsample`).
+
+    Attributes
+    ----------
+    subsample : (M,) numpy.ndarray of int64
+        Indices of the mapped points (all of them when there were no more than asked).
+    result : MethodResult
+        The method's result on the subsample (its ``diagnostics["selfcheck"]``).
+    carried : CarriedMap or None
+        Every point's uv; None where the subsample's map failed its self-check or the
+        points were not thinned.
+    """
+
+    subsample: np.ndarray
+    result: Any
+    carried: CarriedMap | None
+
+    @property
+    def uv(self) -> np.ndarray | None:
+        """(N, 2) uv of every point (None where the subsample's map failed its self-check)."""
+        if self.carried is not None:
+            return self.carried.uv
+        return self.result.uv if self.passed else None
+
+    @property
+    def passed(self) -> bool:
+        """The subsample's map passed its self-check and no hole of the points was lost."""
+        check = self.result.diagnostics.get("selfcheck") or {}
+        return bool(check.get("passed", True)) and not (self.carried is not None and self.carried.spans["lost_hole"])
+
+
+def map_through_subsample(method: Any, points: np.ndarray, max_points: int, *, normals: np.ndarray | None = None,
+                          **params: Any) -> SubsampleMap:
+    """Map at most ``max_points`` well-spread points with a point-set method, then carry the map to all.
+
+    What ``parambench flatten --max-points`` does, from Python: :func:`thin_indices`, the
+    method on the subsample, and, where its map passes its self-check, :func:`carry_map`.
+
+    Parameters
+    ----------
+    method : str or Method
+        A point-set method (e.g. ``"ocp"``).
+    points : (N, 3) array_like of float
+    max_points : int
+        At least 3.
+    normals : (N, 3) array_like of float, optional
+        Unit normals, when they are data.
+    **params
+        The method's parameters.
+
+    Returns
+    -------
+    SubsampleMap
+        ``.uv`` and ``.passed``: check ``passed`` before using the map.
+
+    Raises
+    ------
+    InvalidInputError
+        ``max_points`` below 3, or a method that needs faces.
+    ParambenchError
+        Whatever the method raises on the subsample.
+    """
+    from parambench.datasets_gen.surface import MethodInput
+
+    from ..registry import get_method
+
+    method = get_method(method) if isinstance(method, str) else method
+    if method.needs_faces:
+        raise InvalidInputError(f"method {method.name!r} needs faces; a subsample is a point set (e.g. use ocp).")
+    pts = np.asarray(points, dtype=np.float64)
+    keep = thin_indices(pts, max_points)
+    given = None if normals is None else np.asarray(normals, dtype=np.float64)[keep]
+    result = method(MethodInput(pts[keep], normals=given), **params)
+    thinned = keep.size < pts.shape[0]
+    check = result.diagnostics.get("selfcheck") or {}
+    carried = (carry_map(pts, keep, result.uv, result.diagnostics.get("boundary_loops"))
+               if thinned and check.get("passed", True) else None)
+    return SubsampleMap(keep, result, carried)

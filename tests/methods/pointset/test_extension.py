@@ -10,7 +10,8 @@ from parambench.bench.cli import main
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.errors import InvalidInputError
 from parambench.datasets_gen.registry import make_surface
-from parambench.methods.pointset.extension import LOST_HOLE_OUTLIER, extend_uv, thin_indices, uncovered_spans
+from parambench.methods.pointset.extension import (LOST_HOLE_OUTLIER, extend_uv, map_through_subsample, thin_indices,
+                                                    uncovered_spans)
 from parambench.methods.registry import get_method
 
 
@@ -202,3 +203,22 @@ def test_an_error_on_the_subsample_says_it_is_the_subsample(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "NoBoundaryError" in err and "--max-points subsample (2,926 of the 5,051 points)" in err
     assert err.rstrip().endswith("raise --max-points.")
+
+
+def test_mapping_through_a_subsample_from_python():
+    """``map_through_subsample`` does what ``flatten --max-points`` does: the LiDAR ground at about a
+    third loses its hole (not passed, the lost hole reported, every point's uv still there); at
+    about half it keeps it (passed, faces over the subsample's points only, the subsample's own
+    uv unchanged); not thinned when the points fit; a mesh method refused."""
+    points = make_surface("real/lidar-ground").points
+    lost = map_through_subsample("ocp", points, 3400)
+    assert lost.result.diagnostics["selfcheck"]["passed"] and lost.carried.spans["lost_hole"] and not lost.passed
+    kept = map_through_subsample("ocp", points, 4800)
+    assert kept.passed and kept.uv.shape == (points.shape[0], 2) and np.isfinite(kept.uv).all()
+    assert np.isin(kept.carried.faces, kept.subsample).all()
+    assert np.array_equal(kept.uv[kept.subsample], kept.result.uv)
+    small = make_surface("bump", 600, seed=0).points
+    whole = map_through_subsample("ocp", small, 1000)
+    assert whole.carried is None and whole.subsample.size == small.shape[0] and whole.uv is whole.result.uv
+    with pytest.raises(InvalidInputError, match="needs faces"):
+        map_through_subsample("scp-igl", small, 100)
