@@ -559,7 +559,10 @@ def _cmd_flatten(args: argparse.Namespace) -> int:
                 print(f"{summary}{_selfcheck_summary(check)}; the full points' check FAILED: a hole lost; nothing written")
                 print(f"parambench: error: {line} (--force writes the map anyway)", file=sys.stderr)
                 return EXIT_SELFCHECK
-            print(f"parambench: warning: {line} (written anyway: --force)", file=sys.stderr)
+            if faces is not None:  # the output shows the hole: no triangle across it
+                faces = faces[~spans["spanning"]]
+            left_out = "" if faces is None else f"; its {spans['n_spanning_faces']} triangles there left out"
+            print(f"parambench: warning: {line} (written anyway: --force{left_out})", file=sys.stderr)
     elif faces is None and not csv:
         faces = pointset_faces(surface.points, result.uv, result.diagnostics.get("boundary_loops"))
     if csv and faces is None and "input_rows" in surface.params:

@@ -246,8 +246,9 @@ def uncovered_spans(points: np.ndarray, sub: np.ndarray, faces: np.ndarray) -> d
         quantile leaving out :data:`_TAIL_PROBES` probes, at most 1 in 1,000) and the
         largest, in local spacings; ``lost_hole``: the largest is at least
         :data:`LOST_HOLE_OUTLIER` times the typical one and at least one spacing;
-        ``n_spanning_faces``: triangles with a probe past that limit; ``where``: the 3D
-        position of the largest gap's probe, a list of three floats.
+        ``n_spanning_faces``: triangles with a probe past that limit, and ``spanning``, a
+        (F,) numpy.ndarray of bool marking them (all False where no hole was lost);
+        ``where``: the 3D position of the largest gap's probe, a list of three floats.
     """
     pts = np.asarray(points, dtype=np.float64)
     q = pts[np.asarray(sub, dtype=np.int64)]
@@ -263,8 +264,9 @@ def uncovered_spans(points: np.ndarray, sub: np.ndarray, faces: np.ndarray) -> d
     worst = np.unravel_index(int(np.argmax(gaps)), gaps.shape)
     largest = float(gaps[worst])
     limit = max(LOST_HOLE_OUTLIER * typical, _LOST_HOLE_FLOOR)
+    spanning = (gaps >= limit).any(axis=1)
     return {"gap_spacings": {"typical": typical, "max": largest}, "lost_hole": bool(largest >= limit),
-            "n_spanning_faces": int(np.count_nonzero((gaps >= limit).any(axis=1))),
+            "n_spanning_faces": int(np.count_nonzero(spanning)), "spanning": spanning,
             "where": [float(x) for x in probes[worst[1]][worst[0]]]}
 
 

@@ -9,6 +9,7 @@ from scipy.spatial import Delaunay, cKDTree
 from parambench.bench.cli import main
 from parambench.bench.metrics import evaluate
 from parambench.datasets_gen.errors import InvalidInputError
+from parambench.datasets_gen.io import load_surface
 from parambench.datasets_gen.registry import make_surface
 from parambench.methods.pointset.extension import (LOST_HOLE_OUTLIER, extend_uv, map_through_subsample, thin_indices,
                                                     uncovered_spans)
@@ -188,6 +189,10 @@ def test_flatten_max_points_refuses_a_map_that_lost_a_hole(tmp_path, capsys):
     assert not out.exists()
     assert main(["flatten", str(src), "--max-points", "3400", "--force", "-o", str(out)]) == 0
     assert "written anyway: --force" in capsys.readouterr().err and out.exists()
+    # ... without the triangles across the hole: the written faces leave it open
+    written = load_surface(out)
+    assert written.n_points == s.n_points
+    assert not uncovered_spans(s.points, np.arange(s.n_points), written.faces)["lost_hole"]
     assert main(["flatten", str(src), "--max-points", "4800", "-o", str(tmp_path / "half.obj")]) == 0
     err = capsys.readouterr().err
     assert "leave empty" not in err and "the input covers them" in err
