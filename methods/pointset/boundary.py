@@ -833,7 +833,8 @@ def _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidate
     :data:`HAIRPIN_HOLE_ENCLOSED` of their size in points. The swiss roll's hole
     (scikit-learn's ``make_swiss_roll(hole=True)``, 7 spacings across and 30 long at 2,000
     points) was missed at 2,000 and 5,000 points: the plain walk turned away at its
-    corners into the rim's voids, and its chain ran into the outer loop.
+    corners into the rim's voids, and its chain ran into the outer loop. The walk's pieces of
+    one slot are joined first (:func:`~parambench.methods.pointset.slot_rejoin.rejoin_split_slots`).
     """
     on_loop = np.zeros(points.shape[0], dtype=bool)
     for loop in kept:
@@ -842,8 +843,8 @@ def _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidate
         return []
     again, _, _ = _walk_pruned(points, ball_indices, coords, e1, e2, candidates, outward, bisector, reach,
                                min_loop_size, hairpins=True)
-    new = [c for c in _true_loops(points, again, ball_radius, typical_radius, min_loop_size, local_spacing)
-           if not on_loop[c].any()]
+    again, _ = rejoin_split_slots(points, normals, [c for c in again if not on_loop[c].any()], None, local_spacing)
+    new = _true_loops(points, again, ball_radius, typical_radius, min_loop_size, local_spacing)
     if not new:
         return []
     tree = cKDTree(points)
