@@ -56,7 +56,7 @@ _OPPOSED = -0.5
 
 def rejoin_split_slots(points: np.ndarray, normals: np.ndarray, loops: list[np.ndarray],
                        slot_ends: np.ndarray | None, local_spacing: np.ndarray) -> tuple[list[np.ndarray], int]:
-    """Join loops along a cut slot that cross it side by side, until no pair is left.
+    """Join loops that cross one slot side by side, until no pair is left.
 
     Parameters
     ----------

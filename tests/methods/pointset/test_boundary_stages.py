@@ -50,13 +50,13 @@ def _walk_inputs(name, n, sampling, eps):
 def test_walk_pruned_leaves_no_small_cycle_on_a_ragged_boundary():
     pts, nrm, balls, args = _walk_inputs("bump", 3000, "random", 1.5)
     candidates = args[5]
-    loops, n_pruned = _walk_pruned(*args, 16)
+    loops, n_pruned, _ = _walk_pruned(*args, 16)
     assert n_pruned > 0  # random sampling with small balls: wrong steps into gaps happen
     assert all(c.size >= 16 for c in loops)
     members = np.concatenate(loops)
     assert np.unique(members).size == members.size and candidates[members].all()
     # without pruning (min size 1) nothing is dropped, and the walk finds at least as many cycles
-    unpruned, none = _walk_pruned(*args, 1)
+    unpruned, none, _ = _walk_pruned(*args, 1)
     assert none == 0 and len(unpruned) >= len(loops)
     # find_boundary reports the pruned cycles among its dropped loops
     res = find_boundary(pts, nrm, balls.indices, balls.coords, min_loop_size=16, require_loop=False)
