@@ -846,16 +846,15 @@ def _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidate
                                min_loop_size, hairpins=True)
     pieces = [c for c in again if not on_loop[c].any()]
     tree = cKDTree(points)
-    # Joined pieces stand only as a slot: on pymeshlab's range scan a ragged hole's
-    # 39-point loop took in another piece and passed as a hole of 70 points (a third off
-    # the rim), and the rim's precision fell. Pieces in no joined slot are judged as before.
-    joined, n_joined = rejoin_split_slots(points, normals, pieces, None, local_spacing)
+    # Joining is for a slot's pieces: a joined loop stands only as a slot (the hole test is
+    # for loops the walk closed whole); pieces in no joined slot are judged as before.
+    joined, n_joined = rejoin_split_slots(points, normals, pieces, None, local_spacing, tree)
     slots = []
     if n_joined:
-        made = [c for c in joined if not any(c is p for p in pieces)]  # the joins' new loops
+        piece_ids = {id(c) for c in pieces}
+        made = [c for c in joined if id(c) not in piece_ids]  # the joins' new loops
         slots = [c for c in _true_loops(points, made, ball_radius, typical_radius, min_loop_size, local_spacing)
-                 if is_slot(points, normals, c, float(np.median(local_spacing[c])))
-                 and enclosed_points(points, normals, c, float(np.median(local_spacing[c])), tree) == 0]
+                 if _slot_or_hole(points, normals, c, local_spacing, tree, holes=False)]
         in_slots = np.zeros(points.shape[0], dtype=bool)
         for c in slots:
             in_slots[c] = True
@@ -865,17 +864,20 @@ def _hairpin_slot_loops(points, normals, ball_indices, coords, e1, e2, candidate
 
 
 def _slot_or_hole(points: np.ndarray, normals: np.ndarray, loop: np.ndarray, local_spacing: np.ndarray,
-                  tree: cKDTree | None = None) -> bool:
+                  tree: cKDTree | None = None, holes: bool = True) -> bool:
     """Whether a loop closed through hairpin steps bounds a slot or a hole, not points.
 
     A slot (:func:`~parambench.methods.pointset.hole_filling.is_slot`) enclosing no
-    point, or a hole round an empty disk of :data:`HAIRPIN_HOLE_EMPTY_STEPS` mean steps
-    enclosing at most :data:`HAIRPIN_HOLE_ENCLOSED` of the loop's size in points.
+    point, or (with ``holes``) a hole round an empty disk of
+    :data:`HAIRPIN_HOLE_EMPTY_STEPS` mean steps enclosing at most
+    :data:`HAIRPIN_HOLE_ENCLOSED` of the loop's size in points.
     """
     tree = cKDTree(points) if tree is None else tree
     spacing = float(np.median(local_spacing[loop]))
     if is_slot(points, normals, loop, spacing):
         allowed = 0
+    elif not holes:
+        return False
     elif empty_radius_inside(points, loop, tree) >= HAIRPIN_HOLE_EMPTY_STEPS * _perimeter(points, loop) / loop.size:
         allowed = int(HAIRPIN_HOLE_ENCLOSED * loop.size)
     else:

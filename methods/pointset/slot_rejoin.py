@@ -55,7 +55,8 @@ _OPPOSED = -0.5
 
 
 def rejoin_split_slots(points: np.ndarray, normals: np.ndarray, loops: list[np.ndarray],
-                       slot_ends: np.ndarray | None, local_spacing: np.ndarray) -> tuple[list[np.ndarray], int]:
+                       slot_ends: np.ndarray | None, local_spacing: np.ndarray,
+                       tree: cKDTree | None = None) -> tuple[list[np.ndarray], int]:
     """Join loops that cross one slot side by side, until no pair is left.
 
     Parameters
@@ -69,6 +70,8 @@ def rejoin_split_slots(points: np.ndarray, normals: np.ndarray, loops: list[np.n
         a 32-point piece closed by hairpin steps beside the cut one). None: any two loops,
         for a walk whose loops are all judged as slots afterwards.
     local_spacing : (N,) numpy.ndarray of float64
+    tree : scipy.spatial.cKDTree, optional
+        Of ``points``, where the caller has one (built here otherwise).
 
     Returns
     -------
@@ -80,7 +83,7 @@ def rejoin_split_slots(points: np.ndarray, normals: np.ndarray, loops: list[np.n
     loops = list(loops)
     if len(loops) < 2:
         return loops, 0
-    tree = cKDTree(points)
+    tree = cKDTree(points) if tree is None else tree
     n_joined = 0
     while True:
         join = _crossing_pair(points, normals, loops, slot_ends, local_spacing, tree)
